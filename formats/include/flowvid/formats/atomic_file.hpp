@@ -1,0 +1,25 @@
+#pragma once
+// Atomic writes: every flowvid writer produces its file through these helpers,
+// so a crash, a full disk or an exception half-way never leaves a truncated
+// preset or bank in place of the previous good one.
+
+#include <functional>
+#include <iosfwd>
+#include <string>
+
+namespace flowvid::formats {
+
+// Calls write_body with a stream to a temporary file beside `path`, flushes and
+// syncs it, then renames it over `path`. If write_body throws or the stream
+// fails, the temporary file is removed, `path` is untouched, and the error is
+// rethrown (stream failures as flowvid::IoError naming `path`).
+void write_file_atomically(const std::string& path, const std::function<void(std::ostream&)>& write_body);
+
+// The same for writers that need a file name rather than a stream (OpenEXR,
+// tinygltf): write_to writes the whole file at the temporary path it is given.
+void write_path_atomically(const std::string& path, const std::function<void(const std::string& temp_path)>& write_to);
+
+// Reads a whole file; throws flowvid::IoError naming the file when it cannot.
+std::string read_text_file(const std::string& path);
+
+}  // namespace flowvid::formats
