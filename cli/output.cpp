@@ -1,0 +1,74 @@
+#include "output.hpp"
+
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+#include <unistd.h>
+
+namespace flowvid::cli {
+
+void log_message(const std::string& text) { std::cerr << text << '\n'; }
+
+void print_problems(const std::vector<Problem>& problems) {
+    for (const Problem& problem : problems) std::cerr << problem.to_string() << '\n';
+}
+
+std::string human_readable(const nlohmann::json& value, int indent) {
+    std::ostringstream text;
+    const std::string pad(static_cast<std::size_t>(indent) * 2, ' ');
+    if (value.is_object()) {
+        for (auto it = value.begin(); it != value.end(); ++it) {
+            const nlohmann::json& child = it.value();
+            const bool scalar_list = child.is_array() && std::all_of(child.begin(), child.end(), [](const nlohmann::json& e) {
+                                         return e.is_primitive();
+                                     });
+            if (child.is_primitive() || scalar_list) {
+                text << pad << it.key() << ": ";
+                if (child.is_string()) text << child.get<std::string>();
+                else if (scalar_list) {
+                    for (std::size_t i = 0; i < child.size(); ++i)
+                        text << (i ? ", " : "") << (child[i].is_string() ? child[i].get<std::string>() : child[i].dump());
+                } else text << child.dump();
+                text << '\n';
+            } else {
+                text << pad << it.key() << ":\n" << human_readable(child, indent + 1);
+            }
+        }
+    } else if (value.is_array()) {
+        for (const nlohmann::json& element : value) {
+            text << pad << "-\n" << human_readable(element, indent + 1);
+        }
+    } else {
+        text << pad << (value.is_string() ? value.get<std::string>() : value.dump()) << '\n';
+    }
+    return text.str();
+}
+
+Progress::Progress(const GlobalOptions& options, std::string task) : m_task(std::move(task)) {
+    m_mode = options.progress;
+    if (options.quiet) m_mode = "none";
+    if (m_mode == "auto") m_mode = ::isatty(STDERR_FILENO) ? "bar" : "none";
+}
+
+void Progress::update(double fraction, const std::string& detail) {
+    const int percent = static_cast<int>(fraction * 100.0 + 0.5);
+    if (percent == m_last_percent) return;
+    m_last_percent = percent;
+    if (m_mode == "json") {
+        nlohmann::json event = {{"event", "progress"}, {"task", m_task}, {"fraction", fraction}};
+        if (!detail.empty()) event["detail"] = detail;
+        std::cerr << event.dump() << std::endl;
+    } else if (m_mode == "bar") {
+        const int width = 30;
+        const int filled = percent * width / 100;
+        std::cerr << '\r' << m_task << " [" << std::string(filled, '#') << std::string(width - filled, ' ') << "] "
+                  << percent << "% " << detail << std::flush;
+    }
+}
+
+void Progress::done() {
+    if (m_mode == "json") std::cerr << nlohmann::json{{"event", "done"}, {"task", m_task}}.dump() << std::endl;
+    else if (m_mode == "bar") std::cerr << '\n';
+}
+
+}  // namespace flowvid::cli

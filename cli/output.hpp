@@ -1,0 +1,32 @@
+#pragma once
+// Results go to stdout; logs, warnings and progress to stderr.
+
+#include "command.hpp"
+#include "flowvid/error.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+namespace flowvid::cli {
+
+void log_message(const std::string& text);             // stderr, one line
+void print_problems(const std::vector<Problem>& problems);  // stderr, one line each
+// A JSON summary as indented "key: value" lines for people.
+std::string human_readable(const nlohmann::json& value, int indent = 0);
+
+// Progress on stderr: a bar on a terminal, JSON lines with --progress=json.
+class Progress {
+public:
+    Progress(const GlobalOptions& options, std::string task);
+    void update(double fraction, const std::string& detail = {});
+    void done();
+
+private:
+    std::string m_task;
+    std::string m_mode;
+    int m_last_percent = -1;
+};
+
+}  // namespace flowvid::cli

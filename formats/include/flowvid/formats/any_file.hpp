@@ -1,0 +1,40 @@
+#pragma once
+// One entry point over every flowvid format: recognise a file by its content,
+// validate it, summarise it. Used by `flowvid validate`, `flowvid info` and the
+// fuzz targets, so all three judge a file the same way.
+
+#include "flowvid/error.hpp"
+#include "flowvid/formats/json_fields.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <vector>
+
+namespace flowvid::formats {
+
+enum class FileKind {
+    unknown,
+    fabric_preset,      // *.fabric.json
+    flowline_set,       // *.flowlines.json
+    flowline_svg,       // flow lines drawn in SVG
+    particle_bank,      // multi-part EXR
+    vertex_animation,   // EXR, one row per frame
+    motion_gltf,        // .glb
+    capture_folder,     // folder with capture.json (or the capture.json itself)
+};
+
+const char* file_kind_name(FileKind kind);
+
+// Looks at the content (JSON "format", EXR attributes, glTF magic, SVG root),
+// falling back to the file name. Throws IoError when the path cannot be read.
+FileKind detect_file_kind(const std::string& path);
+
+// Every problem of the file; never throws on bad content (an unreadable or
+// unrecognised file is reported as a problem too).
+std::vector<Problem> validate_any_file(const std::string& path, Strictness strictness = Strictness::strict);
+
+// A summary for `flowvid info` (throws ValidationError / IoError when invalid).
+nlohmann::json summarize_any_file(const std::string& path);
+
+}  // namespace flowvid::formats

@@ -1,0 +1,110 @@
+#include "flowvid/formats/any_file.hpp"
+
+#include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/fabric_preset.hpp"
+
+#include <filesystem>
+#include <fstream>
+
+namespace flowvid::formats {
+namespace fs = std::filesystem;
+
+namespace {
+
+bool ends_with(const std::string& text, const std::string& suffix) {
+    return text.size() >= suffix.size() && text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+std::string read_head(const std::string& path, std::size_t bytes) {
+    std::ifstream in(path, std::ios::binary);
+    std::string head(bytes, '\0');
+    in.read(head.data(), static_cast<std::streamsize>(bytes));
+    head.resize(static_cast<std::size_t>(in.gcount()));
+    return head;
+}
+
+FileKind kind_from_json_format(const std::string& format) {
+    if (format == "flowvid.fabric") return FileKind::fabric_preset;
+    if (format == "flowvid.flowlines") return FileKind::flowline_set;
+    if (format == "flowvid.capture") return FileKind::capture_folder;
+    return FileKind::unknown;
+}
+
+}  // namespace
+
+const char* file_kind_name(FileKind kind) {
+    switch (kind) {
+        case FileKind::fabric_preset: return "fabric preset";
+        case FileKind::flowline_set: return "flow-line set";
+        case FileKind::flowline_svg: return "flow lines (SVG)";
+        case FileKind::particle_bank: return "particle texture bank";
+        case FileKind::vertex_animation: return "vertex-animation EXR";
+        case FileKind::motion_gltf: return "motion (glTF binary)";
+        case FileKind::capture_folder: return "capture folder";
+        case FileKind::unknown: break;
+    }
+    return "unknown";
+}
+
+FileKind detect_file_kind(const std::string& path) {
+    std::error_code ec;
+    if (fs::is_directory(path, ec)) {
+        return fs::exists(fs::path(path) / "capture.json") ? FileKind::capture_folder : FileKind::unknown;
+    }
+    if (!fs::exists(path, ec)) throw IoError(path, "", "no such file or folder", "check the path");
+    const std::string head = read_head(path, 4096);
+    if (head.size() >= 4 && static_cast<unsigned char>(head[0]) == 0x76 && static_cast<unsigned char>(head[1]) == 0x2f &&
+        static_cast<unsigned char>(head[2]) == 0x31 && static_cast<unsigned char>(head[3]) == 0x01) {
+        // OpenEXR magic: the bank is multi-part and says so in its attributes.
+        return head.find("flowvid.particle_bank") != std::string::npos ? FileKind::particle_bank
+                                                                       : FileKind::vertex_animation;
+    }
+    if (head.rfind("glTF", 0) == 0) return FileKind::motion_gltf;
+    if (head.find("<svg") != std::string::npos || ends_with(path, ".svg")) return FileKind::flowline_svg;
+    const std::size_t format_key = head.find("\"format\"");
+    if (format_key != std::string::npos) {
+        const std::size_t open = head.find('"', head.find(':', format_key));
+        const std::size_t close = open == std::string::npos ? open : head.find('"', open + 1);
+        if (close != std::string::npos) {
+            FileKind kind = kind_from_json_format(head.substr(open + 1, close - open - 1));
+            if (kind != FileKind::unknown) return kind;
+        }
+    }
+    if (ends_with(path, ".fabric.json")) return FileKind::fabric_preset;
+    if (ends_with(path, ".flowlines.json")) return FileKind::flowline_set;
+    if (ends_with(path, "capture.json")) return FileKind::capture_folder;
+    if (ends_with(path, ".glb")) return FileKind::motion_gltf;
+    return FileKind::unknown;
+}
+
+std::vector<Problem> validate_any_file(const std::string& path, Strictness strictness) {
+    FileKind kind = FileKind::unknown;
+    try {
+        kind = detect_file_kind(path);
+    } catch (const Error& error) {
+        return {Problem{Problem::Severity::error, path, error.field(), "cannot read: " + std::string(error.what()), error.fix()}};
+    }
+    switch (kind) {
+        case FileKind::fabric_preset: return validate_fabric_preset_file(path, strictness);
+        default: break;
+    }
+    return {Problem{Problem::Severity::error, path, "", "not a flowvid file (unrecognised content)",
+                    "give a *.fabric.json, *.flowlines.json, flow-line SVG, bank or vertex-animation EXR, "
+                    ".glb, or a capture folder"}};
+}
+
+nlohmann::json summarize_any_file(const std::string& path) {
+    const FileKind kind = detect_file_kind(path);
+    nlohmann::json summary;
+    switch (kind) {
+        case FileKind::fabric_preset: summary = summarize_fabric_preset(read_fabric_preset(path)); break;
+        default:
+            throw ValidationError({Problem{Problem::Severity::error, path, "", "not a flowvid file (unrecognised content)",
+                                           "run 'flowvid validate' on it for details"}});
+    }
+    summary["path"] = path;
+    summary["kind"] = file_kind_name(kind);
+    return summary;
+}
+
+}  // namespace flowvid::formats
