@@ -2,6 +2,11 @@
 
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
+#include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/flowlines.hpp"
+#include "flowvid/formats/motion_gltf.hpp"
+#include "flowvid/formats/particle_bank.hpp"
+#include "flowvid/formats/vertex_animation.hpp"
 
 #include <filesystem>
 #include <fstream>
@@ -86,7 +91,13 @@ std::vector<Problem> validate_any_file(const std::string& path, Strictness stric
     }
     switch (kind) {
         case FileKind::fabric_preset: return validate_fabric_preset_file(path, strictness);
-        default: break;
+        case FileKind::flowline_set:
+        case FileKind::flowline_svg: return validate_flowline_set_file(path, strictness);
+        case FileKind::particle_bank: return validate_particle_bank_file(path, strictness);
+        case FileKind::vertex_animation: return validate_vertex_animation_file(path, strictness);
+        case FileKind::motion_gltf: return validate_motion_gltf_file(path, strictness);
+        case FileKind::capture_folder: return validate_capture_folder(path, strictness);
+        case FileKind::unknown: break;
     }
     return {Problem{Problem::Severity::error, path, "", "not a flowvid file (unrecognised content)",
                     "give a *.fabric.json, *.flowlines.json, flow-line SVG, bank or vertex-animation EXR, "
@@ -98,7 +109,13 @@ nlohmann::json summarize_any_file(const std::string& path) {
     nlohmann::json summary;
     switch (kind) {
         case FileKind::fabric_preset: summary = summarize_fabric_preset(read_fabric_preset(path)); break;
-        default:
+        case FileKind::flowline_set: summary = summarize_flowline_set(read_flowline_set(path)); break;
+        case FileKind::flowline_svg: summary = summarize_flowline_set(import_flowlines_svg(path)); break;
+        case FileKind::particle_bank: summary = summarize_particle_bank(read_particle_bank(path)); break;
+        case FileKind::vertex_animation: summary = summarize_vertex_animation(read_vertex_animation(path)); break;
+        case FileKind::motion_gltf: summary = summarize_motion_gltf(read_motion_gltf(path)); break;
+        case FileKind::capture_folder: summary = summarize_capture(read_capture(path)); break;
+        case FileKind::unknown:
             throw ValidationError({Problem{Problem::Severity::error, path, "", "not a flowvid file (unrecognised content)",
                                            "run 'flowvid validate' on it for details"}});
     }

@@ -229,14 +229,17 @@ std::optional<FormatVersion> FormatVersion::parse(const std::string& text) {
 std::optional<FormatVersion> check_format_header(const JsonView& root, const std::string& format_name,
                                                  FormatVersion supported) {
     Diagnostics& diag = root.diagnostics();
+    // Field names are relative to where the header object sits in its document.
+    const std::string format_field = json_pointer_child(root.pointer(), "format");
+    const std::string version_field = json_pointer_child(root.pointer(), "version");
     if (!root.json().is_object()) {
-        diag.error("/", "the document is " + root.json().dump().substr(0, 20) + ", not a JSON object",
+        diag.error(root.pointer().empty() ? "/" : root.pointer(), "the value is " + root.json().dump().substr(0, 20) + ", not a JSON object",
                    "a " + format_name + " file is a JSON object with \"format\": \"" + format_name + "\"");
         return std::nullopt;
     }
     std::optional<std::string> name = root.string("format");
     if (name && *name != format_name) {
-        diag.error("/format", "this is a \"" + *name + "\" file, not \"" + format_name + "\"",
+        diag.error(format_field, "this is a \"" + *name + "\" file, not \"" + format_name + "\"",
                    "use the command or reader for " + *name + ", or set \"format\": \"" + format_name + "\"");
         return std::nullopt;
     }
@@ -244,18 +247,18 @@ std::optional<FormatVersion> check_format_header(const JsonView& root, const std
     if (!text) return std::nullopt;
     std::optional<FormatVersion> version = FormatVersion::parse(*text);
     if (!version) {
-        diag.error("/version", "\"" + *text + "\" is not MAJOR.MINOR", "write \"" + supported.to_string() + "\"");
+        diag.error(version_field, "\"" + *text + "\" is not MAJOR.MINOR", "write \"" + supported.to_string() + "\"");
         return std::nullopt;
     }
     if (version->major != supported.major) {
-        diag.error("/version",
+        diag.error(version_field,
                    "version " + version->to_string() + " is not supported (this flowvid reads " +
                        std::to_string(supported.major) + ".x)",
                    version->major > supported.major ? "upgrade flowvid" : "convert the file with an older flowvid");
         return std::nullopt;
     }
     if (version->minor > supported.minor)
-        diag.warning("/version",
+        diag.warning(version_field,
                      "version " + version->to_string() + " is newer than " + supported.to_string() +
                          "; fields this flowvid does not know are ignored",
                      "upgrade flowvid to use every field");

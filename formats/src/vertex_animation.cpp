@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <memory>
 
 namespace flowvid::formats {
 namespace fs = std::filesystem;
@@ -40,10 +41,10 @@ constexpr const char* kAttrGridRows = "flowvid.grid_rows";
 constexpr const char* kAttrGridCols = "flowvid.grid_cols";
 constexpr const char* kPositionChannels[3] = {"R", "G", "B"};
 
-// Above this many bytes of pixels, a compressed file must be at least 1/4096 of
+// Above this many bytes of pixels (64 MiB), a compressed file must be at least 1/4096 of
 // the raw size (deflate cannot do better than ~1/1032): a tiny corrupt file
 // then cannot make the reader allocate gigabytes.
-constexpr std::uint64_t kLargeRawBytes = std::uint64_t(256) << 20;
+constexpr std::uint64_t kLargeRawBytes = std::uint64_t(64) << 20;
 constexpr std::uint64_t kMaxCompressionRatio = 4096;
 
 // Reads an EXR held in memory (fuzz targets, tests); reading past the end
@@ -105,6 +106,106 @@ std::string pixel_type_name(Imf::PixelType type) {
         case Imf::FLOAT: return "float";
         default: return "unknown";
     }
+}
+
+// What OpenEXR would allocate for is decided by a few header fields; they are
+// read here first, so that a corrupt or hostile header is refused before the
+// library sizes its tables from it.
+struct HeaderPeek {
+    std::int64_t width = 0;
+    std::int64_t height = 0;
+    std::int64_t tile_width = 0;   // 0 for scan-line files
+    std::int64_t tile_height = 0;
+};
+
+std::optional<HeaderPeek> peek_header(const std::string& bytes, std::uint64_t byte_count, Diagnostics& diag) {
+    auto truncated = [&] {
+        diag.error("header", "the OpenEXR header is cut off (" + std::to_string(byte_count) + " bytes in the file)",
+                   "the file is truncated: write it again");
+        return std::nullopt;
+    };
+    if (bytes.size() < 8) return truncated();
+    auto u32 = [&](std::size_t at) {
+        const auto* p = reinterpret_cast<const unsigned char*>(bytes.data()) + at;
+        return std::uint32_t(p[0]) | (std::uint32_t(p[1]) << 8) | (std::uint32_t(p[2]) << 16) | (std::uint32_t(p[3]) << 24);
+    };
+    const std::uint32_t version = u32(4);
+    if ((version & 0xff) != 2) {
+        diag.error("header", "OpenEXR file version " + std::to_string(version & 0xff) + " (expected 2)",
+                   "write the file with OpenEXR 2 or later");
+        return std::nullopt;
+    }
+    if (version & 0x1000) {
+        diag.error("header", "a multi-part OpenEXR file (a vertex-animation texture is one RGB image)",
+                   "is this a particle texture bank? Otherwise write one part");
+        return std::nullopt;
+    }
+    if (version & 0x800) {
+        diag.error("header", "a deep OpenEXR file (a vertex-animation texture is a flat RGB image)",
+                   "write a flat scan-line image");
+        return std::nullopt;
+    }
+    HeaderPeek peek;
+    bool has_window = false;
+    std::size_t at = 8;
+    auto read_name = [&](std::string& out) {
+        const std::size_t end = bytes.find('\0', at);
+        if (end == std::string::npos || end - at > 255) return false;
+        out.assign(bytes, at, end - at);
+        at = end + 1;
+        return true;
+    };
+    for (;;) {
+        std::string name, type;
+        if (!read_name(name)) return truncated();
+        if (name.empty()) break;
+        if (!read_name(type) || at + 4 > bytes.size()) return truncated();
+        const std::uint32_t size = u32(at);
+        at += 4;
+        if (size > bytes.size() - at) return truncated();
+        if (name == "dataWindow" && type == "box2i" && size == 16) {
+            const auto min_x = static_cast<std::int32_t>(u32(at)), min_y = static_cast<std::int32_t>(u32(at + 4));
+            const auto max_x = static_cast<std::int32_t>(u32(at + 8)), max_y = static_cast<std::int32_t>(u32(at + 12));
+            peek.width = std::int64_t(max_x) - min_x + 1;
+            peek.height = std::int64_t(max_y) - min_y + 1;
+            has_window = true;
+        } else if (name == "tiles" && type == "tiledesc" && size == 9) {
+            peek.tile_width = u32(at);
+            peek.tile_height = u32(at + 4);
+        }
+        at += size;
+    }
+    if (!has_window) {
+        diag.error("header", "no dataWindow attribute", "the file is corrupt: write it again");
+        return std::nullopt;
+    }
+    if (peek.width < 1 || peek.height < 1 || peek.width > kMaxVertexAnimationVertices ||
+        peek.height > kMaxVertexAnimationFrames || peek.width * peek.height > kMaxVertexAnimationSamples) {
+        diag.error("data window",
+                   std::to_string(peek.width) + " vertices x " + std::to_string(peek.height) +
+                       " frames is empty or implausibly large (limits: " + std::to_string(kMaxVertexAnimationVertices) +
+                       " vertices, " + std::to_string(kMaxVertexAnimationFrames) + " frames, " +
+                       std::to_string(kMaxVertexAnimationSamples) + " samples)",
+                   "check that the file is a vertex-animation texture, or split the sequence");
+        return std::nullopt;
+    }
+    if (version & 0x200) {
+        // Every tile has an 8-byte offset in the file: a complete file cannot
+        // have more tiles than that allows.
+        if (peek.tile_width < 1 || peek.tile_height < 1) {
+            diag.error("header", "a tiled file without a valid tile size", "write a scan-line image");
+            return std::nullopt;
+        }
+        const std::int64_t tiles = ((peek.width + peek.tile_width - 1) / peek.tile_width) *
+                                   ((peek.height + peek.tile_height - 1) / peek.tile_height);
+        if (static_cast<std::uint64_t>(tiles) > byte_count / 8) {
+            diag.error("header",
+                       std::to_string(tiles) + " tiles cannot fit in a file of " + std::to_string(byte_count) + " bytes",
+                       "the file is truncated or corrupt: write it again");
+            return std::nullopt;
+        }
+    }
+    return peek;
 }
 
 std::string attribute_field(const char* name) { return std::string("attribute ") + name; }
@@ -299,11 +400,17 @@ void check_finite_positions(const VertexAnimation& animation, Diagnostics& diag,
 std::optional<VertexAnimation> parse_exr(Imf::IStream& stream, std::uint64_t byte_count, Diagnostics& diag,
                                          Strictness strictness) {
     VertexAnimation animation;
+    std::unique_ptr<Imf::InputFile> file;
     try {
-        Imf::InputFile file(stream);
-        const Imf::Header& header = file.header();
-        if (!check_header(header, byte_count, diag, strictness, animation)) return std::nullopt;
-
+        file = std::make_unique<Imf::InputFile>(stream);
+    } catch (const std::exception& error) {
+        diag.error("header", std::string("cannot read the OpenEXR header: ") + error.what(),
+                   "the file is truncated or corrupt: write it again");
+        return std::nullopt;
+    }
+    const Imf::Header& header = file->header();
+    if (!check_header(header, byte_count, diag, strictness, animation)) return std::nullopt;
+    try {
         const Imath::Box2i window = header.dataWindow();
         animation.positions_m.assign(
             static_cast<std::size_t>(animation.frame_count) * static_cast<std::size_t>(animation.vertex_count),
@@ -315,13 +422,15 @@ std::optional<VertexAnimation> parse_exr(Imf::IStream& stream, std::uint64_t byt
         for (int c = 0; c < 3; ++c)
             buffer.insert(kPositionChannels[c], Imf::Slice::Make(Imf::FLOAT, base + c * sizeof(float), window,
                                                                   x_stride, y_stride));
-        file.setFrameBuffer(buffer);
-        if (!file.isComplete())
+        file->setFrameBuffer(buffer);
+        if (!file->isComplete()) {
             diag.error("pixels", "the file is incomplete (some scan lines or tiles are missing)",
-                       "write the file again");
-        file.readPixels(window.min.y, window.max.y);
+                       "the file is truncated: write it again");
+            return std::nullopt;
+        }
+        file->readPixels(window.min.y, window.max.y);
     } catch (const std::exception& error) {
-        diag.error("pixels", std::string("cannot decode the OpenEXR data: ") + error.what(),
+        diag.error("pixels", std::string("cannot decode the OpenEXR pixels: ") + error.what(),
                    "the file is truncated or corrupt: write it again");
         return std::nullopt;
     }
@@ -337,12 +446,16 @@ std::optional<VertexAnimation> parse_file(const std::string& path, Diagnostics& 
     const std::uint64_t byte_count = fs::file_size(path, ec);
     std::ifstream in(path, std::ios::binary);
     if (!in || ec) throw IoError(path, "", "cannot open the file", "check permissions");
-    char magic[4] = {};
-    in.read(magic, 4);
-    if (!has_exr_magic(magic, static_cast<std::size_t>(in.gcount()))) {
+    // The header (attributes are small; 1 MiB is generous) is checked first.
+    std::string head(static_cast<std::size_t>(std::min<std::uint64_t>(byte_count, std::uint64_t(1) << 20)), '\0');
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<std::size_t>(in.gcount()));
+    if (!has_exr_magic(head.data(), head.size())) {
         diag.error("", "not an OpenEXR file (wrong magic number)", "write the positions as an OpenEXR image");
         return std::nullopt;
     }
+    if (!peek_header(head, byte_count, diag)) return std::nullopt;
+    in.clear();
     in.seekg(0);
     FileIStream stream(path, in);
     return parse_exr(stream, byte_count, diag, strictness);
@@ -353,6 +466,7 @@ std::optional<VertexAnimation> parse_bytes(const std::string& bytes, Diagnostics
         diag.error("", "not an OpenEXR file (wrong magic number)", "write the positions as an OpenEXR image");
         return std::nullopt;
     }
+    if (!peek_header(bytes, bytes.size(), diag)) return std::nullopt;
     MemoryIStream stream(diag.file(), bytes);
     return parse_exr(stream, bytes.size(), diag, strictness);
 }

@@ -97,7 +97,8 @@ FlowLineSet read_flowline_set(const std::string& path, std::vector<Problem>* war
 // valid (e.g. NaN, duplicate ids), leaving any previous file untouched.
 void write_flowline_set(const std::string& path, const FlowLineSet& set);
 // Every problem of a file, for `flowvid validate` (never throws on bad content).
-// A path ending in ".svg" is checked as an SVG drawing (import rules).
+// A path ending in ".svg", or text starting with '<', is checked as an SVG
+// drawing (import rules).
 std::vector<Problem> validate_flowline_set_file(const std::string& path, Strictness strictness);
 nlohmann::json summarize_flowline_set(const FlowLineSet& set);
 

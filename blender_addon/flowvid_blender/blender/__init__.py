@@ -1,0 +1,1 @@
+"""Blender-facing part of the add-on (operators, panels, properties)."""
