@@ -6,6 +6,9 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <filesystem>
+#include <fstream>
+
 using namespace flowvid::testing;
 
 namespace {
@@ -70,4 +73,68 @@ TEST(Cli, InfoForPeopleAndMachines) {
 
     CliResult missing = run_flowvid({"info", "/nonexistent/file.fabric.json"});
     EXPECT_EQ(missing.exit_code, 4) << missing.err;
+}
+
+TEST(Cli, ConvertSvgToFlowLinesAndBack) {
+    const std::string svg = shared_path("captures/video-waterfall-cascade/flowlines.svg");
+    const std::string dir = scratch_dir("cli_convert");
+    CliResult to_json = run_flowvid({"convert", svg, dir + "/lines.flowlines.json"});
+    if (to_json.exit_code != 0 && !std::ifstream(svg)) GTEST_SKIP() << "../shared is absent";
+    ASSERT_EQ(to_json.exit_code, 0) << to_json.err;
+    EXPECT_TRUE(mentions(to_json.out, "7 input and 10 output lines")) << to_json.out;
+    const nlohmann::json lines = nlohmann::json::parse(read_text(dir + "/lines.flowlines.json"));
+    EXPECT_EQ(lines["format"], "flowvid.flowlines");
+    // out-8 of the waterfall edit starts at (90, 0) and carries in-3's texture.
+    bool found = false;
+    for (const auto& line : lines["outputs"])
+        if (line["id"] == "out-8") {
+            found = true;
+            EXPECT_EQ(line["from"], "in-3");
+            EXPECT_DOUBLE_EQ(line["points"][0][0].get<double>(), 90.0);
+            EXPECT_DOUBLE_EQ(line["points"][0][1].get<double>(), 0.0);
+        }
+    EXPECT_TRUE(found);
+
+    CliResult to_svg = run_flowvid({"convert", dir + "/lines.flowlines.json", dir + "/again.svg"});
+    ASSERT_EQ(to_svg.exit_code, 0) << to_svg.err;
+    CliResult back = run_flowvid({"convert", dir + "/again.svg", dir + "/again.flowlines.json"});
+    ASSERT_EQ(back.exit_code, 0) << back.err;
+    EXPECT_EQ(read_text(dir + "/again.flowlines.json"), read_text(dir + "/lines.flowlines.json"));
+
+    CliResult wrong_kind = run_flowvid({"convert", example_preset(), dir + "/x.svg"});
+    EXPECT_EQ(wrong_kind.exit_code, 3);
+    EXPECT_TRUE(mentions(wrong_kind.err, example_preset())) << wrong_kind.err;
+    CliResult bad_out = run_flowvid({"convert", svg, dir + "/x.txt"});
+    EXPECT_EQ(bad_out.exit_code, 2);
+}
+
+TEST(Cli, EverySharedCaptureAndExampleValidates) {
+    std::vector<std::string> arguments = {"validate"};
+    const std::filesystem::path captures = shared_path("captures");
+    if (!std::filesystem::is_directory(captures)) GTEST_SKIP() << "../shared is absent";
+    int count = 0;
+    for (const auto& entry : std::filesystem::directory_iterator(captures))
+        if (entry.is_directory()) {
+            arguments.push_back(entry.path().string());
+            ++count;
+        }
+    for (const auto& entry : std::filesystem::directory_iterator(source_path("formats/examples")))
+        arguments.push_back(entry.path().string());
+    EXPECT_GE(count, 13);
+    CliResult result = run_flowvid(arguments);
+    EXPECT_EQ(result.exit_code, 0) << result.err;
+    EXPECT_FALSE(mentions(result.out, "invalid")) << result.out;
+}
+
+TEST(Cli, DemoFormatsStage) {
+    const std::string dir = scratch_dir("cli_demo");
+    CliResult result = run_flowvid({"--progress", "json", "demo", "--only", "formats", "--out", dir});
+    EXPECT_EQ(result.exit_code, 0) << result.out << result.err;
+    EXPECT_TRUE(mentions(result.out, "JSON -> SVG -> JSON: identical")) << result.out;
+    EXPECT_TRUE(mentions(result.err, "{\"event\":\"done\"")) << result.err;
+    const nlohmann::json summaries = nlohmann::json::parse(read_text(dir + "/formats/summaries.json"));
+    std::size_t examples = 0;
+    for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(source_path("formats/examples"))) ++examples;
+    EXPECT_EQ(summaries.size(), examples);
+    EXPECT_EQ(run_flowvid({"demo", "--only", "nonsense"}).exit_code, 2);
 }

@@ -1,0 +1,116 @@
+// flowvid fit <kind> / flowvid predict <kind>: dispatch to the registered kinds.
+
+#include "commands/fit.hpp"
+
+#include "output.hpp"
+
+#include <algorithm>
+#include <memory>
+
+namespace flowvid::cli {
+
+std::vector<FitKind>& fit_kinds() {
+    static std::vector<FitKind> kinds;
+    return kinds;
+}
+
+std::vector<FitKind>& predict_kinds() {
+    static std::vector<FitKind> kinds;
+    return kinds;
+}
+
+RegisterFitKind::RegisterFitKind(FitKind kind) { fit_kinds().push_back(std::move(kind)); }
+RegisterPredictKind::RegisterPredictKind(FitKind kind) { predict_kinds().push_back(std::move(kind)); }
+
+std::optional<std::pair<std::optional<int>, std::optional<int>>> parse_frame_range(const std::string& text) {
+    const std::size_t colon = text.find(':');
+    if (colon == std::string::npos || text.find(':', colon + 1) != std::string::npos) return std::nullopt;
+    // An empty part is an open end; otherwise only digits.
+    auto well_formed = [](const std::string& part) {
+        return part.size() <= 9 && std::all_of(part.begin(), part.end(), [](char c) { return c >= '0' && c <= '9'; });
+    };
+    const std::string a = text.substr(0, colon), b = text.substr(colon + 1);
+    if (!well_formed(a) || !well_formed(b)) return std::nullopt;
+    std::pair<std::optional<int>, std::optional<int>> range;
+    if (!a.empty()) range.first = std::stoi(a);
+    if (!b.empty()) range.second = std::stoi(b);
+    return range;
+}
+
+formats::Capture read_capture_of_kind(const std::string& path, const std::vector<std::string>& kinds,
+                                      const std::string& command) {
+    formats::Capture capture = formats::read_capture(path);
+    if (std::find(kinds.begin(), kinds.end(), capture.kind) == kinds.end()) {
+        std::string wanted;
+        for (const std::string& k : kinds) wanted += (wanted.empty() ? "" : " or ") + k;
+        throw ValidationError({Problem{Problem::Severity::error, capture.json_path, "/kind",
+                                       "the capture is a " + capture.kind + " capture; `" + command + "` needs " + wanted,
+                                       "give a " + wanted + " capture folder"}});
+    }
+    return capture;
+}
+
+std::optional<std::pair<int, int>> resolve_frames(const std::string& text, const formats::Capture& capture) {
+    int first = capture.frames.first, last = capture.frames.last();
+    if (!text.empty()) {
+        const auto range = parse_frame_range(text);
+        if (!range) {
+            log_message("error: --frames " + text + ": expected A:B, e.g. 1:18 (frame numbers as in capture.json)");
+            return std::nullopt;
+        }
+        first = range->first.value_or(first);
+        last = range->second.value_or(last);
+    }
+    if (first < capture.frames.first || last > capture.frames.last() || first > last) {
+        log_message("error: --frames " + text + ": the capture has frames " + std::to_string(capture.frames.first) + ":" +
+                    std::to_string(capture.frames.last()));
+        return std::nullopt;
+    }
+    return std::pair{first, last};
+}
+
+namespace {
+
+// One command whose CLI11 sub-subcommands are the registered kinds.
+CommandRunner setup_kinds(CLI::App& app, std::vector<FitKind>& kinds) {
+    std::sort(kinds.begin(), kinds.end(), [](const FitKind& a, const FitKind& b) { return a.name < b.name; });
+    app.require_subcommand(1);
+    auto runners = std::make_shared<std::vector<std::pair<CLI::App*, CommandRunner>>>();
+    for (const FitKind& kind : kinds) {
+        CLI::App* sub = app.add_subcommand(kind.name, kind.summary);
+        runners->emplace_back(sub, kind.setup(*sub));
+    }
+    return [runners](const GlobalOptions& options) {
+        for (const auto& [sub, run] : *runners)
+            if (sub->parsed()) return run(options);
+        return static_cast<int>(kExitUsage);
+    };
+}
+
+std::string kind_list(const std::vector<FitKind>& kinds) {
+    std::string text;
+    for (const FitKind& kind : kinds) text += "  " + kind.name + std::string(kind.name.size() < 8 ? 8 - kind.name.size() : 1, ' ') + kind.summary + "\n";
+    return text;
+}
+
+const RegisterCommand fit_registration{Command{
+    "fit", "fit a simulator to a capture: `flowvid fit rigid ...`", [](CLI::App& app) -> CommandRunner {
+        app.footer("Kinds:\n" + kind_list(fit_kinds()) +
+                   "\nRun 'flowvid fit <kind> --help' for a kind's options.\n\n"
+                   "Examples:\n"
+                   "  flowvid fit rigid --capture ../shared/captures/rigid-toss-major --out fit.json\n"
+                   "  flowvid fit rigid --capture toss/ --out fit.json --frames 1:18 --guess guess.json");
+        return setup_kinds(app, fit_kinds());
+    }}};
+
+const RegisterCommand predict_registration{Command{
+    "predict", "render what a fit predicts: `flowvid predict rigid ...`", [](CLI::App& app) -> CommandRunner {
+        app.footer("Kinds:\n" + kind_list(predict_kinds()) +
+                   "\nRun 'flowvid predict <kind> --help' for a kind's options.\n\n"
+                   "Examples:\n"
+                   "  flowvid predict rigid --fit fit.json --capture toss/ --out predicted/ --frames 19:36");
+        return setup_kinds(app, predict_kinds());
+    }}};
+
+}  // namespace
+}  // namespace flowvid::cli

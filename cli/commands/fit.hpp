@@ -1,0 +1,57 @@
+#pragma once
+// `flowvid fit <kind>` and `flowvid predict <kind>`: the two commands are
+// owned by fit.cpp; each kind (rigid, cloth, ...) plugs in from its own file
+// with a static RegisterFitKind / RegisterPredictKind, e.g.
+//
+//   const RegisterFitKind registration{FitKind{
+//       "cloth", "fit fabric parameters to a cloth capture",
+//       [](CLI::App& app) -> CommandRunner { ...add options...; return runner; }}};
+//
+// Kinds register during static initialisation and are read when main() sets
+// up the commands, so their order of registration does not matter.
+
+#include "command.hpp"
+
+#include "flowvid/formats/capture.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace flowvid::cli {
+
+struct FitKind {
+    std::string name;     // the sub-subcommand: `flowvid fit <name>`
+    std::string summary;  // one line for `flowvid help fit`
+    // Adds the kind's options (and footer with examples) to its
+    // sub-subcommand and returns the function that runs it.
+    std::function<CommandRunner(CLI::App&)> setup;
+};
+
+std::vector<FitKind>& fit_kinds();
+std::vector<FitKind>& predict_kinds();
+struct RegisterFitKind {
+    explicit RegisterFitKind(FitKind kind);
+};
+struct RegisterPredictKind {
+    explicit RegisterPredictKind(FitKind kind);
+};
+
+// Reads a capture folder and checks its kind: throws ValidationError naming
+// capture.json and /kind when the kind is not one of `kinds`.
+formats::Capture read_capture_of_kind(const std::string& path, const std::vector<std::string>& kinds,
+                                      const std::string& command);
+
+// Frames A:B of --frames resolved against the capture (defaults: its first
+// and last frame). nullopt, after logging why, when the text is malformed or
+// outside the capture.
+std::optional<std::pair<int, int>> resolve_frames(const std::string& text, const formats::Capture& capture);
+
+// "A:B" (inclusive, 1-based frame numbers as in capture.json); "A:" and ":B"
+// leave that end open. nullopt for anything else.
+std::optional<std::pair<std::optional<int>, std::optional<int>>> parse_frame_range(const std::string& text);
+
+}  // namespace flowvid::cli
