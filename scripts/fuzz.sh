@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (AddressSanitizer + UBSan) and runs
 # each one for a while over its corpus in fuzz/corpus/<target>. New inputs that
-# grow coverage are added to the corpus folder: commit the small interesting ones.
+# grow coverage go to build-fuzz/new-corpus/<target>: copy small interesting ones
+# into fuzz/corpus/<target> and commit them.
 #   bash scripts/fuzz.sh [seconds-per-target] [target...]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,7 +18,8 @@ if ((${#targets[@]} == 0)); then
 fi
 for target in "${targets[@]}"; do
   cmake --build "$build_dir" --target "fuzz_$target" >&2
-  mkdir -p "fuzz/corpus/$target"
+  mkdir -p "fuzz/corpus/$target" "$build_dir/new-corpus/$target"
   echo "fuzzing $target for ${seconds}s" >&2
-  "$build_dir/fuzz/fuzz_$target" -max_total_time="$seconds" -max_len=65536 -timeout=10 "fuzz/corpus/$target"
+  "$build_dir/fuzz/fuzz_$target" -max_total_time="$seconds" -max_len=65536 -timeout=10 \
+    "$build_dir/new-corpus/$target" "fuzz/corpus/$target"
 done
