@@ -87,16 +87,9 @@ CommandRunner setup_kinds(CLI::App& app, std::vector<FitKind>& kinds) {
     };
 }
 
-std::string kind_list(const std::vector<FitKind>& kinds) {
-    std::string text;
-    for (const FitKind& kind : kinds) text += "  " + kind.name + std::string(kind.name.size() < 8 ? 8 - kind.name.size() : 1, ' ') + kind.summary + "\n";
-    return text;
-}
-
 const RegisterCommand fit_registration{Command{
     "fit", "fit a simulator to a capture: `flowvid fit rigid ...`", [](CLI::App& app) -> CommandRunner {
-        app.footer("Kinds:\n" + kind_list(fit_kinds()) +
-                   "\nRun 'flowvid fit <kind> --help' for a kind's options.\n\n"
+        app.footer("Run 'flowvid fit <kind> --help' for a kind's options.\n\n"
                    "Examples:\n"
                    "  flowvid fit rigid --capture ../shared/captures/rigid-toss-major --out fit.json\n"
                    "  flowvid fit rigid --capture toss/ --out fit.json --frames 1:18 --guess guess.json");
@@ -105,8 +98,7 @@ const RegisterCommand fit_registration{Command{
 
 const RegisterCommand predict_registration{Command{
     "predict", "render what a fit predicts: `flowvid predict rigid ...`", [](CLI::App& app) -> CommandRunner {
-        app.footer("Kinds:\n" + kind_list(predict_kinds()) +
-                   "\nRun 'flowvid predict <kind> --help' for a kind's options.\n\n"
+        app.footer("Run 'flowvid predict <kind> --help' for a kind's options.\n\n"
                    "Examples:\n"
                    "  flowvid predict rigid --fit fit.json --capture toss/ --out predicted/ --frames 19:36");
         return setup_kinds(app, predict_kinds());

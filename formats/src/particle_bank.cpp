@@ -1,5 +1,7 @@
 #include "flowvid/formats/particle_bank.hpp"
 
+#include "exr_preflight.hpp"
+
 #include "flowvid/formats/atomic_file.hpp"
 
 #include <ImathBox.h>
@@ -467,6 +469,11 @@ public:
                          "a particle bank is a multi-part OpenEXR file written by flowvid");
             return std::nullopt;
         }
+        // Refuse headers whose declared sizes the file cannot hold before
+        // OpenEXR allocates its tables from them.
+        if (!detail::preflight_exr(detail::read_file_head(m_path, 1 << 16), m_file_size, m_diag,
+                                   static_cast<std::uint64_t>(kMaxBankDecodedBytesPerFileByte)))
+            return std::nullopt;
         // OpenEXR reports damage with Iex exceptions (and sometimes std ones):
         // every one becomes a problem naming the stage that failed.
         std::string stage = "header";

@@ -1,5 +1,7 @@
 #include "flowvid/formats/vertex_animation.hpp"
 
+#include "exr_preflight.hpp"
+
 #include "flowvid/formats/atomic_file.hpp"
 
 #include <ImfChannelList.h>
@@ -108,104 +110,33 @@ std::string pixel_type_name(Imf::PixelType type) {
     }
 }
 
-// What OpenEXR would allocate for is decided by a few header fields; they are
-// read here first, so that a corrupt or hostile header is refused before the
-// library sizes its tables from it.
-struct HeaderPeek {
-    std::int64_t width = 0;
-    std::int64_t height = 0;
-    std::int64_t tile_width = 0;   // 0 for scan-line files
-    std::int64_t tile_height = 0;
-};
-
-std::optional<HeaderPeek> peek_header(const std::string& bytes, std::uint64_t byte_count, Diagnostics& diag) {
-    auto truncated = [&] {
-        diag.error("header", "the OpenEXR header is cut off (" + std::to_string(byte_count) + " bytes in the file)",
-                   "the file is truncated: write it again");
-        return std::nullopt;
-    };
-    if (bytes.size() < 8) return truncated();
-    auto u32 = [&](std::size_t at) {
-        const auto* p = reinterpret_cast<const unsigned char*>(bytes.data()) + at;
-        return std::uint32_t(p[0]) | (std::uint32_t(p[1]) << 8) | (std::uint32_t(p[2]) << 16) | (std::uint32_t(p[3]) << 24);
-    };
-    const std::uint32_t version = u32(4);
-    if ((version & 0xff) != 2) {
-        diag.error("header", "OpenEXR file version " + std::to_string(version & 0xff) + " (expected 2)",
-                   "write the file with OpenEXR 2 or later");
-        return std::nullopt;
-    }
-    if (version & 0x1000) {
+// The header is checked by the shared preflight before OpenEXR sizes its tables
+// from it; a vertex-animation texture adds its own limits on top.
+std::optional<detail::ExrPartPeek> peek_header(const std::string& bytes, std::uint64_t byte_count, Diagnostics& diag) {
+    std::optional<detail::ExrPeek> peek = detail::preflight_exr(bytes, byte_count, diag, kMaxCompressionRatio);
+    if (!peek) return std::nullopt;
+    if (peek->multi_part) {
         diag.error("header", "a multi-part OpenEXR file (a vertex-animation texture is one RGB image)",
                    "is this a particle texture bank? Otherwise write one part");
         return std::nullopt;
     }
-    if (version & 0x800) {
+    if (peek->deep) {
         diag.error("header", "a deep OpenEXR file (a vertex-animation texture is a flat RGB image)",
                    "write a flat scan-line image");
         return std::nullopt;
     }
-    HeaderPeek peek;
-    bool has_window = false;
-    std::size_t at = 8;
-    auto read_name = [&](std::string& out) {
-        const std::size_t end = bytes.find('\0', at);
-        if (end == std::string::npos || end - at > 255) return false;
-        out.assign(bytes, at, end - at);
-        at = end + 1;
-        return true;
-    };
-    for (;;) {
-        std::string name, type;
-        if (!read_name(name)) return truncated();
-        if (name.empty()) break;
-        if (!read_name(type) || at + 4 > bytes.size()) return truncated();
-        const std::uint32_t size = u32(at);
-        at += 4;
-        if (size > bytes.size() - at) return truncated();
-        if (name == "dataWindow" && type == "box2i" && size == 16) {
-            const auto min_x = static_cast<std::int32_t>(u32(at)), min_y = static_cast<std::int32_t>(u32(at + 4));
-            const auto max_x = static_cast<std::int32_t>(u32(at + 8)), max_y = static_cast<std::int32_t>(u32(at + 12));
-            peek.width = std::int64_t(max_x) - min_x + 1;
-            peek.height = std::int64_t(max_y) - min_y + 1;
-            has_window = true;
-        } else if (name == "tiles" && type == "tiledesc" && size == 9) {
-            peek.tile_width = u32(at);
-            peek.tile_height = u32(at + 4);
-        }
-        at += size;
-    }
-    if (!has_window) {
-        diag.error("header", "no dataWindow attribute", "the file is corrupt: write it again");
-        return std::nullopt;
-    }
-    if (peek.width < 1 || peek.height < 1 || peek.width > kMaxVertexAnimationVertices ||
-        peek.height > kMaxVertexAnimationFrames || peek.width * peek.height > kMaxVertexAnimationSamples) {
+    const detail::ExrPartPeek& part = peek->parts.front();
+    if (part.width > kMaxVertexAnimationVertices || part.height > kMaxVertexAnimationFrames ||
+        part.width * part.height > kMaxVertexAnimationSamples) {
         diag.error("data window",
-                   std::to_string(peek.width) + " vertices x " + std::to_string(peek.height) +
-                       " frames is empty or implausibly large (limits: " + std::to_string(kMaxVertexAnimationVertices) +
+                   std::to_string(part.width) + " vertices x " + std::to_string(part.height) +
+                       " frames is implausibly large (limits: " + std::to_string(kMaxVertexAnimationVertices) +
                        " vertices, " + std::to_string(kMaxVertexAnimationFrames) + " frames, " +
                        std::to_string(kMaxVertexAnimationSamples) + " samples)",
                    "check that the file is a vertex-animation texture, or split the sequence");
         return std::nullopt;
     }
-    if (version & 0x200) {
-        // Every tile has an 8-byte offset in the file: a complete file cannot
-        // have more tiles than that allows.
-        if (peek.tile_width < 1 || peek.tile_height < 1) {
-            diag.error("header", "a tiled file without a valid tile size", "write a scan-line image");
-            return std::nullopt;
-        }
-        const std::int64_t tiles = ((peek.width + peek.tile_width - 1) / peek.tile_width) *
-                                   ((peek.height + peek.tile_height - 1) / peek.tile_height);
-        if (static_cast<std::uint64_t>(tiles) > byte_count / 8) {
-            diag.error("header",
-                       std::to_string(tiles) + " tiles cannot fit in a file of " + std::to_string(byte_count) + " bytes",
-                       "the file is truncated or corrupt: write it again");
-            return std::nullopt;
-        }
-    }
-    return peek;
+    return part;
 }
 
 std::string attribute_field(const char* name) { return std::string("attribute ") + name; }

@@ -397,7 +397,7 @@ TEST(VertexAnimationBad, ImplausibleSizeIsRefusedBeforeAllocating) {
     const std::int32_t huge = (1 << 30) - 1;
     std::memcpy(&bytes[value + 8], &huge, 4);
     const std::vector<Problem> problems = validate_vertex_animation_bytes(bytes, "huge.exr", Strictness::lenient);
-    EXPECT_TRUE(mentions(errors_of(problems), "huge.exr: data window: 1073741824 vertices x 2 frames is empty or implausibly large"))
+    EXPECT_TRUE(mentions(errors_of(problems), "huge.exr: data window: the header declares"))
         << errors_of(problems);
 }
 

@@ -1,0 +1,70 @@
+// EXR headers that declare more than the file holds are refused before
+// OpenEXR allocates anything (a fuzzer found a 3.7 KB bank that made OpenEXR
+// reserve 1.7 GB for one attribute).
+
+#include "flowvid/formats/particle_bank.hpp"
+#include "flowvid/formats/vertex_animation.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <sys/resource.h>
+
+using namespace flowvid;
+using namespace flowvid::formats;
+using flowvid::testing::read_text;
+using flowvid::testing::scratch_dir;
+using flowvid::testing::source_path;
+using flowvid::testing::test_data;
+using flowvid::testing::write_text;
+
+namespace {
+
+long peak_rss_kb() {
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    return usage.ru_maxrss;
+}
+
+std::string joined(const std::vector<Problem>& problems) {
+    std::string text;
+    for (const Problem& p : problems) text += p.to_string() + "\n";
+    return text;
+}
+
+// Overwrites 4 little-endian bytes at `at`.
+void poke_u32(std::string& bytes, std::size_t at, std::uint32_t value) {
+    for (int i = 0; i < 4; ++i) bytes[at + i] = static_cast<char>((value >> (8 * i)) & 0xff);
+}
+
+}  // namespace
+
+TEST(ExrPreflight, HugeAttributeSizeIsRefusedWithoutAllocating) {
+    const std::string path = test_data("formats/exr/huge_attribute_size.bank.exr");
+    const long before = peak_rss_kb();
+    const std::vector<Problem> problems = validate_particle_bank_file(path, Strictness::strict);
+    const std::string text = joined(problems);
+    EXPECT_NE(text.find(path + ": header: attribute 'flowvid.dynamics' declares"), std::string::npos) << text;
+    EXPECT_LT(peak_rss_kb() - before, 64 * 1024) << "the reader allocated more than 64 MB for a 4 KB file";
+}
+
+TEST(ExrPreflight, DataWindowLargerThanTheFileIsRefused) {
+    // A valid vertex-animation file whose dataWindow is stretched to 16M lines:
+    // its offset table alone would need 128 MB.
+    std::string bytes = read_text(source_path("formats/examples/example.vertex_animation.exr"));
+    const std::size_t window = bytes.find("dataWindow");
+    ASSERT_NE(window, std::string::npos);
+    const std::size_t value = window + std::string("dataWindow").size() + 1 + std::string("box2i").size() + 1 + 4;
+    poke_u32(bytes, value + 12, (1u << 24) - 2);  // max_y
+    const std::string path = scratch_dir("exr_preflight") + "/stretched.exr";
+    write_text(path, bytes);
+    const std::string text = joined(validate_vertex_animation_file(path, Strictness::strict));
+    EXPECT_NE(text.find(path + ": header:"), std::string::npos) << text;
+    EXPECT_NE(text.find("cannot fit in a file"), std::string::npos) << text;
+}
+
+TEST(ExrPreflight, ValidFilesPass) {
+    EXPECT_TRUE(validate_particle_bank_file(source_path("formats/examples/example.bank.exr"), Strictness::strict).empty());
+    EXPECT_TRUE(validate_vertex_animation_file(source_path("formats/examples/example.vertex_animation.exr"), Strictness::strict)
+                    .empty());
+}
