@@ -302,14 +302,7 @@ void check_finite_before_writing(const FabricPreset& preset, Diagnostics& diagno
 }  // namespace
 
 FabricPreset read_fabric_preset(const std::string& path, std::vector<Problem>* warnings) {
-    const std::string text = read_text_file(path);
-    Diagnostics diagnostics(path);
-    std::optional<nlohmann::json> document = parse_json_text(text, diagnostics);
-    std::optional<FabricPreset> preset;
-    if (document) preset = parse_fabric_preset(*document, diagnostics, Strictness::lenient);
-    diagnostics.throw_if_errors();
-    if (warnings) *warnings = diagnostics.warnings();
-    return *preset;
+    return read_json_format_file<FabricPreset>(path, parse_fabric_preset, warnings);
 }
 
 void write_fabric_preset(const std::string& path, const FabricPreset& preset) {
@@ -326,15 +319,9 @@ void write_fabric_preset(const std::string& path, const FabricPreset& preset) {
 
 std::vector<Problem> validate_fabric_preset_file(const std::string& path, Strictness strictness) {
     Diagnostics diagnostics(path);
-    std::string text;
-    try {
-        text = read_text_file(path);
-    } catch (const IoError& error) {
-        diagnostics.error("", error.what(), error.fix());
-        return diagnostics.problems();
-    }
-    if (std::optional<nlohmann::json> document = parse_json_text(text, diagnostics))
-        parse_fabric_preset(*document, diagnostics, strictness);
+    if (std::optional<std::string> text = read_text_reporting(path, diagnostics))
+        if (std::optional<nlohmann::json> document = parse_json_text(*text, diagnostics))
+            parse_fabric_preset(*document, diagnostics, strictness);
     return diagnostics.problems();
 }
 

@@ -548,14 +548,7 @@ void validate_flowline_set(const FlowLineSet& set, Diagnostics& diagnostics) {
 }
 
 FlowLineSet read_flowline_set(const std::string& path, std::vector<Problem>* warnings) {
-    const std::string text = read_text_file(path);
-    Diagnostics diagnostics(path);
-    std::optional<nlohmann::json> document = parse_json_text(text, diagnostics);
-    std::optional<FlowLineSet> set;
-    if (document) set = parse_flowline_set(*document, diagnostics, Strictness::lenient);
-    diagnostics.throw_if_errors();
-    if (warnings) *warnings = diagnostics.warnings();
-    return *set;
+    return read_json_format_file<FlowLineSet>(path, parse_flowline_set, warnings);
 }
 
 void write_flowline_set(const std::string& path, const FlowLineSet& set) {
@@ -574,13 +567,9 @@ void write_flowline_set(const std::string& path, const FlowLineSet& set) {
 
 std::vector<Problem> validate_flowline_set_file(const std::string& path, Strictness strictness) {
     Diagnostics diagnostics(path);
-    std::string text;
-    try {
-        text = read_text_file(path);
-    } catch (const IoError& error) {
-        diagnostics.error("", error.what(), error.fix());
-        return diagnostics.problems();
-    }
+    const std::optional<std::string> read = read_text_reporting(path, diagnostics);
+    if (!read) return diagnostics.problems();
+    const std::string& text = *read;
     std::string extension = path.size() >= 4 ? path.substr(path.size() - 4) : std::string();
     std::transform(extension.begin(), extension.end(), extension.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });

@@ -1,5 +1,7 @@
 #include "flowvid/formats/json_fields.hpp"
 
+#include "flowvid/formats/atomic_file.hpp"
+
 #include <cmath>
 #include <sstream>
 
@@ -281,6 +283,17 @@ std::optional<nlohmann::json> parse_json_text(const std::string& text, Diagnosti
         if (colon != std::string::npos) reason = reason.substr(colon + 2);
         diagnostics.error("line " + std::to_string(line) + ", column " + std::to_string(column),
                           "malformed JSON: " + reason, "fix the JSON syntax there (a JSON linter helps)");
+        return std::nullopt;
+    }
+}
+
+std::string read_text_or_throw(const std::string& path) { return read_text_file(path); }
+
+std::optional<std::string> read_text_reporting(const std::string& path, Diagnostics& diagnostics) {
+    try {
+        return read_text_file(path);
+    } catch (const IoError& error) {
+        diagnostics.error("", error.what(), error.fix());
         return std::nullopt;
     }
 }

@@ -78,6 +78,9 @@ private:
     Strictness m_strictness;
 };
 
+// read_text_file from atomic_file.hpp, declared here to keep this header light.
+std::string read_text_or_throw(const std::string& path);
+
 // "MAJOR.MINOR" as written in flowvid files.
 struct FormatVersion {
     int major = 0;
@@ -98,5 +101,26 @@ std::optional<nlohmann::json> parse_json_text(const std::string& text, Diagnosti
 
 // Pretty JSON (2-space indent, shortest round-trip numbers) followed by a newline.
 std::string dump_json(const nlohmann::json& value);
+
+// Reads a file for a validator: an unreadable file becomes a problem (nullopt)
+// rather than an exception, so `flowvid validate` lists it with the others.
+std::optional<std::string> read_text_reporting(const std::string& path, Diagnostics& diagnostics);
+
+// Reads a JSON file of one flowvid format with its parser
+// `parse(document, diagnostics, strictness) -> std::optional<T>`, leniently.
+// Throws IoError (unreadable) or ValidationError (every problem); warnings go
+// to `warnings` when given.
+template <class T, class Parse>
+T read_json_format_file(const std::string& path, Parse parse, std::vector<Problem>* warnings) {
+    Diagnostics diagnostics(path);
+    const std::string text = read_text_or_throw(path);
+    std::optional<T> value;
+    if (std::optional<nlohmann::json> document = parse_json_text(text, diagnostics))
+        value = parse(*document, diagnostics, Strictness::lenient);
+    diagnostics.throw_if_errors();
+    if (!value) throw ValidationError({Problem{Problem::Severity::error, path, "", "could not be read", ""}});
+    if (warnings) *warnings = diagnostics.warnings();
+    return std::move(*value);
+}
 
 }  // namespace flowvid::formats
