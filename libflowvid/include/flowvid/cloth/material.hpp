@@ -1,0 +1,44 @@
+#pragma once
+// Fabric material of the cloth model: the twelve SI parameters of a fabric
+// preset as plain numbers. How each one enters the energy (and why the result
+// does not depend on the mesh resolution) is written in docs/cloth_model.md.
+
+#include "flowvid/formats/fabric_preset.hpp"
+
+#include <string>
+#include <vector>
+
+namespace flowvid::cloth {
+
+struct ClothMaterial {
+    double areal_density_kg_per_m2 = 0.15;
+    // Membrane: E = k/2 * A_rest * C^2 per triangle (C dimensionless), k in N/m.
+    double stretch_warp_N_per_m = 150.0;     // C = |w_u| - 1
+    double stretch_weft_N_per_m = 150.0;     // C = |w_v| - 1
+    double shear_N_per_m = 90.0;             // C = w_u . w_v
+    // Bending: E = k/2 * |e|^2 / (A1 + A2) * theta^2 per interior edge (rest
+    // |e|, A1, A2): k/2 * integral of curvature^2 dA for a cylindrical bend.
+    double bend_N_m = 1e-6;
+    // Damping d = -k_d * A_rest * dC/dx * dC/dt (bending: weight as above).
+    double stretch_warp_damping_N_s_per_m = 0.0;
+    double stretch_weft_damping_N_s_per_m = 0.0;
+    double shear_damping_N_s_per_m = 0.0;
+    double bend_damping_N_m_s = 0.0;
+    // Air drag per triangle: f = -a (kN |vN|^2/(1 + kf |vN|^2) vN/|vN| + kT vT).
+    double drag_normal_kg_per_m3 = 0.0;
+    double drag_degradation_s2_per_m2 = 0.0;
+    double drag_tangential_kg_per_m2_s = 0.0;
+};
+
+// The values of a preset's parameters (uncertainties and ranges are dropped).
+ClothMaterial material_from_fabric(const formats::FabricParameters& parameters);
+// The inverse, with only `value` set: for writing a fitted material as a preset.
+formats::FabricParameters fabric_from_material(const ClothMaterial& material);
+
+// Problems that make a simulation meaningless: non-finite numbers, a density
+// that is not positive. Field names are the preset's JSON keys. Negative
+// stiffness is allowed here on purpose (an optimizer may try it; the
+// simulation then reports the blow-up instead of throwing).
+std::vector<Problem> check_material(const ClothMaterial& material);
+
+}  // namespace flowvid::cloth

@@ -1,0 +1,219 @@
+#pragma once
+// The cloth model: Baraff-Witkin stretch, shear and bending condition
+// functions with their damping, the thesis's nonlinear air drag, gravity and
+// contact penalties. Forces with analytic Jacobians df/dx and df/dv.
+//
+// Shapes: positions x and velocities v are 3*#V vectors (x0 y0 z0 x1 ...),
+// metres and m/s; forces are 3*#V, newtons.
+
+#include "flowvid/cloth/block_matrix.hpp"
+#include "flowvid/cloth/collision.hpp"
+#include "flowvid/cloth/geometry.hpp"
+#include "flowvid/cloth/material.hpp"
+#include "flowvid/cloth/mesh.hpp"
+
+#include <Eigen/Core>
+
+#include <functional>
+#include <memory>
+#include <vector>
+
+namespace flowvid::cloth {
+
+namespace detail {
+class WorkerPool;
+}
+
+// Which terms to evaluate (bit mask).
+namespace ForceTerm {
+enum : unsigned {
+    stretch = 1u << 0,
+    shear = 1u << 1,
+    bending = 1u << 2,
+    stretch_damping = 1u << 3,
+    shear_damping = 1u << 4,
+    bending_damping = 1u << 5,
+    drag = 1u << 6,
+    gravity = 1u << 7,
+    body_contact = 1u << 8,
+    friction = 1u << 9,
+    self_contact = 1u << 10,
+    elastic = stretch | shear | bending,
+    damping = stretch_damping | shear_damping | bending_damping,
+    // Terms with a potential energy (potential_energy() sums these).
+    conservative = elastic | gravity | body_contact | self_contact,
+    all = (1u << 11) - 1,
+};
+}  // namespace ForceTerm
+
+// exact: the true derivatives (tests, Newton near a stable minimum).
+// definite: for implicit solves, -df/dx and -df/dv made positive
+// semi-definite and symmetric: compressive stretch curvature clamped, the
+// C * d2C/dx2 terms of shear and bending dropped (Gauss-Newton), the
+// non-symmetric position derivatives of damping, drag and friction dropped.
+enum class JacobianMode { exact, definite };
+
+struct Environment {
+    Eigen::Vector3d gravity_m_per_s2{0.0, 0.0, -9.81};  // world z up, as in captures
+    // Air velocity: `wind_field(position, time)` when set, else the constant.
+    // Jacobians treat the wind as locally uniform.
+    Eigen::Vector3d wind_m_per_s = Eigen::Vector3d::Zero();
+    std::function<Eigen::Vector3d(const Eigen::Vector3d& position_m, double time_s)> wind_field;
+    std::vector<Collider> colliders;
+    ContactSettings contact;
+    SelfContactSettings self_contact;
+};
+
+// The definite Jacobians of one evaluation, J = sx df/dx + sv df/dv, kept per
+// element instead of assembled (ClothModel::linearize), for the implicit
+// integrator: assembled row by row (no two threads write a block) or applied
+// matrix-free. Equal to sx K + sv D of the assembled JacobianMode::definite
+// matrices (tested).
+struct Linearization {
+    double sx = 0.0, sv = 0.0;
+    // Triangle t, local vertices a, b: block (a, b) = alpha_a U_b + beta_a V_b
+    // with U_0..2, V_0..2 stored at 6 t.
+    std::vector<Eigen::Matrix3d> membrane_blocks;
+    std::vector<Vector12d> hinge_gradient;       // per interior edge: block (a, b) = c g_a g_b^T
+    std::vector<double> hinge_coefficient;
+    std::vector<Eigen::Matrix3d> drag_block;     // per triangle: the block between any two of its vertices
+    std::vector<Eigen::Matrix3d> vertex_block;   // contacts and friction (diagonal blocks)
+    std::vector<BlockSparseMatrix::Extra> pair_blocks;  // self contact
+    bool has_membrane = false, has_bending = false, has_drag = false, has_vertex = false;
+    // df/dx (definite, unscaled) times the vector given to linearize.
+    Eigen::VectorXd dfdx_product;
+};
+
+class ClothModel {
+public:
+    // Throws flowvid::ValidationError for a mesh or material that cannot be
+    // simulated (degenerate rest triangles, non-manifold edges, bad numbers).
+    ClothModel(ClothMesh mesh, ClothMaterial material, Environment environment = {});
+    ~ClothModel();
+    ClothModel(ClothModel&&) noexcept;
+    ClothModel& operator=(ClothModel&&) noexcept;
+
+    const ClothMesh& mesh() const { return m_mesh; }
+    const ClothMaterial& material() const { return m_material; }
+    const Environment& environment() const { return m_environment; }
+    int vertex_count() const { return m_mesh.vertex_count(); }
+    // #V lumped masses: areal density x one third of each incident rest triangle.
+    const Eigen::VectorXd& vertex_masses_kg() const { return m_mass; }
+    double total_mass_kg() const { return m_total_mass; }
+    double total_rest_area_m2() const { return m_total_area; }
+    const std::vector<BendingStencil>& bending_stencils() const { return m_stencils; }
+
+    // Changes the material without rebuilding the topology (for fitting).
+    void set_material(const ClothMaterial& material);
+    void set_environment(Environment environment);
+
+    // Overwrites `force` with the sum of `terms` at (x, v, time). When given,
+    // `dfdx` / `dfdv` (with the pattern of make_jacobian_matrix()) are cleared
+    // and filled with the derivatives of the same terms.
+    void evaluate(const Eigen::VectorXd& x, const Eigen::VectorXd& v, double time_s, unsigned terms,
+                  Eigen::VectorXd& force, BlockSparseMatrix* dfdx = nullptr, BlockSparseMatrix* dfdv = nullptr,
+                  JacobianMode mode = JacobianMode::exact);
+    // Potential energy (J) of the conservative terms among `terms`; gravity is
+    // -sum m g.x, so it is relative to the origin.
+    // Forces as evaluate(), with J = sx df/dx + sv df/dv (definite) kept per
+    // element; when `product_of` is given, also lin.dfdx_product = df/dx p.
+    void linearize(const Eigen::VectorXd& x, const Eigen::VectorXd& v, double time_s, unsigned terms, double sx,
+                   double sv, Eigen::VectorXd& force, Linearization& lin, const Eigen::VectorXd* product_of = nullptr);
+    // out = J p from the element data, without assembling.
+    void apply_product(const Linearization& lin, const Eigen::VectorXd& p, Eigen::VectorXd& out) const;
+    // J assembled (pattern of make_jacobian_matrix()), row by row.
+    void assemble_product(const Linearization& lin, BlockSparseMatrix& J);
+
+    // Worker threads for the element loops (1 = none). Results do not depend
+    // on it (fixed chunks, summed in order). A wind_field must then be safe to
+    // call from several threads.
+    void set_threads(int threads);
+    int threads() const;
+    detail::WorkerPool* worker_pool() { return m_pool.get(); }
+    static constexpr int kChunks = 2;
+
+    double potential_energy(const Eigen::VectorXd& x, unsigned terms = ForceTerm::conservative);
+    double kinetic_energy(const Eigen::VectorXd& v) const;
+    BlockSparseMatrix make_jacobian_matrix() const;
+
+    // Largest of |w_u|, |w_v| (stretch ratio along warp/weft) over triangles.
+    double max_stretch_ratio(const Eigen::VectorXd& x) const;
+
+    // Contact bookkeeping (candidate lists are rebuilt when vertices have
+    // moved more than half the search margin since the last build).
+    struct ContactStatistics {
+        long long self_rebuilds = 0;
+        long long body_rebuilds = 0;
+        int self_candidates = 0;
+        int body_candidates = 0;
+    };
+    const ContactStatistics& contact_statistics() const { return m_contact_stats; }
+
+    struct TriangleData {
+        std::array<int, 3> v;
+        std::array<double, 3> alpha;  // w_u = sum alpha_a x_a
+        std::array<double, 3> beta;   // w_v = sum beta_a x_a
+        double rest_area_m2;
+        std::array<int, 9> slots;     // Jacobian blocks (a, b) -> slot
+    };
+    struct EdgeData {
+        std::array<int, 4> v;
+        double weight;                // |e|^2 / (A1 + A2) at rest, dimensionless
+        std::array<int, 16> slots;
+    };
+
+private:
+    void validate_and_precompute();
+    void evaluate_terms(const Eigen::VectorXd& x, const Eigen::VectorXd& v, double time_s, unsigned terms,
+                        Eigen::VectorXd& force, BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv, JacobianMode mode,
+                        Linearization* lin, const Eigen::VectorXd* product_of = nullptr);
+    void add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v, unsigned terms, Eigen::VectorXd& f,
+                      BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv, JacobianMode mode, Linearization* lin,
+                      size_t begin, size_t end, const Eigen::VectorXd* product_of = nullptr,
+                      Eigen::VectorXd* product = nullptr) const;
+    void add_bending(const Eigen::VectorXd& x, const Eigen::VectorXd& v, unsigned terms, Eigen::VectorXd& f,
+                     BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv, JacobianMode mode, Linearization* lin,
+                     size_t begin, size_t end, const Eigen::VectorXd* product_of = nullptr,
+                     Eigen::VectorXd* product = nullptr) const;
+    void add_drag(const Eigen::VectorXd& x, const Eigen::VectorXd& v, double time_s, Eigen::VectorXd& f,
+                  BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv, JacobianMode mode, Linearization* lin,
+                  size_t begin, size_t end) const;
+    void add_body_contact(const Eigen::VectorXd& x, const Eigen::VectorXd& v, unsigned terms, Eigen::VectorXd* f,
+                          double* energy, BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv, JacobianMode mode,
+                          Linearization* lin = nullptr, const Eigen::VectorXd* product_of = nullptr);
+    void add_self_contact(const Eigen::VectorXd& x, Eigen::VectorXd* f, double* energy, BlockSparseMatrix* dfdx,
+                          JacobianMode mode, Linearization* lin = nullptr, const Eigen::VectorXd* product_of = nullptr);
+    void update_body_candidates(const Eigen::VectorXd& x);
+    void update_self_candidates(const Eigen::VectorXd& x);
+
+    ClothMesh m_mesh;
+    ClothMaterial m_material;
+    Environment m_environment;
+    std::vector<BendingStencil> m_stencils;
+    std::vector<TriangleData> m_triangles;
+    std::vector<EdgeData> m_edges;
+    std::vector<std::pair<int, int>> m_pattern_pairs;
+    Eigen::VectorXd m_mass;
+    Eigen::VectorXd m_vertex_area;
+    double m_total_mass = 0.0;
+    double m_total_area = 0.0;
+
+    // Contacts.
+    struct BodyMeshGrid;
+    std::vector<std::vector<int>> m_vertex_triangles;  // incident triangles per vertex
+    std::vector<std::pair<int, int>> m_body_candidates;  // (vertex, collider triangle packed id)
+    std::vector<std::pair<int, int>> m_self_candidates;  // (vertex, triangle)
+    Eigen::VectorXd m_body_build_x;
+    Eigen::VectorXd m_self_build_x;
+    bool m_body_built = false;
+    bool m_self_built = false;
+    std::vector<int> m_body_mesh_offsets;  // per collider: first packed triangle id
+    std::vector<std::vector<std::pair<int, int>>> m_vertex_triangle_local;  // (triangle, local index)
+    std::vector<std::vector<std::pair<int, int>>> m_vertex_edge_local;      // (edge, local index)
+    std::vector<Eigen::VectorXd> m_chunk_force;
+    std::vector<Eigen::VectorXd> m_chunk_product;
+    std::unique_ptr<detail::WorkerPool> m_pool;
+    ContactStatistics m_contact_stats;
+};
+
+}  // namespace flowvid::cloth

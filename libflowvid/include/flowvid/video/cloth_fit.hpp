@@ -1,0 +1,147 @@
+#pragma once
+// Inverse simulation for cloth (thesis 2.4): the objective that a fit
+// minimises. For a set of trials (static drapes and waving tests, fitted
+// jointly), a fabric material is simulated with each trial's pins, rendered
+// through its camera with its projector's stripes, turned into angle maps and
+// compared with the footage's (metrics/angle_map_metric.hpp):
+//
+//   E(material) = sum over trials, sum over compared frames k of w_k E_k
+//
+// Trials are loaded from capture folders (frames, masks or background plate,
+// calibration, pins; never truth/) or built directly (synthetic footage in
+// tests). Evaluations are deterministic: the static equilibrium of every
+// trial is warm-started from one fixed solution computed up front, never
+// from whatever was evaluated before.
+
+#include "flowvid/cloth/swatch.hpp"
+#include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/fabric_preset.hpp"
+#include "flowvid/metrics/angle_map_metric.hpp"
+#include "flowvid/optim/annealing.hpp"
+#include "flowvid/optim/objective.hpp"
+#include "flowvid/video/angle_map.hpp"
+#include "flowvid/video/cloth_footage.hpp"
+
+#include <Eigen/Core>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace flowvid::video {
+
+// One fitted quantity: a fabric preset key ("bend_stiffness_N_m", ...; see
+// formats::fabric_parameter_table) or a tie of two of them:
+// "stretch_stiffness_N_per_m" (warp and weft) and "stretch_damping_N_s_per_m".
+struct FittedParameter {
+    std::string key;
+    double lower = 0.0;
+    double upper = 1.0;
+    bool log_scale = true;
+};
+
+// Sets or reads `key` of a material. Throws std::invalid_argument naming an unknown key.
+void set_material_parameter(cloth::ClothMaterial& material, const std::string& key, double value);
+double material_parameter(const cloth::ClothMaterial& material, const std::string& key);
+
+// The thesis's choices: static test, 6 (stretch, shear, bend and their
+// damping; drag held at its base value); waving test, those and the 3 drag
+// terms (9). Ranges span the fabrics of the thesis and Blender's presets.
+std::vector<FittedParameter> static_test_parameters();
+std::vector<FittedParameter> waving_test_parameters();
+
+// One trial: what is simulated and what it is compared with.
+struct ClothTrial {
+    std::string name;                      // for reports (the capture folder)
+    bool is_static = false;
+    cloth::SwatchExperiment experiment;    // frame_count: the frames to simulate (>= the last compared)
+    formats::CameraModel camera;
+    formats::Projector projector;
+    AngleMapSettings angle_map;
+    // Compared frames; `number` is 1-based from the experiment's first frame
+    // (the equilibrium is 1), `weight` is w_k.
+    std::vector<metrics::ReferenceFrame> frames;
+};
+
+struct TrialLoadSettings {
+    int static_frames = 1;        // a static drape does not move: its first frame(s)
+    int waving_frames = 50;       // the thesis fitted the first 50 frames
+    int full_weight_frames = 10;  // waving: frames after these count less ...
+    double half_life_frames = 0;  // ... halving every this many frames (0: all count fully)
+    SegmentationSettings segmentation;
+    std::optional<double> stripe_period_px;  // default: expected_stripe_period_px(capture)
+    metrics::SilhouetteTerm silhouette_term = metrics::SilhouetteTerm::pixel_xor;  // prepares edge distances when needed
+};
+
+// Reads a cloth capture's footage into a trial. Throws what ClothFootage
+// and the capture readers throw (ValidationError naming capture.json fields).
+ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& settings = {});
+
+struct ClothFitSettings {
+    cloth::SwatchOptions swatch;              // mesh resolution, integrator, equilibrium options
+    metrics::AngleMapMetricSettings metric;
+    cloth::ClothMaterial base;                // values of the parameters that are not fitted
+    bool warm_start = true;                   // equilibria start from the base material's (computed once)
+};
+
+struct TrialEvaluation {
+    std::string name;
+    double error = 0.0;                       // sum_k w_k E_k
+    std::vector<metrics::FrameError> frames;  // per compared frame (a missing frame: the largest error)
+    cloth::SimulationReport report;
+    int simulated_frames = 0;                 // good frames (before a blow-up)
+};
+
+struct ClothEvaluation {
+    double total = 0.0;
+    std::vector<TrialEvaluation> trials;
+};
+
+class ClothFitProblem {
+public:
+    // Throws std::invalid_argument for unknown parameter keys, bad bounds or
+    // no trials.
+    ClothFitProblem(std::vector<ClothTrial> trials, std::vector<FittedParameter> parameters, ClothFitSettings settings);
+
+    const optim::ParameterSpace& space() const { return m_space; }
+    const std::vector<ClothTrial>& trials() const { return m_trials; }
+    const ClothFitSettings& settings() const { return m_settings; }
+
+    cloth::ClothMaterial material(const Eigen::VectorXd& values) const;
+    Eigen::VectorXd values_of(const cloth::ClothMaterial& material) const;
+
+    // Simulates, renders and compares every trial; trials run on up to
+    // `threads` threads (results do not depend on it).
+    ClothEvaluation evaluate(const cloth::ClothMaterial& material, int threads = 1) const;
+    // The simulated vertex positions of one trial (3*#V per frame, frame 1 first) and its mesh.
+    cloth::SwatchRun simulate(std::size_t trial, const cloth::ClothMaterial& material) const;
+
+    // E(values) for the optimizers; uses the spare threads it is given for
+    // trials. Keeps a pointer to this problem, which must outlive it.
+    optim::Objective objective() const;
+
+private:
+    std::vector<ClothTrial> m_trials;
+    std::vector<FittedParameter> m_parameters;
+    ClothFitSettings m_settings;
+    optim::ParameterSpace m_space;
+    std::vector<Eigen::VectorXd> m_warm_starts;  // per trial, empty when none
+};
+
+// A fabric preset of a fitted material: every value from `material`; each
+// fitted parameter (both members of a tie) gets its search range and, when a
+// variability analysis is given, the spread of its runs as the 1-sigma
+// uncertainty (thesis table 2.2). Provenance: the captures (path,
+// capture.json SHA-256, static or waving), the metric and its weights, the
+// optimizer, seed, per-trial errors of `final`, simulator and integrator.
+// `captures[i]` must be the capture of problem.trials()[i].
+formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProblem& problem,
+                                    const std::vector<formats::Capture>& captures, const cloth::ClothMaterial& material,
+                                    const ClothEvaluation& final, std::uint64_t seed,
+                                    const optim::VariabilityReport* variability = nullptr);
+
+// E_k when a simulation produced no frame k (it blew up): every masked pixel
+// off by pi/2 and the silhouette term as if the swatch were missing.
+double missing_frame_error(const metrics::ReferenceFrame& reference, const metrics::AngleMapMetricSettings& settings);
+
+}  // namespace flowvid::video

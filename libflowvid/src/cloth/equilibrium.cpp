@@ -1,0 +1,213 @@
+#include "flowvid/cloth/equilibrium.hpp"
+
+#include "flowvid/cloth/linear_solve.hpp"
+
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace flowvid::cloth {
+
+namespace {
+
+constexpr unsigned kStaticTerms = ForceTerm::conservative;
+
+struct Residual {
+    double max_force = 0.0;
+    double max_over_weight = 0.0;
+    double norm = 0.0;
+};
+
+Residual residual(const ClothModel& model, const std::vector<bool>& fixed, const Eigen::VectorXd& f) {
+    Residual r;
+    const double g = std::max(model.environment().gravity_m_per_s2.norm(), 1e-300);
+    double sum = 0.0;
+    for (int i = 0; i < model.vertex_count(); ++i) {
+        if (fixed[static_cast<size_t>(i)]) continue;
+        const double fi = f.segment<3>(3 * i).norm();
+        r.max_force = std::max(r.max_force, fi);
+        r.max_over_weight = std::max(r.max_over_weight, fi / (model.vertex_masses_kg()(i) * g));
+        sum += fi * fi;
+    }
+    r.norm = std::sqrt(sum);
+    return r;
+}
+
+}  // namespace
+
+EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<bool>& fixed, Eigen::VectorXd& x,
+                                           const EquilibriumOptions& options) {
+    EquilibriumReport report;
+    const int n = model.vertex_count();
+    std::vector<int> dof(static_cast<size_t>(n), -1);
+    int free_dofs = 0;
+    for (int i = 0; i < n; ++i)
+        if (!fixed[static_cast<size_t>(i)]) {
+            dof[static_cast<size_t>(i)] = free_dofs;
+            free_dofs += 3;
+        }
+    const Eigen::VectorXd zero_v = Eigen::VectorXd::Zero(3 * n);
+    Eigen::VectorXd f, f_trial, x_trial;
+    BlockSparseMatrix K = model.make_jacobian_matrix();
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+    std::vector<Eigen::Triplet<double>> triplets;
+    Eigen::VectorXd rhs(free_dofs), step(free_dofs);
+    ConjugateGradient cgs;
+
+    double energy = model.potential_energy(x, kStaticTerms);
+    // Levenberg-Marquardt on the exact Hessian: when -K + shift M is not
+    // positive definite (a saddle, compression) the shift grows until it is;
+    // it shrinks after every good step, so the end game is plain Newton.
+    double shift = 0.0;        // 1/s^2, multiplies the mass matrix
+    bool use_exact = false;
+    int exact_cooldown = 0;
+    double shift_scale = 0.0;  // typical stiffness / mass, set on the first iteration
+    bool pattern_analyzed = false;
+    size_t analyzed_nonzeros = 0;
+
+    for (int it = 0; it <= options.max_iterations; ++it) {
+        model.evaluate(x, zero_v, 0.0, kStaticTerms, f, &K, nullptr,
+                       use_exact ? JacobianMode::exact : JacobianMode::definite);
+        const Residual r = residual(model, fixed, f);
+        report.iterations = it;
+        report.max_residual_force_N = r.max_force;
+        report.max_residual_over_weight = r.max_over_weight;
+        report.potential_energy_J = energy;
+        if (!std::isfinite(r.norm)) {
+            report.reason = "non-finite forces (iteration " + std::to_string(it) + ")";
+            return report;
+        }
+        if (r.max_over_weight <= options.relative_residual_tolerance ||
+            (options.residual_force_floor_N > 0.0 && r.max_force <= options.residual_force_floor_N)) {
+            report.converged = true;
+            return report;
+        }
+        if (it == options.max_iterations) break;
+        if (shift_scale == 0.0) {
+            double trace_k = 0.0, trace_m = 0.0;
+            for (int i = 0; i < n; ++i)
+                if (!fixed[static_cast<size_t>(i)]) {
+                    trace_k += std::abs(K.block(K.diagonal_slot(i)).trace());
+                    trace_m += 3.0 * model.vertex_masses_kg()(i);
+                }
+            shift_scale = trace_m > 0.0 ? std::max(trace_k / trace_m, 1e-12) : 1.0;
+        }
+
+        Eigen::VectorXd dx = Eigen::VectorXd::Zero(3 * n);
+        bool solved = false;
+        // Inexact Gauss-Newton step: CG on the definite Hessian to a loose
+        // tolerance. Far from equilibrium (folds still forming) the steps are
+        // only approximate anyway, and CG is much cheaper than factorising.
+        auto definite_step = [&]() {
+            for (int attempt = 0; attempt < 30; ++attempt) {
+                K.scale(-1.0);
+                for (int i = 0; i < n; ++i)
+                    K.block(K.diagonal_slot(i)).diagonal().array() += shift * model.vertex_masses_kg()(i);
+                dx.setZero();
+                const CgResult cg = cgs.solve(K, f, fixed, dx, options.inexact_newton_tolerance, options.cg_max_iterations);
+                report.cg_iterations += cg.iterations;
+                if (!cg.negative_curvature && dx.allFinite()) return true;
+                shift = shift == 0.0 ? 1e-6 * shift_scale : shift * 10.0;
+                model.evaluate(x, zero_v, 0.0, kStaticTerms, f, &K, nullptr, JacobianMode::definite);
+            }
+            return false;
+        };
+        if (use_exact) {
+            // Exact Newton step (-K + shift M) dx = f, factorised: its pivots
+            // tell whether the Hessian is definite, i.e. whether we are near a
+            // stable minimum.
+            triplets.clear();
+            K.for_each_block([&](int i, int j, const Eigen::Matrix3d& b) {
+                const int di = dof[static_cast<size_t>(i)], dj = dof[static_cast<size_t>(j)];
+                if (di < 0 || dj < 0) return;
+                for (int a = 0; a < 3; ++a)
+                    for (int c = 0; c < 3; ++c) triplets.emplace_back(di + a, dj + c, -b(a, c));
+            });
+            for (int i = 0; i < n; ++i) {
+                const int di = dof[static_cast<size_t>(i)];
+                if (di < 0) continue;
+                for (int a = 0; a < 3; ++a) {
+                    triplets.emplace_back(di + a, di + a, shift * model.vertex_masses_kg()(i));
+                    rhs(di + a) = f(3 * i + a);
+                }
+            }
+            Eigen::SparseMatrix<double> A(free_dofs, free_dofs);
+            A.setFromTriplets(triplets.begin(), triplets.end());
+            // The pattern is fixed unless contacts add blocks: analyse it once.
+            if (!pattern_analyzed || static_cast<size_t>(A.nonZeros()) != analyzed_nonzeros) {
+                solver.analyzePattern(A);
+                pattern_analyzed = true;
+                analyzed_nonzeros = static_cast<size_t>(A.nonZeros());
+            }
+            solver.factorize(A);
+            bool definite = solver.info() == Eigen::Success && (solver.vectorD().array() > 0.0).all();
+            if (definite) {
+                step = solver.solve(rhs);
+                definite = step.allFinite();
+            }
+            if (definite) {
+                for (int i = 0; i < n; ++i)
+                    if (dof[static_cast<size_t>(i)] >= 0) dx.segment<3>(3 * i) = step.segment<3>(dof[static_cast<size_t>(i)]);
+                solved = true;
+            } else {
+                // Not yet near a minimum: back to the definite model for a while.
+                use_exact = false;
+                exact_cooldown = 5;
+                model.evaluate(x, zero_v, 0.0, kStaticTerms, f, &K, nullptr, JacobianMode::definite);
+            }
+        }
+        if (!solved) solved = definite_step();
+        if (!solved) {
+            report.reason = "no positive definite Newton system (iteration " + std::to_string(it) + ")";
+            return report;
+        }
+        const double slope = -f.dot(dx);  // dE/ds at s = 0, negative for a descent direction
+        // Backtracking line search on the energy; when energy differences drown
+        // in rounding (near convergence), on the residual norm instead.
+        double s = 1.0;
+        bool accepted = false;
+        for (int ls = 0; ls < 40; ++ls) {
+            x_trial = x + s * dx;
+            const double e_trial = model.potential_energy(x_trial, kStaticTerms);
+            const double tiny = 1e-13 * (std::abs(energy) + 1e-30);
+            if (std::isfinite(e_trial) && e_trial <= energy + 1e-4 * s * slope && e_trial - energy < -tiny) {
+                accepted = true;
+                energy = e_trial;
+                break;
+            }
+            if (std::isfinite(e_trial) && std::abs(e_trial - energy) <= tiny) {
+                model.evaluate(x_trial, zero_v, 0.0, kStaticTerms, f_trial, nullptr, nullptr);
+                if (residual(model, fixed, f_trial).norm < r.norm) {
+                    accepted = true;
+                    energy = e_trial;
+                    break;
+                }
+            }
+            s *= 0.5;
+        }
+        if (!accepted) {
+            // A poor model of the energy: trust it less.
+            shift = shift == 0.0 ? 1e-4 * shift_scale : shift * 10.0;
+            if (shift > 1e6 * shift_scale) {
+                report.reason = "the line search found no decrease (iteration " + std::to_string(it) + ")";
+                return report;
+            }
+            continue;
+        }
+        // Exact Newton once the definite model makes full steps near the
+        // equilibrium (not every time: an indefinite factorisation is wasted).
+        if (exact_cooldown > 0) --exact_cooldown;
+        if (!use_exact && s == 1.0 && r.max_over_weight < 1.0 && exact_cooldown == 0) use_exact = true;
+        x = x_trial;
+        // Full steps: trust the quadratic model more; short ones: less.
+        shift = s == 1.0 ? shift * 0.1 : shift * 2.0;
+        if (shift < 1e-10 * shift_scale) shift = 0.0;
+    }
+    report.reason = "no convergence in " + std::to_string(options.max_iterations) + " iterations";
+    return report;
+}
+
+}  // namespace flowvid::cloth

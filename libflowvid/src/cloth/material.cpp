@@ -1,0 +1,69 @@
+#include "flowvid/cloth/material.hpp"
+
+#include <cmath>
+
+namespace flowvid::cloth {
+
+namespace {
+
+// One table for both directions of the conversion and for the checks.
+struct Binding {
+    formats::FabricParameter formats::FabricParameters::*preset;
+    double ClothMaterial::*material;
+};
+
+const Binding kBindings[] = {
+    {&formats::FabricParameters::areal_density_kg_per_m2, &ClothMaterial::areal_density_kg_per_m2},
+    {&formats::FabricParameters::stretch_warp_stiffness_N_per_m, &ClothMaterial::stretch_warp_N_per_m},
+    {&formats::FabricParameters::stretch_weft_stiffness_N_per_m, &ClothMaterial::stretch_weft_N_per_m},
+    {&formats::FabricParameters::shear_stiffness_N_per_m, &ClothMaterial::shear_N_per_m},
+    {&formats::FabricParameters::bend_stiffness_N_m, &ClothMaterial::bend_N_m},
+    {&formats::FabricParameters::stretch_warp_damping_N_s_per_m, &ClothMaterial::stretch_warp_damping_N_s_per_m},
+    {&formats::FabricParameters::stretch_weft_damping_N_s_per_m, &ClothMaterial::stretch_weft_damping_N_s_per_m},
+    {&formats::FabricParameters::shear_damping_N_s_per_m, &ClothMaterial::shear_damping_N_s_per_m},
+    {&formats::FabricParameters::bend_damping_N_m_s, &ClothMaterial::bend_damping_N_m_s},
+    {&formats::FabricParameters::drag_normal_kg_per_m3, &ClothMaterial::drag_normal_kg_per_m3},
+    {&formats::FabricParameters::drag_degradation_s2_per_m2, &ClothMaterial::drag_degradation_s2_per_m2},
+    {&formats::FabricParameters::drag_tangential_kg_per_m2_s, &ClothMaterial::drag_tangential_kg_per_m2_s},
+};
+
+const char* preset_key(formats::FabricParameter formats::FabricParameters::*member) {
+    for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table())
+        if (info.member == member) return info.key;
+    return "?";
+}
+
+}  // namespace
+
+ClothMaterial material_from_fabric(const formats::FabricParameters& parameters) {
+    ClothMaterial material;
+    for (const Binding& b : kBindings) material.*b.material = (parameters.*b.preset).value;
+    return material;
+}
+
+formats::FabricParameters fabric_from_material(const ClothMaterial& material) {
+    formats::FabricParameters parameters;
+    for (const Binding& b : kBindings) (parameters.*b.preset).value = material.*b.material;
+    return parameters;
+}
+
+std::vector<Problem> check_material(const ClothMaterial& material) {
+    std::vector<Problem> problems;
+    auto add = [&](const Binding& b, const std::string& message, const std::string& fix) {
+        Problem p;
+        p.file = "<material>";
+        p.field = std::string("/parameters/") + preset_key(b.preset) + "/value";
+        p.message = message;
+        p.fix = fix;
+        problems.push_back(std::move(p));
+    };
+    for (const Binding& b : kBindings) {
+        const double value = material.*b.material;
+        if (!std::isfinite(value)) add(b, "is not a finite number", "give a finite SI value");
+    }
+    if (std::isfinite(material.areal_density_kg_per_m2) && !(material.areal_density_kg_per_m2 > 0.0))
+        add(kBindings[0], "must be positive (the cloth needs mass)", "give the fabric's areal density in kg/m^2");
+    return problems;
+}
+
+}  // namespace flowvid::cloth

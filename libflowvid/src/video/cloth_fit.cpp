@@ -1,0 +1,270 @@
+#include "flowvid/video/cloth_fit.hpp"
+
+#include "flowvid/cloth/material.hpp"
+#include "flowvid/optim/thread_pool.hpp"
+#include "flowvid/version.hpp"
+#include "flowvid/video/stripe_render.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <numbers>
+#include <stdexcept>
+
+namespace flowvid::video {
+
+namespace {
+
+constexpr const char* kStretchTie = "stretch_stiffness_N_per_m";
+constexpr const char* kStretchDampingTie = "stretch_damping_N_s_per_m";
+
+const formats::FabricParameterInfo* preset_entry(const std::string& key) {
+    for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table())
+        if (key == info.key) return &info;
+    return nullptr;
+}
+
+void require_known(const std::string& key) {
+    if (key != kStretchTie && key != kStretchDampingTie && !preset_entry(key))
+        throw std::invalid_argument("unknown cloth parameter '" + key +
+                                    "' (a fabric preset key, stretch_stiffness_N_per_m or stretch_damping_N_s_per_m)");
+}
+
+}  // namespace
+
+void set_material_parameter(cloth::ClothMaterial& material, const std::string& key, double value) {
+    require_known(key);
+    if (key == kStretchTie) {
+        material.stretch_warp_N_per_m = material.stretch_weft_N_per_m = value;
+        return;
+    }
+    if (key == kStretchDampingTie) {
+        material.stretch_warp_damping_N_s_per_m = material.stretch_weft_damping_N_s_per_m = value;
+        return;
+    }
+    formats::FabricParameters parameters = cloth::fabric_from_material(material);
+    (parameters.*(preset_entry(key)->member)).value = value;
+    material = cloth::material_from_fabric(parameters);
+}
+
+double material_parameter(const cloth::ClothMaterial& material, const std::string& key) {
+    require_known(key);
+    if (key == kStretchTie) return material.stretch_warp_N_per_m;
+    if (key == kStretchDampingTie) return material.stretch_warp_damping_N_s_per_m;
+    const formats::FabricParameters parameters = cloth::fabric_from_material(material);
+    return (parameters.*(preset_entry(key)->member)).value;
+}
+
+std::vector<FittedParameter> static_test_parameters() {
+    return {
+        {kStretchTie, 10.0, 1e4, true},
+        {"shear_stiffness_N_per_m", 5.0, 1e4, true},
+        {"bend_stiffness_N_m", 1e-9, 1e-4, true},
+        {kStretchDampingTie, 1e-5, 1.0, true},
+        {"shear_damping_N_s_per_m", 1e-5, 1.0, true},
+        {"bend_damping_N_m_s", 1e-11, 1e-5, true},
+    };
+}
+
+std::vector<FittedParameter> waving_test_parameters() {
+    std::vector<FittedParameter> p = static_test_parameters();
+    p.push_back({"drag_normal_kg_per_m3", 1e-3, 10.0, true});
+    p.push_back({"drag_degradation_s2_per_m2", 1e-3, 10.0, true});
+    p.push_back({"drag_tangential_kg_per_m2_s", 1e-3, 10.0, true});
+    return p;
+}
+
+ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& settings) {
+    ClothFootage footage(capture, settings.segmentation);
+    ClothTrial trial;
+    trial.name = capture.folder;
+    trial.is_static = capture.kind == "cloth.static";
+    trial.experiment = cloth::experiment_from_capture(capture);
+    trial.camera = footage.camera();
+    trial.projector = footage.projector();
+    const double period = settings.stripe_period_px.value_or(expected_stripe_period_px(capture));
+    trial.angle_map = AngleMapSettings::for_stripe_period(period);
+    const int wanted = trial.is_static ? settings.static_frames : settings.waving_frames;
+    const int count = std::clamp(wanted, 1, footage.count());
+    const std::vector<double> weights =
+        trial.is_static ? std::vector<double>(static_cast<std::size_t>(count), 1.0)
+                        : metrics::decaying_frame_weights(count, settings.full_weight_frames, settings.half_life_frames);
+    AngleMapper mapper(trial.angle_map);
+    for (int k = 0; k < count; ++k) {
+        const ClothFrame frame = footage.frame(footage.first() + k);
+        metrics::ReferenceFrame reference;
+        reference.number = k + 1;
+        reference.weight = weights[static_cast<std::size_t>(k)];
+        reference.silhouette = frame.silhouette;
+        mapper.compute(frame.gray, frame.silhouette, reference.angles);
+        if (settings.silhouette_term == metrics::SilhouetteTerm::edge_distance) metrics::prepare_reference(reference);
+        trial.frames.push_back(std::move(reference));
+    }
+    // Simulate only as far as needed, plus two frames so that the pins' spline
+    // keeps its tangents up to the last compared frame (its ends are at rest).
+    const int simulated = trial.is_static ? 1 : std::min(count + 2, trial.experiment.frame_count);
+    trial.experiment.frame_count = simulated;
+    for (cloth::PinTrajectory& pin : trial.experiment.pins)
+        if (static_cast<int>(pin.positions_m.size()) > simulated) pin.positions_m.resize(static_cast<std::size_t>(simulated));
+    return trial;
+}
+
+double missing_frame_error(const metrics::ReferenceFrame& reference, const metrics::AngleMapMetricSettings& settings) {
+    const double quarter_turn = 0.5 * std::numbers::pi;
+    const double fold = static_cast<double>(reference.angles.mask_count()) * quarter_turn * quarter_turn;
+    double silhouette = 0.0;
+    if (settings.silhouette_term == metrics::SilhouetteTerm::pixel_xor) {
+        silhouette = static_cast<double>(reference.silhouette.area_px());
+    } else {
+        const double far = static_cast<double>(reference.silhouette.width + reference.silhouette.height);
+        silhouette = static_cast<double>(metrics::silhouette_edge_pixels(reference.silhouette).size()) * far * far;
+    }
+    return fold + settings.alpha * silhouette;
+}
+
+ClothFitProblem::ClothFitProblem(std::vector<ClothTrial> trials, std::vector<FittedParameter> parameters,
+                                 ClothFitSettings settings)
+    : m_trials(std::move(trials)), m_parameters(std::move(parameters)), m_settings(std::move(settings)) {
+    if (m_trials.empty()) throw std::invalid_argument("ClothFitProblem: no trials");
+    std::vector<optim::Parameter> space;
+    for (const FittedParameter& p : m_parameters) {
+        require_known(p.key);
+        space.push_back({p.key, p.lower, p.upper, p.log_scale});
+    }
+    m_space = optim::ParameterSpace(space);
+    m_warm_starts.resize(m_trials.size());
+    if (m_settings.warm_start) {
+        for (std::size_t i = 0; i < m_trials.size(); ++i) {
+            cloth::SwatchExperiment equilibrium_only = m_trials[i].experiment;
+            equilibrium_only.frame_count = 1;
+            for (cloth::PinTrajectory& pin : equilibrium_only.pins) pin.positions_m.resize(std::min<std::size_t>(pin.positions_m.size(), 1));
+            const cloth::SwatchRun run = cloth::simulate_swatch(equilibrium_only, m_settings.base, m_settings.swatch);
+            if (run.equilibrium.converged && !run.simulation.frames.empty()) m_warm_starts[i] = run.simulation.frames.front();
+        }
+    }
+}
+
+cloth::ClothMaterial ClothFitProblem::material(const Eigen::VectorXd& values) const {
+    cloth::ClothMaterial m = m_settings.base;
+    for (std::size_t i = 0; i < m_parameters.size(); ++i)
+        set_material_parameter(m, m_parameters[i].key, values(static_cast<Eigen::Index>(i)));
+    return m;
+}
+
+Eigen::VectorXd ClothFitProblem::values_of(const cloth::ClothMaterial& material) const {
+    Eigen::VectorXd values(static_cast<Eigen::Index>(m_parameters.size()));
+    for (std::size_t i = 0; i < m_parameters.size(); ++i)
+        values(static_cast<Eigen::Index>(i)) = material_parameter(material, m_parameters[i].key);
+    return values;
+}
+
+cloth::SwatchRun ClothFitProblem::simulate(std::size_t trial, const cloth::ClothMaterial& material) const {
+    cloth::SwatchOptions options = m_settings.swatch;
+    options.simulation.threads = 1;
+    if (m_warm_starts[trial].size() > 0) options.initial_positions = m_warm_starts[trial];
+    return cloth::simulate_swatch(m_trials[trial].experiment, material, options);
+}
+
+ClothEvaluation ClothFitProblem::evaluate(const cloth::ClothMaterial& material, int threads) const {
+    ClothEvaluation out;
+    out.trials.resize(m_trials.size());
+    auto one = [&](std::size_t t, int /*worker*/) {
+        const ClothTrial& trial = m_trials[t];
+        TrialEvaluation& e = out.trials[t];
+        e.name = trial.name;
+        const cloth::SwatchRun run = simulate(t, material);
+        e.report = run.simulation.report;
+        // After a failure only the frames before the failing one are good
+        // (an equilibrium that did not converge leaves none).
+        int usable = static_cast<int>(run.simulation.frames.size());
+        if (!e.report.ok()) usable = std::min(usable, std::max(0, e.report.frame - 1));
+        e.simulated_frames = usable;
+        StripeRenderer renderer(trial.camera, trial.projector);
+        AngleMapper mapper(trial.angle_map);
+        StripeImage rendered;
+        AngleMap angles;
+        for (const metrics::ReferenceFrame& reference : trial.frames) {
+            const int index = reference.number - 1;
+            metrics::FrameError fe;
+            if (index >= 0 && index < e.simulated_frames) {
+                renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
+                                run.swatch.mesh.triangles, rendered);
+                mapper.compute(rendered.image, rendered.silhouette, angles);
+                fe = metrics::angle_map_frame_error(reference, angles, rendered.silhouette, m_settings.metric);
+            } else {
+                fe.total = missing_frame_error(reference, m_settings.metric);
+            }
+            e.error += reference.weight * fe.total;
+            e.frames.push_back(fe);
+        }
+    };
+    const int workers = std::min<int>(std::max(threads, 1), static_cast<int>(m_trials.size()));
+    if (workers <= 1) {
+        for (std::size_t t = 0; t < m_trials.size(); ++t) one(t, 0);
+    } else {
+        optim::ThreadPool pool(workers);
+        pool.run(m_trials.size(), one);
+    }
+    for (const TrialEvaluation& e : out.trials) out.total += e.error;  // in trial order: thread-independent
+    return out;
+}
+
+optim::Objective ClothFitProblem::objective() const {
+    return [this](const Eigen::VectorXd& values, const optim::EvaluationContext& context) {
+        return evaluate(material(values), context.spare_threads).total;
+    };
+}
+
+formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProblem& problem,
+                                    const std::vector<formats::Capture>& captures, const cloth::ClothMaterial& material,
+                                    const ClothEvaluation& final, std::uint64_t seed,
+                                    const optim::VariabilityReport* variability) {
+    if (captures.size() != problem.trials().size())
+        throw std::invalid_argument("fitted_preset: " + std::to_string(captures.size()) + " captures for " +
+                                    std::to_string(problem.trials().size()) + " trials");
+    formats::FabricPreset preset;
+    preset.name = name;
+    preset.description = "fitted by flowvid from " + std::to_string(captures.size()) + " capture(s)";
+    preset.parameters = cloth::fabric_from_material(material);
+    const optim::ParameterSpace& space = problem.space();
+    for (int i = 0; i < space.size(); ++i) {
+        const std::string& key = space[i].name;
+        std::vector<std::string> members = {key};
+        if (key == kStretchTie) members = {"stretch_warp_stiffness_N_per_m", "stretch_weft_stiffness_N_per_m"};
+        if (key == kStretchDampingTie) members = {"stretch_warp_damping_N_s_per_m", "stretch_weft_damping_N_s_per_m"};
+        for (const std::string& member : members) {
+            formats::FabricParameter& p = preset.parameters.*(preset_entry(member)->member);
+            p.range = std::array<double, 2>{space[i].lower, space[i].upper};
+            if (variability && static_cast<std::size_t>(i) < variability->parameters.size())
+                p.uncertainty = variability->parameters[static_cast<std::size_t>(i)].stddev;
+        }
+    }
+    formats::FabricProvenance& prov = preset.provenance;
+    prov.method = "fit";
+    const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+    std::tm utc{};
+    gmtime_r(&now, &utc);
+    char stamp[32];
+    std::strftime(stamp, sizeof stamp, "%Y-%m-%dT%H:%M:%SZ", &utc);
+    prov.created_utc = stamp;
+    for (const formats::Capture& c : captures)
+        prov.captures.push_back({c.folder, c.capture_json_sha256, c.kind == "cloth.static" ? "static" : "waving"});
+    const metrics::AngleMapMetricSettings& metric = problem.settings().metric;
+    prov.metric = metric.silhouette_term == metrics::SilhouetteTerm::pixel_xor ? "angle_map+silhouette_xor"
+                                                                                 : "angle_map+silhouette_edge_distance";
+    prov.metric_weights["alpha"] = metric.alpha;
+    if (metric.planar_weight > 0.0) prov.metric_weights["planar_weight"] = metric.planar_weight;
+    prov.optimizer = "simulated_annealing";
+    prov.seed = seed;
+    for (std::size_t i = 0; i < final.trials.size() && i < captures.size(); ++i)
+        prov.final_errors.push_back({captures[i].folder, final.trials[i].error});
+    prov.simulator = "flowvid " + flowvid::version();
+    prov.integrator = cloth::integrator_name(problem.settings().swatch.simulation.integrator);
+    const cloth::SwatchExperiment& e = problem.trials().front().experiment;
+    const int cols = problem.settings().swatch.cols;
+    if (cols > 1) prov.swatch_edge_length_m = e.width_m / (cols - 1);
+    return preset;
+}
+
+}  // namespace flowvid::video

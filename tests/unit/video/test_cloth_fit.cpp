@@ -1,0 +1,208 @@
+// The cloth-fit objective: material keys, trials loaded from captures, the
+// penalty for simulations that fail, and a synthetic recovery: footage
+// rendered from our own simulator (Lambertian shading and noise the fit's
+// renderer does not have) at a known stretch and bend is fitted back by the
+// Halton start + annealing, to within 10 %, with the error at the optimum at
+// the noise floor.
+
+#include "flowvid/optim/annealing.hpp"
+#include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/video/stripe_render.hpp"
+
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+using namespace flowvid;
+using namespace flowvid::video;
+
+namespace {
+
+formats::Capture capture(const std::string& name) {
+    return formats::read_capture(flowvid::testing::shared_path("captures/" + name));
+}
+
+// "Plausible cotton" of docs/cloth_model.md.
+cloth::ClothMaterial cotton() {
+    cloth::ClothMaterial c;
+    c.areal_density_kg_per_m2 = 0.15;
+    c.stretch_warp_N_per_m = c.stretch_weft_N_per_m = 150.0;
+    c.shear_N_per_m = 90.0;
+    c.bend_N_m = 3.3e-7;
+    c.stretch_warp_damping_N_s_per_m = c.stretch_weft_damping_N_s_per_m = 0.025;
+    c.shear_damping_N_s_per_m = 0.012;
+    c.bend_damping_N_m_s = 1e-7;
+    c.drag_normal_kg_per_m3 = 0.5;
+    c.drag_tangential_kg_per_m2_s = 0.16;
+    return c;
+}
+
+}  // namespace
+
+TEST(ClothFit, MaterialKeysAndTies) {
+    cloth::ClothMaterial m = cotton();
+    set_material_parameter(m, "stretch_stiffness_N_per_m", 77.0);
+    EXPECT_EQ(m.stretch_warp_N_per_m, 77.0);
+    EXPECT_EQ(m.stretch_weft_N_per_m, 77.0);
+    set_material_parameter(m, "bend_stiffness_N_m", 2e-6);
+    EXPECT_EQ(m.bend_N_m, 2e-6);
+    set_material_parameter(m, "stretch_damping_N_s_per_m", 0.5);
+    EXPECT_EQ(m.stretch_weft_damping_N_s_per_m, 0.5);
+    EXPECT_EQ(material_parameter(m, "drag_normal_kg_per_m3"), 0.5);
+    EXPECT_EQ(m.shear_N_per_m, 90.0);  // untouched
+    try {
+        set_material_parameter(m, "bend_stiffnes_N_m", 1.0);
+        FAIL() << "expected std::invalid_argument";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("bend_stiffnes_N_m"), std::string::npos);
+    }
+    EXPECT_EQ(static_test_parameters().size(), 6u);
+    EXPECT_EQ(waving_test_parameters().size(), 9u);
+    EXPECT_THROW(ClothFitProblem({}, static_test_parameters(), {}), std::invalid_argument);
+}
+
+TEST(ClothFit, LoadsTrialsFromCaptures) {
+    const ClothTrial still = load_trial(capture("cloth-cotton-static-1"));
+    EXPECT_TRUE(still.is_static);
+    ASSERT_EQ(still.frames.size(), 1u);
+    EXPECT_EQ(still.experiment.frame_count, 1);
+    EXPECT_EQ(still.experiment.pins[0].positions_m.size(), 1u);
+    EXPECT_GT(still.frames[0].angles.valid_count(), 15000);
+
+    TrialLoadSettings settings;
+    settings.waving_frames = 6;
+    settings.full_weight_frames = 2;
+    settings.half_life_frames = 2.0;
+    const ClothTrial waving = load_trial(capture("cloth-cotton-waving-1"), settings);
+    EXPECT_FALSE(waving.is_static);
+    ASSERT_EQ(waving.frames.size(), 6u);
+    EXPECT_EQ(waving.frames[5].number, 6);
+    EXPECT_EQ(waving.frames[1].weight, 1.0);
+    EXPECT_NEAR(waving.frames[5].weight, std::exp2(-2.0), 1e-12);
+    EXPECT_EQ(waving.experiment.frame_count, 8);  // two more for the pins' spline
+    EXPECT_EQ(waving.experiment.pins[1].positions_m.size(), 8u);
+}
+
+// A fabric that cannot hang (negative stretch stiffness): no equilibrium, so
+// every compared frame costs the largest error, a finite number the
+// optimizer ranks last, not an exception.
+TEST(ClothFit, FailedSimulationsCostTheLargestError) {
+    ClothFitSettings settings;
+    settings.swatch.rows = settings.swatch.cols = 8;
+    settings.base = cotton();
+    settings.warm_start = false;
+    const ClothFitProblem problem({load_trial(capture("cloth-cotton-static-1"))}, static_test_parameters(), settings);
+    cloth::ClothMaterial broken = cotton();
+    broken.stretch_warp_N_per_m = broken.stretch_weft_N_per_m = -100.0;
+    broken.shear_N_per_m = -100.0;
+    const ClothEvaluation e = problem.evaluate(broken);
+    ASSERT_EQ(e.trials.size(), 1u);
+    EXPECT_FALSE(e.trials[0].report.ok());
+    EXPECT_EQ(e.trials[0].simulated_frames, 0);
+    const double worst = missing_frame_error(problem.trials()[0].frames[0], settings.metric);
+    EXPECT_DOUBLE_EQ(e.total, worst);
+    EXPECT_GT(worst, problem.evaluate(cotton()).total);
+}
+
+TEST(ClothFit, RecoversStretchAndBendFromSyntheticFootage) {
+    const formats::Capture c = capture("cloth-cotton-static-1");
+    ClothTrial trial;
+    trial.name = "synthetic static";
+    trial.is_static = true;
+    trial.experiment = cloth::experiment_from_capture(c);
+    trial.experiment.frame_count = 1;
+    for (cloth::PinTrajectory& pin : trial.experiment.pins) pin.positions_m.resize(1);
+    trial.camera = *c.camera;
+    trial.projector = *c.projector;
+    trial.angle_map = AngleMapSettings::for_stripe_period(expected_stripe_period_px(c));
+
+    ClothFitSettings settings;
+    settings.swatch.rows = settings.swatch.cols = 12;
+    settings.base = cotton();
+    cloth::ClothMaterial truth = cotton();
+    truth.stretch_warp_N_per_m = truth.stretch_weft_N_per_m = 60.0;
+    truth.bend_N_m = 2e-6;
+
+    // The footage: our simulator at the true material, rendered with shading
+    // and background the fit's renderer does not use, plus noise sigma 0.02.
+    {
+        const ClothFitProblem generator({trial}, {{"bend_stiffness_N_m", 1e-9, 1e-4, true}}, settings);
+        const cloth::SwatchRun run = generator.simulate(0, truth);
+        ASSERT_TRUE(run.equilibrium.converged);
+        StripeRenderSettings look;
+        look.shading = StripeShading::lambertian;
+        look.background = 0.1f;
+        StripeRenderer renderer(trial.camera, trial.projector, look);
+        StripeImage footage = renderer.render(vertices_from_vector(run.simulation.frames[0]), run.swatch.mesh.triangles);
+        std::mt19937 rng(5);
+        std::normal_distribution<float> noise(0.0f, 0.02f);
+        for (float& v : footage.image.pixels) v += noise(rng);
+        metrics::ReferenceFrame reference;
+        reference.number = 1;
+        reference.silhouette = footage.silhouette;
+        AngleMapper(trial.angle_map).compute(footage.image, footage.silhouette, reference.angles);
+        trial.frames.push_back(reference);
+    }
+
+    const ClothFitProblem problem({trial},
+                                  {{"stretch_stiffness_N_per_m", 10.0, 1e4, true}, {"bend_stiffness_N_m", 1e-9, 1e-4, true}},
+                                  settings);
+    const double floor = problem.evaluate(truth).total;  // noise and shading only
+    optim::MinimizeSettings fit;
+    fit.threads = 2;
+    fit.design_points = 16;
+    fit.annealing.max_evaluations = 120;
+    fit.annealing.evaluations_per_stage = 6;
+    fit.annealing.fit_schedule_to_budget = true;
+    const auto start = std::chrono::steady_clock::now();
+    const optim::MinimizeResult r = optim::minimize(problem.objective(), problem.space(), fit);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double stretch = r.annealing.best_values(0), bend = r.annealing.best_values(1);
+    std::printf("[measured] synthetic static fit: stretch %.2f N/m (truth 60, %+.1f %%), bend %.3g N m (truth 2e-6, "
+                "%+.1f %%), E %.2f vs noise floor %.2f (start %.2f, base material %.2f), %lld evaluations, %.1f s\n",
+                stretch, 100 * (stretch / 60 - 1), bend, 100 * (bend / 2e-6 - 1), r.annealing.best_value, floor,
+                r.design.best_value(), problem.evaluate(settings.base).total, r.evaluations, seconds);
+    EXPECT_NEAR(stretch, 60.0, 6.0);
+    EXPECT_NEAR(bend, 2e-6, 2e-7);
+    EXPECT_LE(r.annealing.best_value, 1.1 * floor);
+}
+
+// A fitted material becomes a valid fabric preset: ranges of the fitted
+// parameters, the variability analysis's spread as uncertainty, provenance.
+TEST(ClothFit, WritesAFittedPresetWithUncertainty) {
+    ClothFitSettings settings;
+    settings.swatch.rows = settings.swatch.cols = 8;
+    settings.base = cotton();
+    settings.warm_start = false;
+    const formats::Capture c = capture("cloth-cotton-static-1");
+    const ClothFitProblem problem({load_trial(c)}, static_test_parameters(), settings);
+    const ClothEvaluation final = problem.evaluate(cotton());
+    optim::VariabilityReport variability;
+    for (const optim::Parameter& p : problem.space().parameters()) {
+        optim::ParameterVariability v;
+        v.name = p.name;
+        v.stddev = 0.1 * material_parameter(cotton(), p.name);
+        variability.parameters.push_back(v);
+    }
+    const formats::FabricPreset preset = fitted_preset("cotton (test)", problem, {c}, cotton(), final, 7, &variability);
+    const std::string path = flowvid::testing::scratch_dir("cloth_fit_preset") + "/cotton.fabric.json";
+    formats::write_fabric_preset(path, preset);
+    const formats::FabricPreset back = formats::read_fabric_preset(path);
+    EXPECT_EQ(back.parameters.bend_stiffness_N_m.value, 3.3e-7);
+    ASSERT_TRUE(back.parameters.bend_stiffness_N_m.uncertainty.has_value());
+    EXPECT_NEAR(*back.parameters.bend_stiffness_N_m.uncertainty, 3.3e-8, 1e-20);
+    ASSERT_TRUE(back.parameters.stretch_weft_stiffness_N_per_m.range.has_value());
+    EXPECT_EQ((*back.parameters.stretch_weft_stiffness_N_per_m.range)[1], 1e4);
+    EXPECT_FALSE(back.parameters.drag_normal_kg_per_m3.uncertainty.has_value());  // not fitted
+    ASSERT_EQ(back.provenance.captures.size(), 1u);
+    EXPECT_EQ(back.provenance.captures[0].capture_json_sha256, c.capture_json_sha256);
+    EXPECT_EQ(back.provenance.captures[0].test, "static");
+    ASSERT_EQ(back.provenance.final_errors.size(), 1u);
+    EXPECT_DOUBLE_EQ(back.provenance.final_errors[0].error, final.trials[0].error);
+    EXPECT_EQ(back.provenance.seed, 7u);
+}
