@@ -1,0 +1,344 @@
+// Flow-based video: speed of synthesis, editing, tracking and the editing
+// correspondence, and measured quality on the real clips against two
+// baselines (naive looping; the flow-map method games use). Speeds are also
+// given as ratios against the flow-map baseline measured in the same run.
+//
+//   flowvid_bench_flow                         # everything (a few minutes: it tracks both real clips)
+//   flowvid_bench_flow --benchmark_filter=xx   # only the micro benchmarks matching xx, then the tables
+//   FLOWVID_BENCH_FLOW_QUICK=1 flowvid_bench_flow   # skip the real-clip quality table
+
+#include "flowvid/flow/editing.hpp"
+#include "flowvid/flow/geometry.hpp"
+#include "flowvid/flow/quality.hpp"
+#include "flowvid/flow/synthesis.hpp"
+#include "flowvid/flow/synthetic.hpp"
+#include "flowvid/flow/tracking.hpp"
+
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <random>
+
+using namespace flowvid;
+using namespace flowvid::flow;
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// ---- a 1280 x 720 scene ------------------------------------------------------------------------
+// 53 vertical lines 24 px apart across the frame, particles entering every
+// frame at 12 px/frame and living 60 frames (crossing 720 px): 3180 patches
+// of 24 x 24 on screen per frame. Textures are random (tracking is not what
+// is measured here).
+struct Scene {
+    std::shared_ptr<formats::ParticleBank> bank;
+    std::vector<std::vector<Eigen::Vector2d>> inputs;
+    RgbImage plate;
+};
+
+const Scene& scene() {
+    static const Scene s = [] {
+        Scene s;
+        auto bank = std::make_shared<formats::ParticleBank>();
+        const int patch = 24, life = 61, count = 8;
+        bank->patch_size_px = patch;
+        bank->clip_width_px = 1280;
+        bank->clip_height_px = 720;
+        bank->clip_frame_count = count + life;
+        std::mt19937 rng(1);
+        std::uniform_real_distribution<float> u(0.05f, 0.95f);
+        for (int l = 0; l < 53; ++l) {
+            const double x = 16.0 + 24.0 * l;
+            const std::string id = "in-" + std::to_string(l);
+            bank->lines.push_back({id, 720.0f});
+            s.inputs.push_back({{x, 0.0}, {x, 720.0}});
+            for (int p = 0; p < count; ++p) {
+                formats::TrackedParticle particle;
+                particle.line_id = id;
+                particle.start_frame = p;
+                for (int a = 0; a < life; ++a) {
+                    particle.arc_length_px.push_back(12.0f * a);
+                    for (int t = 0; t < patch * patch; ++t) particle.texture_rgba.insert(particle.texture_rgba.end(), {u(rng), u(rng), u(rng), 1.0f});
+                }
+                bank->particles.push_back(std::move(particle));
+            }
+        }
+        s.bank = bank;
+        s.plate = RgbImage(1280, 720, 0.2f);
+        return s;
+    }();
+    return s;
+}
+
+std::shared_ptr<ParticleStreams> scene_streams() {
+    static const auto streams = std::make_shared<ParticleStreams>(scene().bank, scene().inputs, SynthesisSettings{});
+    return streams;
+}
+
+// Output lines for the edit benchmark: every input line bent into a sine.
+std::vector<OutputLine> bent_outputs() {
+    std::vector<OutputLine> out;
+    for (std::size_t l = 0; l < scene().inputs.size(); ++l) {
+        OutputLine o;
+        o.line.id = "out-" + std::to_string(l);
+        o.from = "in-" + std::to_string(l);
+        for (int y = 0; y <= 720; y += 20) o.line.points.emplace_back(scene().inputs[l][0].x() + 20.0 * std::sin(y / 90.0), y);
+        out.push_back(o);
+    }
+    return out;
+}
+
+const FlowMapBaseline& flow_map() {
+    static const FlowMapBaseline baseline(velocity_field(*scene_streams(), 1280, 720, 12.0), scene().plate, scene().plate, 32);
+    return baseline;
+}
+
+void BM_SynthesisFrame1280x720(benchmark::State& state) {
+    const Synthesizer synth(scene_streams(), {}, Background::plate(scene().plate), SynthesisSettings{});
+    int frame = 1;
+    for (auto _ : state) benchmark::DoNotOptimize(synth.render(frame++).rgb.data());
+    state.counters["fps"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_SynthesisFrame1280x720)->Unit(benchmark::kMillisecond);
+
+void BM_EditFrame1280x720(benchmark::State& state) {
+    SynthesisSettings settings;
+    const Synthesizer synth(scene_streams(), bent_outputs(), Background::plate(scene().plate), settings);
+    int frame = 1;
+    for (auto _ : state) benchmark::DoNotOptimize(synth.render(frame++).rgb.data());
+    state.counters["fps"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_EditFrame1280x720)->Unit(benchmark::kMillisecond);
+
+void BM_FlowMapBaselineFrame1280x720(benchmark::State& state) {
+    int frame = 1;
+    for (auto _ : state) benchmark::DoNotOptimize(flow_map().render(frame++).rgb.data());
+    state.counters["fps"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_FlowMapBaselineFrame1280x720)->Unit(benchmark::kMillisecond);
+
+// DP of eq. 3.1 alone: 100 dense lines x 20 candidate input lines.
+void BM_DynamicProgramme100x20(benchmark::State& state) {
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<Eigen::MatrixXd> e(99, Eigen::MatrixXd(20, 20));
+    for (auto& m : e)
+        for (int i = 0; i < 20; ++i)
+            for (int j = 0; j < 20; ++j) m(i, j) = u(rng);
+    std::vector<std::vector<int>> allowed(100);
+    allowed.front() = {0};
+    allowed.back() = {19};
+    for (auto _ : state) benchmark::DoNotOptimize(solve_chain(e, allowed, 20).cost);
+}
+BENCHMARK(BM_DynamicProgramme100x20)->Unit(benchmark::kMicrosecond);
+
+// ---- tables -------------------------------------------------------------------------------------------
+
+void speed_table() {
+    std::printf("\n== Speed at 1280 x 720, 24 x 24 patches (53 lines, 3180 patches per frame) ==\n");
+    const Synthesizer synth(scene_streams(), {}, Background::plate(scene().plate), SynthesisSettings{});
+    const Synthesizer edit(scene_streams(), bent_outputs(), Background::plate(scene().plate), SynthesisSettings{});
+    const auto fps = [](const std::function<void(int)>& render_range, int frames) {
+        const auto start = std::chrono::steady_clock::now();
+        render_range(frames);
+        return frames / seconds_since(start);
+    };
+    const int n = 60;
+    const double flow_map_fps = fps([](int frames) {
+        for (int f = 1; f <= frames; ++f) benchmark::DoNotOptimize(flow_map().render(f).rgb.data());
+    }, n);
+    std::printf("%-44s %8s %10s\n", "", "fps", "vs flow map");
+    std::printf("%-44s %8.1f %10.2f\n", "flow-map baseline (1 thread)", flow_map_fps, 1.0);
+    for (int threads : {1, 2}) {
+        const double s = fps([&](int frames) { synth.render_frames(1, frames, threads, [](int, const RgbImage&) { return true; }); }, n);
+        std::printf("%-44s %8.1f %10.2f\n", (std::string("synthesis, ") + std::to_string(threads) + " thread(s)").c_str(), s,
+                    s / flow_map_fps);
+    }
+    for (int threads : {1, 2}) {
+        const double s = fps([&](int frames) { edit.render_frames(1, frames, threads, [](int, const RgbImage&) { return true; }); }, n);
+        std::printf("%-44s %8.1f %10.2f\n", (std::string("edit (warped, bent lines), ") + std::to_string(threads) + " thread(s)").c_str(),
+                    s, s / flow_map_fps);
+    }
+    std::printf("goal: synthesis >= 30 frames/s on 2 cores (the thesis: 320 x 240 at 20 s/frame)\n");
+}
+
+void correspondence_table() {
+    std::printf("\n== Editing correspondence: 100 dense lines x 20 input lines, 30 frames ==\n");
+    // 20 input lines 30 px apart; the artist draws 2 output lines 600 px apart:
+    // 98 lines are interpolated between them (spacing 6 px).
+    auto bank = std::make_shared<formats::ParticleBank>();
+    bank->patch_size_px = 24;
+    bank->clip_width_px = 1280;
+    bank->clip_height_px = 720;
+    std::vector<std::vector<Eigen::Vector2d>> inputs;
+    formats::FlowLineSet drawing;
+    drawing.width = 1280;
+    drawing.height = 720;
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> u(0.05f, 0.95f);
+    const int life = 31, count = 6;
+    bank->clip_frame_count = count + life;
+    for (int l = 0; l < 20; ++l) {
+        const std::string id = "in-" + std::to_string(l);
+        const double x = 40.0 + 30.0 * l;
+        bank->lines.push_back({id, 300.0f});
+        inputs.push_back({{x, 0.0}, {x, 300.0}});
+        formats::FlowLine line;
+        line.id = id;
+        line.points = inputs.back();
+        drawing.inputs.push_back(line);
+        const float grey = u(rng);
+        for (int p = 0; p < count; ++p) {
+            formats::TrackedParticle particle;
+            particle.line_id = id;
+            particle.start_frame = p;
+            for (int a = 0; a < life; ++a) {
+                particle.arc_length_px.push_back(10.0f * a);
+                for (int t = 0; t < 24 * 24; ++t) particle.texture_rgba.insert(particle.texture_rgba.end(), {grey, u(rng) * 0.1f + grey, grey, 1.0f});
+            }
+            bank->particles.push_back(std::move(particle));
+        }
+    }
+    for (int k = 0; k < 2; ++k) {
+        formats::FlowLine out;
+        out.id = k ? "right" : "left";
+        out.from = k ? "in-19" : "in-0";
+        out.points = {{50.0 + 594.0 * k, 0.0}, {60.0 + 594.0 * k, 300.0}};
+        drawing.outputs.push_back(out);
+    }
+    const ParticleStreams streams(bank, inputs, SynthesisSettings{});
+    EditSettings settings;
+    settings.spacing_px = 6.0;
+    settings.max_gap_px = 1000.0;
+    for (int threads : {1, 2, 1}) {
+        settings.threads = threads;
+        const auto start = std::chrono::steady_clock::now();
+        const EditPlan plan = plan_edit(drawing, streams, settings);
+        const double total = seconds_since(start);
+        std::printf("%zu dense lines, %zu candidates, %d thread(s): overlap errors + DP %.2f s\n", plan.lines.size(),
+                    streams.input_lines().size(), threads, total);
+    }
+    std::printf("(the DP alone, eq. 3.1, takes the time of BM_DynamicProgramme100x20 above)\n");
+}
+
+void tracking_table() {
+    const std::string capture_dir = std::string(FLOWVID_SHARED_DIR) + "/captures/video-waterfall-cascade";
+    std::printf("\n== Tracking a 120-frame 640 x 360 clip with 10 lines ==\n");
+    if (!std::filesystem::exists(capture_dir)) {
+        std::printf("(skipped: %s not found)\n", capture_dir.c_str());
+        return;
+    }
+    const formats::Capture capture = open_clip(capture_dir);
+    const formats::FlowLineSet drawing = formats::import_flowlines_svg(capture.resolve(capture.flowlines));
+    std::vector<formats::FlowLine> lines = densify_input_lines(drawing, 25.0, 144.0);
+    lines.resize(std::min<std::size_t>(lines.size(), 10));
+    for (int threads : {1, 2}) {
+        CaptureFrames frames(capture);
+        TrackingSettings settings;
+        settings.threads = threads;
+        const auto start = std::chrono::steady_clock::now();
+        const TrackingResult result = track_particles(frames, lines, settings);
+        std::printf("waterfall, %zu drawn lines (%zu tracked segments), %d thread(s): %.1f s, %zu particles\n", lines.size(),
+                    result.report.lines.size(), threads, seconds_since(start), result.bank.particles.size());
+    }
+    std::printf("goal: under a minute\n");
+}
+
+// ---- quality on the real clips -------------------------------------------------------------------------
+
+struct QualityRow {
+    const char* name;
+    QualityReport report;
+};
+
+void print_quality(const char* clip, const std::vector<QualityRow>& rows) {
+    std::printf("\n%s\n", clip);
+    std::printf("%-9s %10s %10s | %8s %8s | %9s %9s %9s\n", "method", "seam max", "share>p99", "pulsing", "(clip)",
+                "patch d", "(self d)", "HF ratio");
+    for (const QualityRow& r : rows)
+        std::printf("%-9s %10.2f %10.3f | %8.3f %8.3f | %9.4f %9.4f %9.2f\n", r.name, r.report.max_transition_ratio,
+                    r.report.share_above_p99, r.report.pulsing, r.report.clip_pulsing, r.report.patch_distance,
+                    r.report.clip_self_distance, r.report.hf_power_ratio);
+}
+
+void quality_on(const std::string& name, formats::ParticleDynamics dynamics, double densify_px) {
+    const std::string capture_dir = std::string(FLOWVID_SHARED_DIR) + "/captures/" + name;
+    if (!std::filesystem::exists(capture_dir)) {
+        std::printf("(skipped: %s not found)\n", capture_dir.c_str());
+        return;
+    }
+    const formats::Capture capture = open_clip(capture_dir);
+    const formats::FlowLineSet drawing = formats::import_flowlines_svg(capture.resolve(capture.flowlines));
+    CaptureFrames frames(capture);
+    TrackingSettings tracking;
+    tracking.dynamics = dynamics;
+    const auto start = std::chrono::steady_clock::now();
+    const TrackingResult tracked = track_particles(frames, densify_input_lines(drawing, densify_px, 144.0), tracking);
+    const double track_seconds = seconds_since(start);
+    auto bank = std::make_shared<formats::ParticleBank>(tracked.bank);
+    CaptureFrames again(capture);
+    auto clip = std::make_shared<ClipFrames>(ClipFrames::read_all(again));
+    SynthesisSettings settings;
+    auto streams = std::make_shared<ParticleStreams>(bank, ParticleStreams::input_points_from_drawing(*bank, drawing, "svg"),
+                                                     settings, &drawing);
+    const RgbImage plate = median_plate(*clip);
+    const Synthesizer synth(streams, {}, Background::plate(plate), settings);
+    const int width = clip->width(), height = clip->height(), count = clip->count(), frames_out = 2 * count;
+    std::vector<std::vector<float>> clip_luma, ours, loop, flowmap;
+    for (int i = 0; i < count; ++i) clip_luma.push_back(clip->luma(i));
+    synth.render_frames(1, frames_out, 0, [&](int, const RgbImage& image) {
+        ours.push_back(luma(to_display(image)));
+        return true;
+    });
+    for (int t = 1; t <= frames_out; ++t) loop.push_back(luma(to_display(naive_loop_frame(*clip, t))));
+    const FlowMapBaseline baseline(velocity_field(*streams, width, height, bank->patch_size_px / 2.0), clip->linear(0), plate, 32);
+    for (int t = 1; t <= frames_out; ++t) flowmap.push_back(luma(to_display(baseline.render(t))));
+    std::vector<std::vector<Eigen::Vector2d>> lines;
+    for (std::size_t k = 0; k < streams->schedule().lines.size(); ++k) lines.push_back(streams->geometry(static_cast<int>(k)).points());
+    const auto mask = line_band_mask(lines, width, height, bank->patch_size_px / 4.0);
+    std::size_t substituted = 0;
+    for (const auto& l : streams->schedule().lines) substituted += static_cast<std::size_t>(l.substituted);
+    char title[512];
+    std::snprintf(title, sizeof title,
+                  "%s (%s, densify %.0f px): tracked %zu segments in %.1f s, %zu particles; K = %d, step %d, period %d "
+                  "frames, %zu of %zu slots borrowed; %d output frames",
+                  name.c_str(), formats::to_string(dynamics), densify_px, tracked.report.lines.size(), track_seconds,
+                  bank->particles.size(), streams->schedule().particles_per_line, streams->schedule().start_every,
+                  streams->schedule().period_frames, substituted,
+                  streams->schedule().lines.size() * static_cast<std::size_t>(streams->schedule().particles_per_line), frames_out);
+    print_quality(title, {{"ours", measure_quality(clip_luma, ours, width, height, mask)},
+                          {"loop", measure_quality(clip_luma, loop, width, height, mask)},
+                          {"flow map", measure_quality(clip_luma, flowmap, width, height, mask)}});
+}
+
+void quality_table() {
+    if (std::getenv("FLOWVID_BENCH_FLOW_QUICK")) return;
+    std::printf("\n== Quality on the real clips (luma in the band within a quarter patch of the tracked lines) ==\n");
+    std::printf("seam max = largest frame-to-frame difference / clip's 95th percentile; share>p99 = output\n"
+                "transitions above the clip's 99th percentile; pulsing = coefficient of variation of per-frame\n"
+                "high-frequency energy; patch d = RMS distance of 16x16 output patches to their nearest clip patch\n"
+                "(self d: the clip's patches to other frames >= 5 apart); HF ratio = output / clip HF energy\n");
+    quality_on("video-waterfall-cascade", formats::ParticleDynamics::stationary, 12.0);
+    quality_on("video-fire-pot", formats::ParticleDynamics::non_stationary, 0.0);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    speed_table();
+    correspondence_table();
+    tracking_table();
+    quality_table();
+    return 0;
+}

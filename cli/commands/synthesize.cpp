@@ -1,0 +1,290 @@
+// flowvid synth / flowvid edit: render any range of the seamless infinite
+// sequence from a particle bank, along the input lines (synth) or along new,
+// possibly moving, output lines (edit). thesis 3.2-3.4, flow/synthesis.hpp and
+// flow/editing.hpp.
+
+#include "command.hpp"
+#include "output.hpp"
+
+#include "flowvid/flow/editing.hpp"
+#include "flowvid/flow/frames.hpp"
+#include "flowvid/flow/synthesis.hpp"
+#include "flowvid/formats/any_file.hpp"
+#include "flowvid/formats/flowlines.hpp"
+#include "flowvid/formats/particle_bank.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <csignal>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+
+namespace flowvid::cli {
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+void on_render_interrupt(int) { g_interrupted = true; }
+
+struct RenderOptions {
+    std::string bank;
+    std::string capture;
+    std::string flowlines;
+    std::string frames = "100";
+    std::string out;
+    std::string background = "median";
+    int particles = 0;
+    int first_start = -1;
+    unsigned long long seed = 0;
+    bool loop = false;
+    int threads = 0;
+    double coverage = 0.5;
+    int fade_frames = -1;
+    bool json = false;
+    // edit
+    std::string mapping = "equal";
+    double spacing_px = 0.0;
+    double max_gap_px = 0.0;
+    bool no_interpolate = false;
+    int correspondence_frames = 30;
+    std::string dense_out;
+};
+
+// "N" = frames 1..N; "A:B" = frames A..B (inclusive, 1-based, as capture.json
+// and the flow-line keys count).
+bool parse_frames(const std::string& text, int& first, int& last) {
+    try {
+        const std::size_t colon = text.find(':');
+        std::size_t used = 0;
+        if (colon == std::string::npos) {
+            first = 1;
+            last = std::stoi(text, &used);
+            return used == text.size() && last >= 1;
+        }
+        const std::string a = text.substr(0, colon), b = text.substr(colon + 1);
+        first = std::stoi(a, &used);
+        if (used != a.size()) return false;
+        last = std::stoi(b, &used);
+        return used == b.size() && first >= 1 && last >= first;
+    } catch (const std::exception&) {
+        return false;
+    }
+}
+
+formats::FlowLineSet read_lines(const std::string& path, std::vector<Problem>& warnings) {
+    if (formats::detect_file_kind(path) == formats::FileKind::flowline_svg) return formats::import_flowlines_svg(path, &warnings);
+    return formats::read_flowline_set(path, &warnings);
+}
+
+int render(const RenderOptions& options, const GlobalOptions& global, bool edit) {
+    int first = 1, last = 1;
+    if (!options.loop && !parse_frames(options.frames, first, last)) {
+        log_message("error: --frames " + options.frames + ": give N (frames 1..N) or A:B (frames A..B, A >= 1)");
+        return kExitUsage;
+    }
+    std::vector<Problem> warnings;
+    auto bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(options.bank, &warnings));
+    print_problems(warnings);
+
+    // The clip: for the background and, by default, the flow lines.
+    std::string capture_path = options.capture.empty() ? bank->source_clip : options.capture;
+    std::optional<formats::Capture> capture;
+    std::error_code ec;
+    if (!capture_path.empty() && std::filesystem::exists(capture_path, ec)) capture = flow::open_clip(capture_path, bank->fps);
+    const flow::BackgroundMode mode = flow::background_mode_from_string(options.background);
+    if (mode != flow::BackgroundMode::none && !capture) {
+        log_message("error: " + options.bank + ": the background needs the source clip (" +
+                    (capture_path.empty() ? std::string("not recorded in the bank") : capture_path + " not found") +
+                    "); give --capture, or --background none");
+        return kExitUsage;
+    }
+    std::string lines_path = options.flowlines;
+    if (lines_path.empty() && capture && !capture->flowlines.empty()) lines_path = capture->resolve(capture->flowlines);
+    if (lines_path.empty()) {
+        log_message("error: no flow lines: give --flowlines FILE (the drawing the bank was tracked with)");
+        return kExitUsage;
+    }
+    const formats::FlowLineSet drawing = read_lines(lines_path, warnings);
+    print_problems(warnings);
+    if (edit && drawing.outputs.empty()) {
+        log_message("error: " + lines_path + ": no output lines to edit with (draw them in the group id=\"output\")");
+        return kExitInvalidInput;
+    }
+
+    flow::SynthesisSettings settings;
+    settings.particles = options.particles;
+    settings.first_start_frame = options.first_start;
+    settings.seed = options.seed;
+    settings.mapping = flow::arc_mapping_from_string(options.mapping);
+    settings.coverage_weight = options.coverage;
+    settings.fade_frames = options.fade_frames;
+    auto streams = std::make_shared<flow::ParticleStreams>(
+        bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
+    for (const std::string& w : streams->schedule().warnings) log_message("warning: " + w);
+
+    flow::Background background;
+    if (mode != flow::BackgroundMode::none) {
+        Progress reading(global, "read clip");
+        flow::CaptureFrames frames(*capture);
+        if (frames.width() != bank->clip_width_px || frames.height() != bank->clip_height_px) {
+            log_message("error: " + capture_path + ": frames are " + std::to_string(frames.width()) + " x " +
+                        std::to_string(frames.height()) + " but the bank was tracked at " +
+                        std::to_string(bank->clip_width_px) + " x " + std::to_string(bank->clip_height_px));
+            return kExitInvalidInput;
+        }
+        auto clip = std::make_shared<flow::ClipFrames>(flow::ClipFrames::read_all(frames, 0, [&](double f) {
+            reading.update(f);
+            return true;
+        }));
+        reading.done();
+        background = mode == flow::BackgroundMode::median ? flow::Background::plate(flow::median_plate(*clip))
+                                                           : flow::Background::looped(clip);
+    }
+
+    std::vector<flow::OutputLine> outputs;
+    nlohmann::json summary;
+    if (edit) {
+        if (options.no_interpolate) {
+            for (const formats::FlowLine& line : drawing.outputs) outputs.push_back({line, line.from});
+        } else {
+            flow::EditSettings edit_settings;
+            edit_settings.spacing_px = options.spacing_px;
+            edit_settings.max_gap_px = options.max_gap_px;
+            edit_settings.mapping = settings.mapping;
+            edit_settings.correspondence_frames = options.correspondence_frames;
+            edit_settings.threads = options.threads;
+            Progress planning(global, "correspondence");
+            const flow::EditPlan plan = flow::plan_edit(drawing, *streams, edit_settings, [&](const flow::EditProgress& p) {
+                planning.update(static_cast<double>(p.pairs_done) / std::max(1, p.pair_count));
+                return true;
+            });
+            planning.done();
+            for (const std::string& w : plan.warnings) log_message("warning: " + w);
+            outputs = flow::output_lines(plan);
+            int interpolated = 0;
+            for (const flow::DenseLine& d : plan.lines) interpolated += d.drawn ? 0 : 1;
+            summary["dense_lines"] = plan.lines.size();
+            summary["interpolated_lines"] = interpolated;
+            summary["correspondence_cost"] = plan.total_cost;
+            if (!options.dense_out.empty()) formats::write_flowline_set(options.dense_out, flow::plan_to_flowlines(drawing, plan));
+        }
+    }
+    const flow::Synthesizer synthesizer(streams, outputs, std::move(background), settings);
+    for (const std::string& w : synthesizer.warnings())
+        if (std::find(streams->schedule().warnings.begin(), streams->schedule().warnings.end(), w) ==
+            streams->schedule().warnings.end())
+            log_message("warning: " + w);
+    if (options.loop) {
+        first = 1;
+        last = synthesizer.period_frames();
+    }
+
+    flow::FrameWriter writer(options.out, synthesizer.width(), synthesizer.height(), bank->fps);
+    Progress progress(global, edit ? "edit" : "synth");
+    g_interrupted = false;
+    const auto previous = std::signal(SIGINT, on_render_interrupt);
+    const int total = last - first + 1;
+    const int written = synthesizer.render_frames(first, last, options.threads, [&](int frame, const flow::RgbImage& image) {
+        writer.write(frame, image);
+        progress.update(static_cast<double>(frame - first + 1) / total, "frame " + std::to_string(frame));
+        return !g_interrupted.load();
+    });
+    std::signal(SIGINT, previous);
+    writer.close();
+    progress.done();
+
+    const flow::Schedule& schedule = streams->schedule();
+    summary["output"] = options.out;
+    summary["frames"] = {first, first + written - 1};
+    summary["frames_written"] = written;
+    summary["period_frames"] = schedule.period_frames;
+    summary["particles_per_line"] = schedule.particles_per_line;
+    summary["start_every"] = schedule.start_every;
+    summary["first_start_frame"] = schedule.first_start_frame;
+    summary["lines"] = schedule.lines.size();
+    summary["background"] = options.background;
+    if (edit) summary["mapping"] = options.mapping;
+    if (options.json) std::cout << summary.dump(2) << '\n';
+    else std::cout << human_readable(summary);
+    if (written < total) {
+        log_message("interrupted after " + std::to_string(written) + " frames");
+        return kExitInterrupted;
+    }
+    return kExitOk;
+}
+
+void add_common(CLI::App& app, RenderOptions& o) {
+    app.add_option("--bank", o.bank, "particle bank written by flowvid track (.exr)")->required();
+    app.add_option("--frames", o.frames, "N (frames 1..N) or A:B (frames A..B of the infinite sequence)")
+        ->capture_default_str();
+    app.add_option("--out", o.out, "image pattern (out/%06d.png, .exr, .tif), folder, or video (.mp4, .avi)")->required();
+    app.add_option("--capture,--clip", o.capture, "the source clip (default: the one recorded in the bank)");
+    app.add_option("--background", o.background, "where no line reaches: median (static plate), loop (the clip), none")
+        ->check(CLI::IsMember({"median", "loop", "none"}))
+        ->capture_default_str();
+    app.add_option("--particles", o.particles, "K particles per line in the diagonal order (0 = as many as fit)");
+    app.add_option("--first-start", o.first_start, "input start frame of the first of the K particles (default: seeded)");
+    app.add_option("--seed", o.seed, "chooses the K-particle window when several fit (0 = the earliest)");
+    app.add_flag("--loop", o.loop, "render exactly one period (frames 1..K*step): a file that loops seamlessly");
+    app.add_option("--coverage", o.coverage, "accumulated feather weight at which texture fully hides the background")
+        ->capture_default_str();
+    app.add_option("--fade-frames", o.fade_frames, "particles fade in and out over N frames (-1 = automatic)");
+    app.add_option("--threads", o.threads, "frames rendered at once (0 = all cores)");
+    app.add_flag("--json", o.json, "print the summary as JSON");
+}
+
+const RegisterCommand synth_registration{Command{
+    "synth", "render any range of the seamless infinite sequence from a particle bank",
+    [](CLI::App& app) -> CommandRunner {
+        auto options = std::make_shared<RenderOptions>();
+        app.footer(
+            "Particles enter every input line in the diagonal order of the thesis (fig. 3.5): the m-th\n"
+            "particle on a line replays input particle m mod K, whole, from the line's start to its end.\n"
+            "Patches are feathered and put back on the pixels they came from; the background shows where\n"
+            "no line reaches. Frame A of the infinite sequence is the same whichever range it is rendered\n"
+            "in (image files are named by frame number), and the sequence repeats every K*step frames.\n"
+            "The flow lines default to the capture's flowlines.svg; give the drawing the bank was tracked\n"
+            "with (synth rebuilds segments and interpolated lines from it).\n\n"
+            "Examples:\n"
+            "  flowvid synth --bank waterfall.bank.exr --frames 250 --out out/%06d.png\n"
+            "  flowvid synth --bank waterfall.bank.exr --frames 251:500 --out out/%06d.png   # continues the above\n"
+            "  flowvid synth --bank waterfall.bank.exr --loop --out loop.mp4 --background loop");
+        add_common(app, *options);
+        app.add_option("--flowlines", options->flowlines, "the drawing the bank was tracked with (default: the capture's)");
+        return [options](const GlobalOptions& global) { return render(*options, global, false); };
+    }}};
+
+const RegisterCommand edit_registration{Command{
+    "edit", "render the infinite sequence along new (also moving) output flow lines",
+    [](CLI::App& app) -> CommandRunner {
+        auto options = std::make_shared<RenderOptions>();
+        app.footer(
+            "Output lines are the group id=\"output\" of --flowlines, each naming the input line whose\n"
+            "texture it carries (data-from / from). A dense set is interpolated between neighbouring\n"
+            "output lines (--spacing apart) and every interpolated line gets the input line that minimises\n"
+            "the patch-overlap error with its neighbours (dynamic programming, thesis eq. 3.1, averaged over\n"
+            "30 frames). Texture is warped along each output line through the tangent frames, with equal\n"
+            "arc lengths or arc lengths scaled to the output line's length (--mapping, thesis fig. 3.17).\n"
+            "Output lines with keys (*.flowlines.json) move over time, e.g. lines from a simulation.\n\n"
+            "Examples:\n"
+            "  flowvid edit --bank waterfall.bank.exr --flowlines edit.svg --frames 250 --out edit/%06d.png\n"
+            "  flowvid edit --bank smoke.bank.exr --flowlines wind.flowlines.json --mapping scaled --frames 1:100 \\\n"
+            "      --out smoke.mp4 --dense-out dense.flowlines.json");
+        add_common(app, *options);
+        app.add_option("--flowlines", options->flowlines, "input and output lines (SVG or *.flowlines.json)")->required();
+        app.add_option("--mapping", options->mapping, "equal or scaled arc length from input to output lines")
+            ->check(CLI::IsMember({"equal", "scaled"}))
+            ->capture_default_str();
+        app.add_option("--spacing", options->spacing_px, "interpolated lines at most PX apart (0 = half a patch)");
+        app.add_option("--max-gap", options->max_gap_px, "output lines further apart are not interpolated between (0 = 6 patches)");
+        app.add_flag("--no-interpolate", options->no_interpolate, "render only the drawn output lines");
+        app.add_option("--correspondence-frames", options->correspondence_frames,
+                       "frames the overlap error is averaged over")
+            ->capture_default_str();
+        app.add_option("--dense-out", options->dense_out, "write the dense output lines with their inputs (*.flowlines.json)");
+        return [options](const GlobalOptions& global) { return render(*options, global, true); };
+    }}};
+
+}  // namespace
+}  // namespace flowvid::cli

@@ -1,0 +1,221 @@
+// flowvid track: follow textured particles along the input flow lines of a
+// clip and store them as a particle texture bank (thesis 3.2, flow/tracking.hpp).
+
+#include "command.hpp"
+#include "output.hpp"
+
+#include "flowvid/flow/frames.hpp"
+#include "flowvid/flow/geometry.hpp"
+#include "flowvid/flow/tracking.hpp"
+#include "flowvid/formats/any_file.hpp"
+#include "flowvid/formats/flowlines.hpp"
+#include "flowvid/formats/particle_bank.hpp"
+
+#include <atomic>
+#include <csignal>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+namespace flowvid::cli {
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+void on_interrupt(int) { g_interrupted = true; }
+
+struct TrackOptions {
+    std::string capture;
+    std::string flowlines;
+    std::string out;
+    std::string dense_out;
+    double fps = 0.0;
+    int frames = 0;
+    int patch = 24;
+    std::string dynamics = "stationary";
+    int start_every = 0;
+    int max_path_frames = 0;
+    double densify_px = 0.0;
+    double max_gap_px = 0.0;
+    double max_speed_px = 40.0;
+    double search_radius_px = 6.0;
+    double min_correlation = 0.3;
+    int particles_per_line = 0;
+    bool keep_static = false;
+    int threads = 0;
+    bool json = false;
+};
+
+formats::FlowLineSet read_lines(const std::string& path, std::vector<Problem>& warnings) {
+    if (formats::detect_file_kind(path) == formats::FileKind::flowline_svg) return formats::import_flowlines_svg(path, &warnings);
+    return formats::read_flowline_set(path, &warnings);
+}
+
+int run_track(const TrackOptions& options, const GlobalOptions& global) {
+    const formats::Capture capture = flow::open_clip(options.capture, options.fps);
+    std::string lines_path = options.flowlines;
+    if (lines_path.empty()) {
+        if (capture.flowlines.empty()) {
+            log_message("error: " + options.capture + ": no flow lines; give --flowlines FILE (SVG or *.flowlines.json)");
+            return kExitUsage;
+        }
+        lines_path = capture.resolve(capture.flowlines);
+    }
+    std::vector<Problem> warnings;
+    const formats::FlowLineSet drawing = read_lines(lines_path, warnings);
+    print_problems(warnings);
+
+    flow::CaptureFrames frames(capture, options.frames);
+    if (drawing.width != frames.width() || drawing.height != frames.height())
+        log_message("warning: " + lines_path + ": drawn for " + std::to_string(drawing.width) + " x " +
+                    std::to_string(drawing.height) + " but the clip is " + std::to_string(frames.width()) + " x " +
+                    std::to_string(frames.height()));
+
+    flow::TrackingSettings settings;
+    settings.patch_size_px = options.patch;
+    settings.dynamics = options.dynamics == "stationary" ? formats::ParticleDynamics::stationary
+                                                          : formats::ParticleDynamics::non_stationary;
+    settings.start_every = options.start_every;
+    settings.max_path_frames = options.max_path_frames;
+    settings.max_speed_px = options.max_speed_px;
+    settings.search_radius_px = options.search_radius_px;
+    settings.min_correlation = options.min_correlation;
+    settings.max_particles_per_line = options.particles_per_line;
+    settings.threads = options.threads;
+    const double max_gap = options.max_gap_px > 0.0 ? options.max_gap_px : 6.0 * options.patch;
+    const std::vector<formats::FlowLine> lines = flow::densify_input_lines(drawing, options.densify_px, max_gap);
+
+    Progress progress(global, "track");
+    g_interrupted = false;
+    const auto previous = std::signal(SIGINT, on_interrupt);
+    const flow::TrackingResult result = flow::track_particles(frames, lines, settings, [&](const flow::TrackingProgress& p) {
+        progress.update(static_cast<double>(p.frame) / std::max(1, p.frame_count),
+                        "frame " + std::to_string(p.frame) + "/" + std::to_string(p.frame_count));
+        return !g_interrupted.load();
+    });
+    std::signal(SIGINT, previous);
+    progress.done();
+    if (result.report.status == flow::TrackingReport::Status::cancelled) {
+        log_message("interrupted: no bank written");
+        return kExitInterrupted;
+    }
+
+    nlohmann::json summary = {{"bank", options.out},
+                              {"clip", frames.source()},
+                              {"frames", frames.count()},
+                              {"patch_size_px", options.patch},
+                              {"dynamics", options.dynamics},
+                              {"start_every", result.report.start_every},
+                              {"max_path_frames", result.report.max_path_frames},
+                              {"particles", result.bank.particles.size()}};
+    nlohmann::json probes = nlohmann::json::array();
+    for (const flow::LineProbe& p : result.report.probes)
+        probes.push_back({{"id", p.id},
+                          {"mean_speed_px_per_frame", p.mean_speed_px_per_frame},
+                          {"travel_frames", p.travel_frames},
+                          {"segments", p.segments},
+                          {"untracked_segments", p.untracked}});
+    summary["drawn_lines"] = probes;
+    nlohmann::json tracked = nlohmann::json::array();
+    for (const flow::LineTrackingStats& s : result.report.lines)
+        tracked.push_back({{"id", s.id},
+                           {"length_px", s.length_px},
+                           {"started", s.started},
+                           {"completed", s.completed},
+                           {"uncertain_steps", s.uncertain_steps},
+                           {"extrapolated_steps", s.extrapolated_steps},
+                           {"steps", s.steps},
+                           {"mean_correlation", s.mean_correlation},
+                           {"mean_speed_px_per_frame", s.mean_speed_px_per_frame},
+                           {"mean_life_frames", s.mean_life_frames}});
+    summary["tracked_lines"] = tracked;
+
+    // For people: totals and the drawn lines; every tracked segment only in --json.
+    nlohmann::json brief = summary;
+    brief.erase("tracked_lines");
+    int with_particles = 0;
+    for (const flow::LineTrackingStats& s : result.report.lines) with_particles += s.completed > 0 ? 1 : 0;
+    brief["tracked_lines"] = std::to_string(result.report.lines.size()) + " (" + std::to_string(with_particles) +
+                             " with complete particles; --json lists them)";
+    const auto print_summary = [&] {
+        if (options.json) std::cout << summary.dump(2) << '\n';
+        else std::cout << human_readable(brief);
+    };
+    if (result.bank.particles.empty()) {
+        print_summary();
+        log_message("error: no particle completed its path along any line within the clip's " +
+                    std::to_string(frames.count()) +
+                    " frames (fix: check that the lines follow the flow, lower --max-path-frames, or raise --max-speed)");
+        return kExitFailure;
+    }
+    formats::write_particle_bank(options.out, result.bank);
+    if (!options.dense_out.empty()) {
+        formats::FlowLineSet dense = drawing;
+        dense.inputs = result.tracked_lines;
+        dense.outputs.clear();
+        formats::write_flowline_set(options.dense_out, dense);
+    }
+    print_summary();
+    return kExitOk;
+}
+
+const RegisterCommand registration{Command{
+    "track", "track textured particles along flow lines into a particle texture bank (EXR)",
+    [](CLI::App& app) -> CommandRunner {
+        auto options = std::make_shared<TrackOptions>();
+        app.footer(
+            "Follows a particle entering every input flow line by block matching constrained to the\n"
+            "line (a 1-D search along the arc, normalised cross-correlation, sub-pixel refinement) and\n"
+            "stores its texture patch and arc-length position per frame in a bank (flowvid.particle_bank).\n"
+            "A probe pass first measures each line's speed: lines a particle cannot cross within\n"
+            "--max-path-frames are cut into segments it can (ids like in-3[0.0:41.5]); stretches nothing\n"
+            "crosses within the clip (rocks a line runs over) are left out and listed. Only particles\n"
+            "that complete their path are kept. --densify adds lines between neighbouring drawn lines\n"
+            "(ids like in-1~in-2@0.500); synth and edit rebuild all of these from the same drawing.\n\n"
+            "CLIP is a video.flow capture folder (its flowlines.svg is used unless --flowlines is given),\n"
+            "a video file, or an image pattern such as frames/%06d.png.\n\n"
+            "Exit codes: 0 bank written, 1 no particle completed its path, 2 usage, 3 invalid input,\n"
+            "4 I/O error, 130 interrupted.\n\n"
+            "Examples:\n"
+            "  flowvid track --capture ../shared/captures/video-waterfall-cascade --out waterfall.bank.exr\n"
+            "  flowvid track --capture clip.mp4 --flowlines lines.svg --patch 16 --densify 12 --out bank.exr\n"
+            "  flowvid track --capture fire/ --dynamics non-stationary --patch 48 --out fire.bank.exr --json");
+        app.add_option("--capture,--clip", options->capture, "capture folder, video file or image pattern")->required();
+        app.add_option("--flowlines", options->flowlines, "input flow lines (SVG or *.flowlines.json); default: the capture's");
+        app.add_option("--out", options->out, "bank to write (.exr)")->required();
+        app.add_option("--fps", options->fps, "frame rate of a clip that records none (image sequences: 25)");
+        app.add_option("--frames", options->frames, "use only the first N frames (0 = all)")->check(CLI::NonNegativeNumber);
+        app.add_option("--patch", options->patch, "patch side in pixels (the thesis: 24, 100 for flames)")
+            ->check(CLI::Range(4, 1024))
+            ->capture_default_str();
+        app.add_option("--dynamics", options->dynamics,
+                       "stationary (waterfalls, streams: speed depends on position) or non-stationary (fire, smoke: "
+                       "each particle keeps its own speed)")
+            ->check(CLI::IsMember({"stationary", "non-stationary"}))
+            ->capture_default_str();
+        app.add_option("--start-every", options->start_every,
+                       "a particle enters every line every N frames (0 = automatic, about a third of a patch apart)")
+            ->check(CLI::NonNegativeNumber);
+        app.add_option("--max-path-frames", options->max_path_frames,
+                       "cut lines into segments a particle crosses in about N frames (0 = a fifth of the clip, "
+                       "-1 = never cut)");
+        app.add_option("--densify", options->densify_px,
+                       "add interpolated input lines so that neighbours are at most PX apart (0 = lines as drawn)")
+            ->check(CLI::NonNegativeNumber);
+        app.add_option("--max-gap", options->max_gap_px, "drawn lines further apart are not interpolated between (0 = 6 patches)");
+        app.add_option("--max-speed", options->max_speed_px, "largest step searched, px per frame")->capture_default_str();
+        app.add_option("--search-radius", options->search_radius_px, "search window around the predicted step, px")
+            ->capture_default_str();
+        app.add_option("--min-correlation", options->min_correlation,
+                       "weaker matches move the particle by the prediction instead")
+            ->capture_default_str();
+        app.add_option("--particles-per-line", options->particles_per_line,
+                       "keep at most the first K complete particles per line (0 = all)");
+        app.add_option("--dense-out", options->dense_out,
+                       "also write the lines particles ran on (segments, interpolated lines) as *.flowlines.json");
+        app.add_option("--threads", options->threads, "worker threads (0 = all cores)");
+        app.add_flag("--json", options->json, "print the report as JSON");
+        return [options](const GlobalOptions& global) { return run_track(*options, global); };
+    }}};
+
+}  // namespace
+}  // namespace flowvid::cli

@@ -1,0 +1,210 @@
+#pragma once
+// Frames of flow-based video (thesis chapter 3): RGB float images, colour
+// encodings, clips read from capture folders, video files or image sequences,
+// and the background plates synthesis composites onto.
+//
+// Conventions: pixel (x, y) is the centre of column x, row y (OpenCV, as the
+// flow lines); images are row-major from the top row, RGB interleaved.
+// Two encodings meet here: *display* values (sRGB-encoded, what 8-bit files and
+// videos store; tracking and the quality metrics work on these, as a viewer
+// sees them) and *linear* light (particle textures in the bank, rendering and
+// blending). Functions say which they take.
+
+#include "flowvid/formats/capture.hpp"
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace flowvid::flow {
+
+// An RGB float image, `width x height x 3` values.
+struct RgbImage {
+    int width = 0;
+    int height = 0;
+    std::vector<float> rgb;
+
+    RgbImage() = default;
+    RgbImage(int w, int h, float value = 0.0f)
+        : width(w), height(h), rgb(static_cast<std::size_t>(w) * static_cast<std::size_t>(h) * 3, value) {}
+    bool empty() const { return width <= 0 || height <= 0; }
+    float* pixel(int x, int y) { return rgb.data() + (static_cast<std::size_t>(y) * width + x) * 3; }
+    const float* pixel(int x, int y) const { return rgb.data() + (static_cast<std::size_t>(y) * width + x) * 3; }
+};
+
+// The sRGB transfer function (IEC 61966-2-1), for values in [0, 1] (clamped).
+float srgb_to_linear(float encoded);
+float linear_to_srgb(float linear);
+RgbImage to_linear(const RgbImage& display);
+RgbImage to_display(const RgbImage& linear);
+// Rec. 709 luma of display values: one float per pixel.
+std::vector<float> luma(const RgbImage& display);
+
+// A decoded file image (formats::Image) as display RGB: sRGB-encoded files are
+// copied, linear (EXR) ones encoded.
+RgbImage display_rgb(const formats::Image& image);
+
+// Bilinear sample of channel-interleaved RGB at (x, y), pixel-centre
+// coordinates, clamped to the border.
+void sample_bilinear(const RgbImage& image, double x, double y, float out[3]);
+
+// ---- clips ---------------------------------------------------------------------
+
+// A clip the tracker and the metrics read frame by frame, in display values.
+// Frame indices are 0-based (index 0 = the clip's first frame).
+class FrameSequence {
+public:
+    virtual ~FrameSequence() = default;
+    virtual int width() const = 0;
+    virtual int height() const = 0;
+    virtual int count() const = 0;
+    virtual double fps() const = 0;
+    // Display RGB of frame `index` (0 <= index < count()). Sequential reading
+    // is the fast path.
+    virtual RgbImage frame(int index) = 0;
+    // Informative: where the frames come from.
+    virtual std::string source() const = 0;
+};
+
+// Frames of a capture folder (video.flow), a video file or an image sequence,
+// decoded on demand through formats::FrameSource.
+class CaptureFrames : public FrameSequence {
+public:
+    explicit CaptureFrames(const formats::Capture& capture, int max_frames = 0);
+    int width() const override;
+    int height() const override;
+    int count() const override { return m_count; }
+    double fps() const override { return m_fps; }
+    RgbImage frame(int index) override;
+    std::string source() const override { return m_source; }
+
+private:
+    formats::FrameSource m_frames;
+    int m_count = 0;
+    double m_fps = 0.0;
+    std::string m_source;
+};
+
+// All frames in memory at 16 bits per channel (display values): a 640 x 360 x
+// 120 clip takes 166 MB. Used for the looped background and the metrics.
+class ClipFrames : public FrameSequence {
+public:
+    ClipFrames() = default;
+    ClipFrames(int width, int height, double fps, std::string source);
+    // Reads every frame of `frames` (at most max_frames when > 0). `progress`
+    // gets the fraction read and may return false to stop early (the clip
+    // then holds the frames read so far).
+    static ClipFrames read_all(FrameSequence& frames, int max_frames = 0,
+                               const std::function<bool(double)>& progress = {});
+    void append(const RgbImage& display);
+
+    int width() const override { return m_width; }
+    int height() const override { return m_height; }
+    int count() const override { return static_cast<int>(m_frames.size()); }
+    double fps() const override { return m_fps; }
+    RgbImage frame(int index) override { return display(index); }
+    std::string source() const override { return m_source; }
+
+    RgbImage display(int index) const;
+    RgbImage linear(int index) const;
+    std::vector<float> luma(int index) const;
+
+private:
+    int m_width = 0;
+    int m_height = 0;
+    double m_fps = 0.0;
+    std::string m_source;
+    std::vector<std::vector<std::uint16_t>> m_frames;
+};
+
+// Frames held as display images (tests, synthetic clips).
+class MemoryFrames : public FrameSequence {
+public:
+    MemoryFrames(std::vector<RgbImage> display_frames, double fps, std::string source = "memory");
+    int width() const override;
+    int height() const override;
+    int count() const override { return static_cast<int>(m_frames.size()); }
+    double fps() const override { return m_fps; }
+    RgbImage frame(int index) override;
+    std::string source() const override { return m_source; }
+    const std::vector<RgbImage>& frames() const { return m_frames; }
+
+private:
+    std::vector<RgbImage> m_frames;
+    double m_fps;
+    std::string m_source;
+};
+
+// What a clip path names, as a capture: a capture folder (or its
+// capture.json) is read and validated; a video file (.mp4, .avi, .mov, .mkv,
+// .webm, .m4v) or a printf image pattern ("frames/%06d.png", first number 0
+// or 1, counted until a file is missing) becomes a video.flow capture without
+// flow lines. `fps` (> 0) overrides the frame rate of files that carry none
+// (image sequences default to 25). Throws IoError / ValidationError naming
+// the path.
+formats::Capture open_clip(const std::string& path, double fps = 0.0);
+
+// ---- backgrounds -----------------------------------------------------------------
+
+// The per-pixel, per-channel median over (at most max_samples evenly spaced)
+// frames, in linear light: the static plate of the clip.
+RgbImage median_plate(const ClipFrames& clip, int max_samples = 64);
+
+// How regions no flow line covers are filled (issue: "a static median plate
+// or the looped clip").
+enum class BackgroundMode { median, loop, none };
+const char* to_string(BackgroundMode mode);
+// "median", "loop", "none"; throws std::invalid_argument otherwise.
+BackgroundMode background_mode_from_string(const std::string& text);
+
+// The background of every output frame (linear light).
+class Background {
+public:
+    Background() = default;  // none: black
+    static Background plate(RgbImage linear_plate);
+    // Output frame t (1-based) shows clip frame (t - 1) mod count.
+    static Background looped(std::shared_ptr<const ClipFrames> clip);
+    BackgroundMode mode() const { return m_mode; }
+    // Writes the background of output frame `frame` into `out` (resized).
+    void fill(int frame, int width, int height, RgbImage& out) const;
+
+private:
+    BackgroundMode m_mode = BackgroundMode::none;
+    RgbImage m_plate;
+    std::shared_ptr<const ClipFrames> m_clip;
+};
+
+// ---- writing frames ------------------------------------------------------------------
+
+// Writes rendered frames: an image pattern with one printf integer
+// ("out/%06d.png"; PNG/JPEG 8-bit sRGB, TIFF 16-bit sRGB, EXR half linear,
+// through OpenImageIO), a folder (written as FOLDER/%06d.png), or a video
+// file (.mp4/.mov/.mkv MPEG-4 part 2, .avi Motion-JPEG, through OpenCV). Image
+// files are named by output frame number, so ranges rendered apart fit
+// together; a video holds the frames in the order written.
+class FrameWriter {
+public:
+    FrameWriter(const std::string& target, int width, int height, double fps);
+    ~FrameWriter();
+    FrameWriter(const FrameWriter&) = delete;
+    FrameWriter& operator=(const FrameWriter&) = delete;
+    bool is_video() const;
+    // The file a frame goes to (the video file for videos).
+    std::string path_of(int frame) const;
+    // `linear` must have the writer's size. Throws IoError naming the file.
+    void write(int frame, const RgbImage& linear);
+    void close();
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
+
+// Writes one image (format from the extension, as FrameWriter); throws IoError.
+void write_image(const std::string& path, const RgbImage& linear);
+// Reads an image (any format OpenImageIO or OpenCV reads) as linear RGB.
+RgbImage read_image_linear(const std::string& path);
+
+}  // namespace flowvid::flow

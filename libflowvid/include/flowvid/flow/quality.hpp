@@ -1,0 +1,104 @@
+#pragma once
+// Measured quality of flow-based video, and the two baselines it is compared
+// with (issue 6, "Measured quality"):
+//
+// - Seam: the largest frame-to-frame difference of an output, relative to the
+//   clip's 95th-percentile frame-to-frame difference, and the share of output
+//   transitions above the clip's 99th percentile (a naive loop spikes once per
+//   period).
+// - Pulsing: temporal variation (coefficient of variation) of per-frame
+//   high-frequency energy; cross-fading makes detail pulse.
+// - Fidelity: RMS distance from output patches to their nearest clip patch
+//   (same neighbourhood, any frame), against the clip's own self-distance
+//   (its patches to their nearest patch at least exclude_frames away), and
+//   the ratio of output to clip high-frequency power (blur lowers it).
+//
+// All on luma of display values in [0, 1], inside a mask (the band around
+// the flow lines, where every method shows moving texture).
+//
+// Baselines: (a) looping the clip; (b) the flow-map method games use: one
+// texture advected by a velocity field in two layers half a cycle apart,
+// cross-faded with triangle weights so each layer is reset while invisible.
+
+#include "flowvid/flow/frames.hpp"
+#include "flowvid/flow/synthesis.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <vector>
+
+namespace flowvid::flow {
+
+// 1 where a pixel lies within half_width_px of one of the polylines.
+std::vector<std::uint8_t> line_band_mask(const std::vector<std::vector<Eigen::Vector2d>>& lines, int width, int height,
+                                         double half_width_px);
+
+// Per-frame statistics in the mask.
+struct SequenceStats {
+    std::vector<double> transitions;  // mean |luma(t+1) - luma(t)|, one per consecutive pair
+    std::vector<double> hf_energy;    // mean squared difference from the 3x3 box mean, per frame
+};
+SequenceStats sequence_stats(const std::vector<std::vector<float>>& luma_frames, int width, int height,
+                             const std::vector<std::uint8_t>& mask);
+
+struct QualitySettings {
+    int patch_px = 16;           // fidelity patches
+    int queries = 120;           // patches sampled per sequence
+    int search_radius_px = 6;    // nearest-patch search around the same place
+    int search_stride_px = 2;
+    int exclude_frames = 5;      // self-distance ignores frames closer than this
+    std::uint64_t seed = 7;
+};
+
+struct QualityReport {
+    double clip_p95 = 0.0;               // clip transitions, 95th and 99th percentiles
+    double clip_p99 = 0.0;
+    double clip_max = 0.0;
+    double max_transition_ratio = 0.0;   // largest output transition / clip_p95
+    double share_above_p99 = 0.0;        // of output transitions above clip_p99
+    double pulsing = 0.0;                // coefficient of variation of output HF energy
+    double clip_pulsing = 0.0;
+    double patch_distance = 0.0;         // output patches to their nearest clip patch (RMS luma)
+    double clip_self_distance = 0.0;
+    double hf_power_ratio = 0.0;         // mean output HF energy / mean clip HF energy
+    int transitions = 0;
+};
+
+// Compares an output sequence with its clip (both luma, same size).
+QualityReport measure_quality(const std::vector<std::vector<float>>& clip_luma,
+                              const std::vector<std::vector<float>>& output_luma, int width, int height,
+                              const std::vector<std::uint8_t>& mask, const QualitySettings& settings = {});
+
+// ---- baselines ----------------------------------------------------------------------
+
+// (a) Output frame t (1-based) = clip frame (t - 1) mod count, linear RGB.
+RgbImage naive_loop_frame(const ClipFrames& clip, int frame);
+
+// A velocity field (px per frame) and how much each pixel is covered by it,
+// from the particles' mean speeds along the input lines, spread by a
+// Gaussian of sigma_px around the lines.
+struct VelocityField {
+    int width = 0;
+    int height = 0;
+    std::vector<Eigen::Vector2f> velocity;
+    std::vector<float> coverage;  // 0..1
+};
+VelocityField velocity_field(const ParticleStreams& streams, int width, int height, double sigma_px);
+
+// (b) The flow-map method.
+class FlowMapBaseline {
+public:
+    // `texture` (linear) is advected; `background` (linear) shows where the
+    // field does not reach. cycle_frames: a layer's life before it is reset.
+    FlowMapBaseline(VelocityField field, RgbImage texture, RgbImage background, int cycle_frames = 32);
+    RgbImage render(int frame) const;  // 1-based output frame, linear RGB; thread-safe
+
+private:
+    VelocityField m_field;
+    RgbImage m_texture;
+    RgbImage m_background;
+    int m_cycle = 32;
+};
+
+}  // namespace flowvid::flow

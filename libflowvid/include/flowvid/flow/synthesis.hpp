@@ -1,0 +1,227 @@
+#pragma once
+// Seamless infinite synthesis from a particle texture bank (thesis 3.2,
+// fig. 3.5) and rendering along edited output lines (3.3, fig. 3.16/3.17).
+//
+// Diagonal order. On every line a particle enters at the line's start every
+// `step` output frames (step = the bank's start spacing). The m-th particle to
+// enter (at output frame 1 + m * step) replays input particle k = m mod K of a
+// chosen window of K consecutive input particles (start frames s0, s0 + step,
+// ..., the shaded diagonals of fig. 3.5a), from its first frame to its last:
+// every particle completes its path. At output frame t a particle of age a
+// shows its texture and position of input frame s_k + a; neighbours on a line,
+// and particles of different lines, then come from the same input frame, so
+// their textures agree where patches overlap, except along one "ladder" step
+// per line where k wraps from K-1 to 0, which moves with the flow.
+// The sequence is defined for every output frame number and repeats with
+// period K * step: frame t is the same whichever range it is rendered in.
+//
+// Rendering. Each particle's patch is feathered (raised-cosine weights that
+// vanish at the patch border) and put back on the whole pixels it was cut
+// from (flow/sampling.hpp, patch_origin): plain synthesis copies clip pixels
+// without resampling blur. Particles fade in and out over a few frames at the
+// ends of their life.
+// Colour = sum(w * rgb) / sum(w) with premultiplied alpha; the background
+// shows through where the accumulated weight sum(w) is below
+// `coverage_weight` (smoothstep).
+// On an output line other than the input line, every pixel near the line is
+// mapped to the input frame through the tangent frames: pixel q projects to
+// arc s_out and lateral offset n on the output line; s_in = s_out (equal arc
+// length) or s_out * L_in / L_out (scaled, fig. 3.17); the texture is read at
+// P_in(s_in) + n N_in(s_in) from the particles near s_in.
+
+#include "flowvid/flow/frames.hpp"
+#include "flowvid/flow/geometry.hpp"
+#include "flowvid/formats/flowlines.hpp"
+#include "flowvid/formats/particle_bank.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace flowvid::flow {
+
+enum class ArcMapping { equal, scaled };
+const char* to_string(ArcMapping mapping);
+ArcMapping arc_mapping_from_string(const std::string& text);  // "equal" | "scaled"; std::invalid_argument otherwise
+
+struct SynthesisSettings {
+    int particles = 0;           // K per line; 0 = as many as every line has in one common window
+    int first_start_frame = -1;  // s0, the input start frame of particle 0; -1 = from the seed
+    std::uint64_t seed = 0;      // 0 = the earliest window; else a seeded window among those that fit
+    ArcMapping mapping = ArcMapping::equal;
+    double coverage_weight = 0.5;  // accumulated feather weight at which texture fully hides the background
+    // Particles fade in over this many frames after entering a line and out
+    // before leaving it; -1 = automatic (the entry spacing, 1 to 3 frames).
+    // Without it the particle entering where the diagonal order wraps pops.
+    int fade_frames = -1;
+};
+
+// The diagonal order (fig. 3.5b) of one line.
+struct LineSchedule {
+    std::string line_id;
+    std::vector<int> particles;  // K indices into bank.particles, in order k = 0..K-1
+    int substituted = 0;         // how many of the K had no tracked particle and borrowed the nearest start
+    int max_life = 0;            // frames
+};
+
+struct Schedule {
+    int particles_per_line = 0;  // K
+    int start_every = 1;         // step, output frames between two entries on a line
+    int first_start_frame = 0;   // s0
+    int period_frames = 0;       // K * step: frame t + period equals frame t
+    std::vector<LineSchedule> lines;  // bank lines with particles, bank order
+    std::vector<std::string> warnings;
+};
+
+// Chooses the K-particle window for every line of the bank. Throws
+// std::invalid_argument when no line has a particle.
+Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSettings& settings);
+
+// The particles on a scheduled line at output frame `frame` (1-based, any
+// integer): bank particle index and age, in entry order (youngest first).
+struct ScheduledParticle {
+    int particle = 0;
+    int age = 0;
+};
+std::vector<ScheduledParticle> scheduled_particles(const Schedule& schedule, const formats::ParticleBank& bank,
+                                                   std::size_t line, int frame);
+
+// The particles of every input line, ready to render: the bank, the input
+// geometry, the schedule and the feather weights.
+class ParticleStreams {
+public:
+    // `input_points[i]` is the polyline of bank.lines[i]. `drawing`, when
+    // given, supplies the full lengths of lines tracked in segments (else the
+    // end of their last tracked segment).
+    ParticleStreams(std::shared_ptr<const formats::ParticleBank> bank,
+                    std::vector<std::vector<Eigen::Vector2d>> input_points, const SynthesisSettings& settings,
+                    const formats::FlowLineSet* drawing = nullptr);
+    // The polylines from the drawing the bank was tracked with (input_line_points).
+    static std::vector<std::vector<Eigen::Vector2d>> input_points_from_drawing(const formats::ParticleBank& bank,
+                                                                              const formats::FlowLineSet& drawing,
+                                                                              const std::string& drawing_file);
+
+    const formats::ParticleBank& bank() const { return *m_bank; }
+    const Schedule& schedule() const { return m_schedule; }
+    int patch_size() const { return m_bank->patch_size_px; }
+    // Index into schedule().lines of a bank line id, or -1 (no particle or unknown).
+    int stream_index(const std::string& line_id) const;
+    const LineGeometry& geometry(int stream) const { return m_geometry[static_cast<std::size_t>(stream)]; }
+
+    // Input lines as the artist drew them (or as interpolated between drawn
+    // ones): a line tracked in segments ("in-3[0.0:36.0]", ...) groups them.
+    // Output lines name these in `from`.
+    struct InputLine {
+        struct Segment {
+            int stream = 0;
+            double from_px = 0.0;  // arc range of the segment on the line
+            double to_px = 0.0;
+        };
+        std::string id;
+        double length_px = 0.0;
+        std::vector<Segment> segments;  // by arc
+    };
+    const std::vector<InputLine>& input_lines() const { return m_inputs; }
+    int input_line_index(const std::string& id) const;
+
+    struct Visible {
+        float arc_px = 0.0f;       // along the input line
+        Eigen::Vector2d centre;    // input-frame pixel position
+        const float* texture = nullptr;  // patch x patch x 4, linear premultiplied RGBA
+        float weight = 1.0f;             // fade in after entering, out before leaving
+    };
+    // The particles of a stream at an output frame, sorted by arc length.
+    void visible(int stream, int frame, std::vector<Visible>& out) const;
+    // Colour (linear RGB) and feather weight of one stream rendered alone
+    // along an output line of length `output_length_px`, at points given in
+    // that line's frame: arc length s_out and lateral offset n (pixels).
+    // The editing correspondence samples patch overlaps with this.
+    struct Samples {
+        std::vector<float> rgb;     // 3 per point
+        std::vector<float> weight;  // 1 per point (0 = not covered)
+    };
+    void sample(int stream, int frame, ArcMapping mapping, double output_length_px, const std::vector<float>& s_out,
+                const std::vector<float>& n, Samples& out) const;
+    // The same for a whole input line (its segments each where they lie).
+    void sample_input_line(int input_line, int frame, ArcMapping mapping, double output_length_px,
+                           const std::vector<float>& s_out, const std::vector<float>& n, Samples& out) const;
+
+    // For sampling the same points at many frames (the editing
+    // correspondence): the input-frame positions, computed once...
+    struct SamplePoints {
+        std::vector<int> stream;    // per point: the stream holding it, -1 = off the line
+        std::vector<float> s;       // arc length on that stream
+        std::vector<float> qx, qy;  // input-frame pixel position
+    };
+    SamplePoints prepare_samples(int input_line, ArcMapping mapping, double output_length_px,
+                                 const std::vector<float>& s_out, const std::vector<float>& n) const;
+    // ...every stream's particles at a frame, computed once...
+    struct FrameParticles {
+        int frame = 0;
+        std::vector<std::vector<Visible>> streams;  // per stream, sorted by arc
+        std::vector<std::vector<float>> arcs;       // their arc lengths
+    };
+    FrameParticles frame_particles(int frame) const;
+    // ...and the colours.
+    void sample(const SamplePoints& points, const FrameParticles& particles, Samples& out) const;
+
+private:
+    std::shared_ptr<const formats::ParticleBank> m_bank;
+    Schedule m_schedule;
+    std::vector<LineGeometry> m_geometry;  // per schedule line
+    std::vector<InputLine> m_inputs;
+    int m_fade_frames = 2;
+};
+
+// One line of the output and the input line whose particles it carries.
+struct OutputLine {
+    formats::FlowLine line;  // fixed points or keys (output frames, 1-based)
+    std::string from;        // an input line (ParticleStreams::input_lines) or a bank line id
+};
+
+class Synthesizer {
+public:
+    // `outputs` empty: every scheduled input line renders itself (plain
+    // infinite synthesis). An output line carrying an input line tracked in
+    // segments is cut into the matching parts (equal or scaled arc length),
+    // each carrying one segment. Output lines whose `from` has no particles
+    // are skipped with a warning.
+    Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::vector<OutputLine> outputs, Background background,
+                const SynthesisSettings& settings);
+    ~Synthesizer();
+
+    int width() const;
+    int height() const;
+    const ParticleStreams& streams() const { return *m_streams; }
+    int period_frames() const { return m_streams->schedule().period_frames; }
+    const std::vector<std::string>& warnings() const { return m_warnings; }
+
+    // Output frame `frame` (1-based; any integer), linear RGB. Thread-safe.
+    RgbImage render(int frame) const;
+    // The same, also returning how much each pixel is covered by texture (0..1).
+    RgbImage render(int frame, std::vector<float>* coverage) const;
+
+    // Renders frames first..last on `threads` threads (0 = hardware) and hands
+    // them to `sink` in order; `sink` returns false to stop. Returns the number
+    // of frames delivered.
+    int render_frames(int first, int last, int threads, const std::function<bool(int, const RgbImage&)>& sink) const;
+
+    // Colour and weight at image `points` of the line `output_points`
+    // rendered alone with the particles of bank line `from` at `frame`.
+    ParticleStreams::Samples sample_line(const std::vector<Eigen::Vector2d>& output_points, const std::string& from,
+                                         int frame, const std::vector<Eigen::Vector2d>& points) const;
+
+private:
+    struct Plan;
+    std::shared_ptr<const ParticleStreams> m_streams;
+    std::unique_ptr<Plan> m_plan;
+    Background m_background;
+    SynthesisSettings m_settings;
+    std::vector<std::string> m_warnings;
+};
+
+}  // namespace flowvid::flow

@@ -1,0 +1,308 @@
+#include "flowvid/flow/editing.hpp"
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <future>
+#include <limits>
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <thread>
+
+namespace flowvid::flow {
+
+ChainAssignment solve_chain(const std::vector<Eigen::MatrixXd>& pair_costs, const std::vector<std::vector<int>>& allowed,
+                            int candidate_count) {
+    const std::size_t lines = allowed.size();
+    if (lines == 0) return {};
+    if (pair_costs.size() + 1 != lines) throw std::invalid_argument("solve_chain: one cost matrix per neighbour pair");
+    const double inf = std::numeric_limits<double>::infinity();
+    const auto permitted = [&](std::size_t x) {
+        std::vector<bool> ok(static_cast<std::size_t>(candidate_count), allowed[x].empty());
+        for (int y : allowed[x])
+            if (y >= 0 && y < candidate_count) ok[static_cast<std::size_t>(y)] = true;
+        return ok;
+    };
+    // C(x, y) = min_y' [C(x-1, y') + E(x-1, y', x, y)]  (eq. 3.1)
+    std::vector<std::vector<double>> cost(lines, std::vector<double>(static_cast<std::size_t>(candidate_count), inf));
+    std::vector<std::vector<int>> from(lines, std::vector<int>(static_cast<std::size_t>(candidate_count), -1));
+    const std::vector<bool> first = permitted(0);
+    for (int y = 0; y < candidate_count; ++y)
+        if (first[static_cast<std::size_t>(y)]) cost[0][static_cast<std::size_t>(y)] = 0.0;
+    for (std::size_t x = 1; x < lines; ++x) {
+        const Eigen::MatrixXd& e = pair_costs[x - 1];
+        if (e.rows() != candidate_count || e.cols() != candidate_count)
+            throw std::invalid_argument("solve_chain: cost matrices must be candidates x candidates");
+        const std::vector<bool> ok = permitted(x);
+        for (int y = 0; y < candidate_count; ++y) {
+            if (!ok[static_cast<std::size_t>(y)]) continue;
+            for (int yp = 0; yp < candidate_count; ++yp) {
+                const double c = cost[x - 1][static_cast<std::size_t>(yp)] + e(yp, y);
+                if (c < cost[x][static_cast<std::size_t>(y)]) {
+                    cost[x][static_cast<std::size_t>(y)] = c;
+                    from[x][static_cast<std::size_t>(y)] = yp;
+                }
+            }
+        }
+    }
+    ChainAssignment result;
+    int best = -1;
+    double best_cost = inf;
+    for (int y = 0; y < candidate_count; ++y)
+        if (cost[lines - 1][static_cast<std::size_t>(y)] < best_cost) {
+            best_cost = cost[lines - 1][static_cast<std::size_t>(y)];
+            best = y;
+        }
+    if (best < 0) throw std::invalid_argument("solve_chain: no assignment satisfies the allowed candidates");
+    result.cost = best_cost;
+    result.choice.assign(lines, -1);
+    for (std::size_t x = lines; x-- > 0;) {
+        result.choice[x] = best;
+        best = from[x][static_cast<std::size_t>(best)];
+    }
+    return result;
+}
+
+namespace {
+
+// Sample points in the overlap of two neighbouring lines at one frame, and
+// their coordinates (arc, lateral offset) on each line.
+struct PairSamples {
+    std::vector<float> s_a, n_a, s_b, n_b;
+    double length_a = 0.0, length_b = 0.0;
+};
+
+PairSamples pair_samples(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vector2d>& b, int along,
+                         double smoothing_px, double reach_px) {
+    PairSamples out;
+    const LineGeometry ga(a, smoothing_px), gb(b, smoothing_px);
+    out.length_a = ga.length_px();
+    out.length_b = gb.length_px();
+    for (int i = 0; i < along; ++i) {
+        const double f = (i + 0.5) / along;
+        const Eigen::Vector2d pa = ga.point(f * out.length_a), pb = gb.point(f * out.length_b);
+        for (int j = 0; j < 5; ++j) {
+            const Eigen::Vector2d q = pa + (pb - pa) * (j / 4.0);
+            const LineGeometry::Projection qa = ga.project(q, reach_px), qb = gb.project(q, reach_px);
+            out.s_a.push_back(static_cast<float>(qa.s));
+            out.n_a.push_back(static_cast<float>(qa.n));
+            out.s_b.push_back(static_cast<float>(qb.s));
+            out.n_b.push_back(static_cast<float>(qb.n));
+        }
+    }
+    return out;
+}
+
+Eigen::MatrixXd pair_error(const ParticleStreams& streams, const formats::FlowLine& line_a, const formats::FlowLine& line_b,
+                           const std::vector<int>& candidates, const EditSettings& settings,
+                           const std::vector<ParticleStreams::FrameParticles>& frame_particles) {
+    const int y_count = static_cast<int>(candidates.size());
+    const int patch = streams.patch_size();
+    const int frames = std::max(1, settings.correspondence_frames);
+    const int along = std::max(2, settings.samples_along);
+    const std::size_t per_frame = static_cast<std::size_t>(along) * 5;
+    const std::size_t samples = per_frame * static_cast<std::size_t>(frames);
+    // Per candidate: weight, weighted colour, weighted squared norm, on each side.
+    Eigen::MatrixXd wa = Eigen::MatrixXd::Zero(y_count, static_cast<Eigen::Index>(samples));
+    Eigen::MatrixXd wb = wa;
+    Eigen::MatrixXd a2 = wa, b2 = wa;
+    std::array<Eigen::MatrixXd, 3> ac{wa, wa, wa}, bc{wa, wa, wa};
+    const bool fixed = !line_a.is_time_varying() && !line_b.is_time_varying();
+    PairSamples geometry;
+    ParticleStreams::Samples sa, sb;
+    std::vector<ParticleStreams::SamplePoints> points_a(static_cast<std::size_t>(y_count)), points_b(points_a.size());
+    for (int t = 0; t < frames; ++t) {
+        const int frame = settings.first_frame + t;
+        if (!fixed || t == 0) {
+            geometry = pair_samples(formats::points_at_frame(line_a, frame), formats::points_at_frame(line_b, frame), along,
+                                    patch / 3.0, patch);
+            for (int y = 0; y < y_count; ++y) {
+                const int input = candidates[static_cast<std::size_t>(y)];
+                points_a[static_cast<std::size_t>(y)] = streams.prepare_samples(input, settings.mapping, geometry.length_a, geometry.s_a, geometry.n_a);
+                points_b[static_cast<std::size_t>(y)] = streams.prepare_samples(input, settings.mapping, geometry.length_b, geometry.s_b, geometry.n_b);
+            }
+        }
+        for (int y = 0; y < y_count; ++y) {
+            const ParticleStreams::FrameParticles& particles = frame_particles[static_cast<std::size_t>(t)];
+            streams.sample(points_a[static_cast<std::size_t>(y)], particles, sa);
+            streams.sample(points_b[static_cast<std::size_t>(y)], particles, sb);
+            for (std::size_t k = 0; k < per_frame; ++k) {
+                const Eigen::Index col = static_cast<Eigen::Index>(static_cast<std::size_t>(t) * per_frame + k);
+                const double w1 = std::min(1.0f, sa.weight[k]), w2 = std::min(1.0f, sb.weight[k]);
+                wa(y, col) = w1;
+                wb(y, col) = w2;
+                double n1 = 0.0, n2 = 0.0;
+                for (int c = 0; c < 3; ++c) {
+                    const double c1 = sa.rgb[3 * k + static_cast<std::size_t>(c)], c2 = sb.rgb[3 * k + static_cast<std::size_t>(c)];
+                    ac[static_cast<std::size_t>(c)](y, col) = w1 * c1;
+                    bc[static_cast<std::size_t>(c)](y, col) = w2 * c2;
+                    n1 += c1 * c1;
+                    n2 += c2 * c2;
+                }
+                a2(y, col) = w1 * n1;
+                b2(y, col) = w2 * n2;
+            }
+        }
+    }
+    // sum_k wa wb |ca - cb|^2 = (wa|ca|^2) wb^T + wa (wb|cb|^2)^T - 2 sum_c (wa ca_c)(wb cb_c)^T
+    Eigen::MatrixXd numerator = a2 * wb.transpose() + wa * b2.transpose();
+    for (int c = 0; c < 3; ++c) numerator -= 2.0 * ac[static_cast<std::size_t>(c)] * bc[static_cast<std::size_t>(c)].transpose();
+    const Eigen::MatrixXd denominator = wa * wb.transpose();
+    Eigen::MatrixXd e(y_count, y_count);
+    for (int i = 0; i < y_count; ++i)
+        for (int j = 0; j < y_count; ++j)
+            e(i, j) = denominator(i, j) > 1e-9 ? std::max(0.0, numerator(i, j)) / denominator(i, j) : 0.0;
+    return e;
+}
+
+int worker_count(int threads) {
+    return std::max(1, threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
+}
+
+}  // namespace
+
+std::vector<Eigen::MatrixXd> overlap_errors(const ParticleStreams& streams, const std::vector<formats::FlowLine>& chain,
+                                            const std::vector<int>& candidate_streams, const EditSettings& settings) {
+    std::vector<Eigen::MatrixXd> out(chain.size() > 0 ? chain.size() - 1 : 0);
+    std::vector<ParticleStreams::FrameParticles> particles;
+    for (int t = 0; t < std::max(1, settings.correspondence_frames); ++t)
+        particles.push_back(streams.frame_particles(settings.first_frame + t));
+    std::atomic<std::size_t> next{0};
+    const auto work = [&] {
+        for (std::size_t i = next++; i < out.size(); i = next++)
+            out[i] = pair_error(streams, chain[i], chain[i + 1], candidate_streams, settings, particles);
+    };
+    std::vector<std::future<void>> jobs;
+    for (int t = 0; t < worker_count(settings.threads); ++t) jobs.push_back(std::async(std::launch::async, work));
+    for (auto& job : jobs) job.get();
+    return out;
+}
+
+EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& streams, const EditSettings& settings,
+                   const std::function<bool(const EditProgress&)>& progress) {
+    if (drawing.outputs.empty()) throw std::invalid_argument("the drawing has no output line to edit with");
+    EditPlan plan;
+    const int patch = streams.patch_size();
+    const double spacing = settings.spacing_px > 0.0 ? settings.spacing_px : patch / 2.0;
+    const double max_gap = settings.max_gap_px > 0.0 ? settings.max_gap_px : 6.0 * patch;
+
+    std::vector<std::vector<Eigen::Vector2d>> drawn;
+    for (const formats::FlowLine& line : drawing.outputs) drawn.push_back(formats::points_at_frame(line, settings.first_frame));
+    const std::vector<std::vector<int>> sparse_chains = neighbour_chains(drawn, max_gap, settings.max_angle_deg);
+    const std::vector<InterpolatedLine> between = interpolate_between(drawn, sparse_chains, spacing);
+
+    // Candidates: every input line with particles (a line tracked in
+    // segments counts once, with all its segments).
+    std::vector<int> candidates;
+    for (std::size_t i = 0; i < streams.input_lines().size(); ++i) candidates.push_back(static_cast<int>(i));
+    const auto streams_for = [&](const std::string& from) {
+        std::vector<int> out;
+        const int line = streams.input_line_index(from);
+        if (line >= 0) out.push_back(line);
+        return out;
+    };
+
+    for (const std::vector<int>& chain : sparse_chains) {
+        // The dense chain: drawn lines with the interpolated ones between them.
+        std::vector<DenseLine> dense;
+        for (std::size_t k = 0; k < chain.size(); ++k) {
+            const formats::FlowLine& line = drawing.outputs[static_cast<std::size_t>(chain[k])];
+            DenseLine d;
+            d.output.line = line;
+            d.output.from = line.from;
+            d.drawn = true;
+            dense.push_back(std::move(d));
+            if (k + 1 == chain.size()) break;
+            for (const InterpolatedLine& inter : between) {
+                if (inter.a != chain[k] || inter.b != chain[k + 1]) continue;
+                const formats::FlowLine& a = drawing.outputs[static_cast<std::size_t>(inter.a)];
+                const formats::FlowLine& b = drawing.outputs[static_cast<std::size_t>(inter.b)];
+                DenseLine d2;
+                d2.output.line.id = interpolated_line_id(a.id, b.id, inter.weight);
+                if (a.is_time_varying() || b.is_time_varying()) {
+                    std::set<int> frames;
+                    for (const auto& key : a.keys) frames.insert(key.frame);
+                    for (const auto& key : b.keys) frames.insert(key.frame);
+                    for (int f : frames)
+                        d2.output.line.keys.push_back({f, interpolated_points(a, b, inter.weight, f)});
+                } else {
+                    d2.output.line.points = interpolated_points(a, b, inter.weight, settings.first_frame);
+                }
+                dense.push_back(std::move(d2));
+            }
+        }
+        // Allowed inputs: drawn lines keep theirs.
+        std::vector<std::vector<int>> allowed;
+        for (const DenseLine& d : dense) {
+            if (!d.drawn) {
+                allowed.push_back({});
+                continue;
+            }
+            std::vector<int> ok;
+            for (int stream : streams_for(d.output.from))
+                for (std::size_t c = 0; c < candidates.size(); ++c)
+                    if (candidates[c] == stream) ok.push_back(static_cast<int>(c));
+            if (ok.empty())
+                plan.warnings.push_back("output line " + d.output.line.id + " carries " + d.output.from +
+                                        ", which has no tracked particle; it may take any input");
+            allowed.push_back(ok);
+        }
+        std::vector<formats::FlowLine> geometry;
+        for (const DenseLine& d : dense) geometry.push_back(d.output.line);
+        ChainAssignment assignment;
+        if (dense.size() > 1 && !candidates.empty()) {
+            const std::vector<Eigen::MatrixXd> errors = overlap_errors(streams, geometry, candidates, settings);
+            assignment = solve_chain(errors, allowed, static_cast<int>(candidates.size()));
+        } else if (!candidates.empty()) {
+            assignment.choice = {allowed[0].empty() ? 0 : allowed[0][0]};
+        }
+        std::vector<int> indices;
+        for (std::size_t x = 0; x < dense.size(); ++x) {
+            DenseLine& d = dense[x];
+            if (!assignment.choice.empty() && (!d.drawn || !allowed[x].empty()))
+                d.output.from = streams.input_lines()[static_cast<std::size_t>(candidates[static_cast<std::size_t>(assignment.choice[x])])].id;
+            indices.push_back(static_cast<int>(plan.lines.size()));
+            plan.lines.push_back(std::move(d));
+        }
+        plan.total_cost += assignment.cost;
+        plan.chains.push_back(indices);
+        if (progress && !progress(EditProgress{static_cast<int>(plan.chains.size()), static_cast<int>(sparse_chains.size())}))
+            break;
+    }
+    return plan;
+}
+
+std::vector<OutputLine> output_lines(const EditPlan& plan) {
+    std::vector<OutputLine> out;
+    for (const DenseLine& d : plan.lines) out.push_back(d.output);
+    return out;
+}
+
+formats::FlowLineSet plan_to_flowlines(const formats::FlowLineSet& drawing, const EditPlan& plan) {
+    formats::FlowLineSet set;
+    set.width = drawing.width;
+    set.height = drawing.height;
+    set.description = drawing.description.empty() ? "dense edit" : drawing.description + " (dense edit)";
+    set.inputs = drawing.inputs;
+    std::set<std::string> input_ids;
+    for (const auto& line : set.inputs) input_ids.insert(line.id);
+    for (const DenseLine& d : plan.lines) {
+        formats::FlowLine line = d.output.line;
+        line.from = d.output.from;
+        // Lines carrying a segment or an interpolated input name the drawn
+        // input it comes from in the file (`from` must name an input line).
+        if (!input_ids.count(line.from)) {
+            std::string base = line.from, a, b;
+            double f0 = 0.0, f1 = 0.0, w = 0.0;
+            if (parse_segment_id(base, a, f0, f1)) base = a;
+            if (parse_interpolated_line_id(base, a, b, w)) base = w < 0.5 ? a : b;
+            line.from = input_ids.count(base) ? base : set.inputs.front().id;
+        }
+        set.outputs.push_back(std::move(line));
+    }
+    return set;
+}
+
+}  // namespace flowvid::flow

@@ -1,0 +1,458 @@
+#include "flowvid/flow/frames.hpp"
+
+#include "flowvid/error.hpp"
+#include "flowvid/formats/atomic_file.hpp"
+
+#include <OpenImageIO/imageio.h>
+#include <opencv2/core.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <stdexcept>
+
+namespace fs = std::filesystem;
+
+namespace flowvid::flow {
+
+namespace {
+
+// Linear -> sRGB through a table over [0, 1] fine enough that the 8-bit result
+// never differs from the exact function by more than rounding (the curve is
+// steepest near 0, so the table is indexed by sqrt(linear)).
+constexpr int kEncodeTableSize = 8192;
+const std::array<float, kEncodeTableSize + 1>& encode_table() {
+    static const std::array<float, kEncodeTableSize + 1> table = [] {
+        std::array<float, kEncodeTableSize + 1> t{};
+        for (int i = 0; i <= kEncodeTableSize; ++i) {
+            const double r = static_cast<double>(i) / kEncodeTableSize;
+            const double v = r * r;
+            t[static_cast<std::size_t>(i)] =
+                static_cast<float>(v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055);
+        }
+        return t;
+    }();
+    return table;
+}
+
+const std::array<float, 65536>& decode_table16() {
+    static const std::array<float, 65536> table = [] {
+        std::array<float, 65536> t{};
+        for (int i = 0; i < 65536; ++i) {
+            const double v = i / 65535.0;
+            t[static_cast<std::size_t>(i)] =
+                static_cast<float>(v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4));
+        }
+        return t;
+    }();
+    return table;
+}
+
+std::uint16_t to_u16(float v) {
+    return static_cast<std::uint16_t>(std::lround(std::clamp(v, 0.0f, 1.0f) * 65535.0f));
+}
+
+std::string lower_extension(const std::string& path) {
+    std::string ext = fs::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return ext;
+}
+
+bool is_video_extension(const std::string& ext) {
+    return ext == ".mp4" || ext == ".avi" || ext == ".mov" || ext == ".mkv" || ext == ".webm" || ext == ".m4v";
+}
+
+bool has_integer_conversion(const std::string& pattern) {
+    return formats::format_frame_pattern(pattern, 1).has_value() &&
+           *formats::format_frame_pattern(pattern, 1) != *formats::format_frame_pattern(pattern, 2);
+}
+
+}  // namespace
+
+float srgb_to_linear(float encoded) {
+    const float v = std::clamp(encoded, 0.0f, 1.0f);
+    return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+}
+
+float linear_to_srgb(float linear) {
+    const float v = std::clamp(linear, 0.0f, 1.0f);
+    const float r = std::sqrt(v) * kEncodeTableSize;
+    const int i = std::min(static_cast<int>(r), kEncodeTableSize - 1);
+    const float f = r - static_cast<float>(i);
+    const auto& t = encode_table();
+    return t[static_cast<std::size_t>(i)] + f * (t[static_cast<std::size_t>(i) + 1] - t[static_cast<std::size_t>(i)]);
+}
+
+RgbImage to_linear(const RgbImage& display) {
+    RgbImage out = display;
+    const auto& table = decode_table16();
+    for (float& v : out.rgb) v = table[to_u16(v)];
+    return out;
+}
+
+RgbImage to_display(const RgbImage& linear) {
+    RgbImage out = linear;
+    for (float& v : out.rgb) v = linear_to_srgb(v);
+    return out;
+}
+
+std::vector<float> luma(const RgbImage& display) {
+    std::vector<float> y(static_cast<std::size_t>(display.width) * display.height);
+    for (std::size_t i = 0; i < y.size(); ++i)
+        y[i] = 0.2126f * display.rgb[3 * i] + 0.7152f * display.rgb[3 * i + 1] + 0.0722f * display.rgb[3 * i + 2];
+    return y;
+}
+
+RgbImage display_rgb(const formats::Image& image) {
+    RgbImage out(image.width, image.height);
+    const std::size_t n = static_cast<std::size_t>(image.width) * image.height;
+    const bool linear = image.encoding == formats::Image::Encoding::linear;
+    for (std::size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) {
+            const float v = image.channels >= 3 ? image.pixels[i * static_cast<std::size_t>(image.channels) + c]
+                                                : image.pixels[i * static_cast<std::size_t>(image.channels)];
+            out.rgb[3 * i + c] = linear ? linear_to_srgb(v) : v;
+        }
+    return out;
+}
+
+void sample_bilinear(const RgbImage& image, double x, double y, float out[3]) {
+    x = std::clamp(x, 0.0, static_cast<double>(image.width - 1));
+    y = std::clamp(y, 0.0, static_cast<double>(image.height - 1));
+    const int x0 = std::min(static_cast<int>(x), image.width - 2 >= 0 ? image.width - 2 : 0);
+    const int y0 = std::min(static_cast<int>(y), image.height - 2 >= 0 ? image.height - 2 : 0);
+    const int x1 = std::min(x0 + 1, image.width - 1);
+    const int y1 = std::min(y0 + 1, image.height - 1);
+    const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+    const float* a = image.pixel(x0, y0);
+    const float* b = image.pixel(x1, y0);
+    const float* c = image.pixel(x0, y1);
+    const float* d = image.pixel(x1, y1);
+    for (int k = 0; k < 3; ++k) {
+        const float top = a[k] + fx * (b[k] - a[k]);
+        const float bottom = c[k] + fx * (d[k] - c[k]);
+        out[k] = top + fy * (bottom - top);
+    }
+}
+
+// ---- CaptureFrames -----------------------------------------------------------------
+
+CaptureFrames::CaptureFrames(const formats::Capture& capture, int max_frames)
+    : m_frames(capture), m_count(capture.frames.count), m_fps(capture.fps), m_source(capture.folder) {
+    if (max_frames > 0) m_count = std::min(m_count, max_frames);
+    if (m_source.empty()) m_source = capture.frames.is_video() ? capture.frames.video : capture.frames.pattern;
+}
+
+int CaptureFrames::width() const { return m_frames.width(); }
+int CaptureFrames::height() const { return m_frames.height(); }
+
+RgbImage CaptureFrames::frame(int index) {
+    if (index < 0 || index >= m_count) throw std::out_of_range("frame index " + std::to_string(index) + " outside the clip");
+    return display_rgb(m_frames.frame(m_frames.first() + index));
+}
+
+// ---- ClipFrames ------------------------------------------------------------------------
+
+ClipFrames::ClipFrames(int width, int height, double fps, std::string source)
+    : m_width(width), m_height(height), m_fps(fps), m_source(std::move(source)) {}
+
+ClipFrames ClipFrames::read_all(FrameSequence& frames, int max_frames, const std::function<bool(double)>& progress) {
+    ClipFrames clip(frames.width(), frames.height(), frames.fps(), frames.source());
+    const int count = max_frames > 0 ? std::min(max_frames, frames.count()) : frames.count();
+    for (int i = 0; i < count; ++i) {
+        clip.append(frames.frame(i));
+        if (progress && !progress(static_cast<double>(i + 1) / count)) break;
+    }
+    return clip;
+}
+
+void ClipFrames::append(const RgbImage& display) {
+    if (display.width != m_width || display.height != m_height)
+        throw std::invalid_argument("ClipFrames::append: frame of another size");
+    std::vector<std::uint16_t> data(display.rgb.size());
+    for (std::size_t i = 0; i < data.size(); ++i) data[i] = to_u16(display.rgb[i]);
+    m_frames.push_back(std::move(data));
+}
+
+RgbImage ClipFrames::display(int index) const {
+    const auto& data = m_frames.at(static_cast<std::size_t>(index));
+    RgbImage out(m_width, m_height);
+    for (std::size_t i = 0; i < data.size(); ++i) out.rgb[i] = data[i] / 65535.0f;
+    return out;
+}
+
+RgbImage ClipFrames::linear(int index) const {
+    const auto& data = m_frames.at(static_cast<std::size_t>(index));
+    const auto& table = decode_table16();
+    RgbImage out(m_width, m_height);
+    for (std::size_t i = 0; i < data.size(); ++i) out.rgb[i] = table[data[i]];
+    return out;
+}
+
+std::vector<float> ClipFrames::luma(int index) const {
+    const auto& data = m_frames.at(static_cast<std::size_t>(index));
+    std::vector<float> y(static_cast<std::size_t>(m_width) * m_height);
+    for (std::size_t i = 0; i < y.size(); ++i)
+        y[i] = (0.2126f * data[3 * i] + 0.7152f * data[3 * i + 1] + 0.0722f * data[3 * i + 2]) / 65535.0f;
+    return y;
+}
+
+// ---- MemoryFrames ----------------------------------------------------------------------
+
+MemoryFrames::MemoryFrames(std::vector<RgbImage> display_frames, double fps, std::string source)
+    : m_frames(std::move(display_frames)), m_fps(fps), m_source(std::move(source)) {}
+int MemoryFrames::width() const { return m_frames.empty() ? 0 : m_frames.front().width; }
+int MemoryFrames::height() const { return m_frames.empty() ? 0 : m_frames.front().height; }
+RgbImage MemoryFrames::frame(int index) { return m_frames.at(static_cast<std::size_t>(index)); }
+
+// ---- open_clip ---------------------------------------------------------------------------
+
+formats::Capture open_clip(const std::string& path, double fps) {
+    std::error_code ec;
+    if (fs::is_directory(path, ec) || fs::path(path).filename() == "capture.json") {
+        formats::Capture capture = formats::read_capture(path);
+        if (!capture.is_video())
+            throw ValidationError({Problem{Problem::Severity::error, capture.json_path, "/kind",
+                                           "the capture is a " + capture.kind + ", not a video.flow clip",
+                                           "give a video.flow capture, a video file or an image pattern"}});
+        if (fps > 0.0) capture.fps = fps;
+        return capture;
+    }
+    formats::Capture capture;
+    capture.kind = "video.flow";
+    if (is_video_extension(lower_extension(path))) {
+        if (!fs::is_regular_file(path, ec))
+            throw IoError(path, "", "no such video file", "check the path of the clip");
+        const formats::VideoInfo info = formats::read_video_info(path);
+        if (info.frame_count < 1)
+            throw IoError(path, "", "the video reports no frames", "re-encode the clip (e.g. H.264 in .mp4)");
+        capture.frames.video = fs::absolute(path).string();
+        capture.frames.first = 1;
+        capture.frames.count = info.frame_count;
+        capture.fps = fps > 0.0 ? fps : (info.fps > 0.0 ? info.fps : 25.0);
+        capture.folder = fs::path(capture.frames.video).parent_path().string();
+        return capture;
+    }
+    if (has_integer_conversion(path)) {
+        const std::string absolute = fs::absolute(path).string();
+        int first = -1;
+        for (int candidate : {0, 1})
+            if (fs::is_regular_file(*formats::format_frame_pattern(absolute, candidate), ec)) {
+                first = candidate;
+                break;
+            }
+        if (first < 0)
+            throw IoError(path, "", "no image for frame 0 or 1 of the pattern",
+                          "name the frames with one printf integer, e.g. frames/%06d.png, starting at 0 or 1");
+        int count = 0;
+        while (fs::is_regular_file(*formats::format_frame_pattern(absolute, first + count), ec)) ++count;
+        capture.frames.pattern = absolute;
+        capture.frames.first = first;
+        capture.frames.count = count;
+        capture.fps = fps > 0.0 ? fps : 25.0;
+        capture.folder = fs::path(absolute).parent_path().string();
+        return capture;
+    }
+    throw IoError(path, "", "not a capture folder, a video file or an image pattern",
+                  "give a video.flow capture folder, a video (.mp4, .avi, .mov, .mkv) or a pattern like frames/%06d.png");
+}
+
+// ---- backgrounds ---------------------------------------------------------------------------
+
+RgbImage median_plate(const ClipFrames& clip, int max_samples) {
+    const int count = clip.count();
+    if (count == 0) return RgbImage(clip.width(), clip.height());
+    const int samples = std::max(1, std::min(count, max_samples));
+    std::vector<RgbImage> frames;
+    for (int i = 0; i < samples; ++i)
+        frames.push_back(clip.linear(samples == 1 ? 0 : static_cast<int>(std::lround(static_cast<double>(i) * (count - 1) / (samples - 1)))));
+    RgbImage plate(clip.width(), clip.height());
+    std::vector<float> values(static_cast<std::size_t>(samples));
+    for (std::size_t i = 0; i < plate.rgb.size(); ++i) {
+        for (int s = 0; s < samples; ++s) values[static_cast<std::size_t>(s)] = frames[static_cast<std::size_t>(s)].rgb[i];
+        const auto mid = values.begin() + samples / 2;
+        std::nth_element(values.begin(), mid, values.end());
+        float median = *mid;
+        if (samples % 2 == 0) median = 0.5f * (median + *std::max_element(values.begin(), mid));
+        plate.rgb[i] = median;
+    }
+    return plate;
+}
+
+const char* to_string(BackgroundMode mode) {
+    switch (mode) {
+        case BackgroundMode::median: return "median";
+        case BackgroundMode::loop: return "loop";
+        case BackgroundMode::none: return "none";
+    }
+    return "?";
+}
+
+BackgroundMode background_mode_from_string(const std::string& text) {
+    if (text == "median") return BackgroundMode::median;
+    if (text == "loop") return BackgroundMode::loop;
+    if (text == "none") return BackgroundMode::none;
+    throw std::invalid_argument("unknown background mode '" + text + "' (median, loop or none)");
+}
+
+Background Background::plate(RgbImage linear_plate) {
+    Background b;
+    b.m_mode = BackgroundMode::median;
+    b.m_plate = std::move(linear_plate);
+    return b;
+}
+
+Background Background::looped(std::shared_ptr<const ClipFrames> clip) {
+    Background b;
+    b.m_mode = BackgroundMode::loop;
+    b.m_clip = std::move(clip);
+    return b;
+}
+
+void Background::fill(int frame, int width, int height, RgbImage& out) const {
+    const auto fits = [&](const RgbImage& image) { return image.width == width && image.height == height; };
+    if (m_mode == BackgroundMode::median && fits(m_plate)) {
+        out = m_plate;
+        return;
+    }
+    if (m_mode == BackgroundMode::loop && m_clip && m_clip->count() > 0 && m_clip->width() == width &&
+        m_clip->height() == height) {
+        const int n = m_clip->count();
+        const int index = (((frame - 1) % n) + n) % n;
+        out = m_clip->linear(index);
+        return;
+    }
+    out = RgbImage(width, height);
+}
+
+// ---- writing -------------------------------------------------------------------------------------
+
+namespace {
+
+void write_image_file(const std::string& path, const RgbImage& linear) {
+    const std::string ext = lower_extension(path);
+    auto output = OIIO::ImageOutput::create(path);
+    if (!output)
+        throw IoError(path, "", "no image writer for this file type (" + OIIO::geterror() + ")",
+                      "write .png, .exr, .tif or .jpg frames");
+    const std::size_t n = linear.rgb.size();
+    formats::write_path_atomically(path, [&](const std::string& temp_path) {
+        bool ok = false;
+        if (ext == ".exr") {
+            OIIO::ImageSpec spec(linear.width, linear.height, 3, OIIO::TypeDesc::HALF);
+            spec.attribute("compression", "zip");
+            ok = output->open(temp_path, spec) && output->write_image(OIIO::TypeDesc::FLOAT, linear.rgb.data());
+        } else if (ext == ".tif" || ext == ".tiff") {
+            std::vector<std::uint16_t> data(n);
+            for (std::size_t i = 0; i < n; ++i) data[i] = to_u16(linear_to_srgb(linear.rgb[i]));
+            OIIO::ImageSpec spec(linear.width, linear.height, 3, OIIO::TypeDesc::UINT16);
+            ok = output->open(temp_path, spec) && output->write_image(OIIO::TypeDesc::UINT16, data.data());
+        } else {
+            std::vector<std::uint8_t> data(n);
+            for (std::size_t i = 0; i < n; ++i)
+                data[i] = static_cast<std::uint8_t>(std::lround(linear_to_srgb(linear.rgb[i]) * 255.0f));
+            OIIO::ImageSpec spec(linear.width, linear.height, 3, OIIO::TypeDesc::UINT8);
+            ok = output->open(temp_path, spec) && output->write_image(OIIO::TypeDesc::UINT8, data.data());
+        }
+        const std::string error = output->geterror();
+        output->close();
+        if (!ok) throw IoError(path, "", "cannot write the image: " + error, "check the folder exists and is writable");
+    });
+}
+
+}  // namespace
+
+struct FrameWriter::Impl {
+    std::string target;
+    std::string pattern;  // image sequences
+    int width = 0;
+    int height = 0;
+    double fps = 25.0;
+    bool video = false;
+    cv::VideoWriter writer;
+};
+
+FrameWriter::FrameWriter(const std::string& target, int width, int height, double fps) : m_impl(std::make_unique<Impl>()) {
+    m_impl->target = target;
+    m_impl->width = width;
+    m_impl->height = height;
+    m_impl->fps = fps > 0.0 ? fps : 25.0;
+    const std::string ext = lower_extension(target);
+    std::error_code ec;
+    if (is_video_extension(ext)) {
+        m_impl->video = true;
+        const fs::path parent = fs::path(target).parent_path();
+        if (!parent.empty() && !fs::is_directory(parent, ec))
+            throw IoError(target, "", "the folder " + parent.string() + " does not exist", "create it first");
+        const int fourcc = ext == ".avi" ? cv::VideoWriter::fourcc('M', 'J', 'P', 'G') : cv::VideoWriter::fourcc('m', 'p', '4', 'v');
+        m_impl->writer.open(target, cv::CAP_FFMPEG, fourcc, m_impl->fps, cv::Size(width, height), true);
+        if (!m_impl->writer.isOpened())
+            throw IoError(target, "", "cannot open the video for writing", "use .mp4 or .avi, or write an image sequence");
+        return;
+    }
+    if (has_integer_conversion(target)) {
+        m_impl->pattern = target;
+    } else if (ext.empty()) {
+        fs::create_directories(target, ec);
+        if (ec) throw IoError(target, "", "cannot create the folder: " + ec.message(), "check permissions");
+        m_impl->pattern = (fs::path(target) / "%06d.png").string();
+    } else {
+        throw IoError(target, "", "an image output needs a frame number in its name",
+                      "write e.g. out/%06d.png, a folder, or a video file (.mp4, .avi)");
+    }
+    const fs::path parent = fs::path(m_impl->pattern).parent_path();
+    if (!parent.empty() && !fs::is_directory(parent, ec))
+        throw IoError(target, "", "the folder " + parent.string() + " does not exist", "create it first");
+}
+
+FrameWriter::~FrameWriter() {
+    try {
+        close();
+    } catch (...) {
+    }
+}
+
+bool FrameWriter::is_video() const { return m_impl->video; }
+
+std::string FrameWriter::path_of(int frame) const {
+    if (m_impl->video) return m_impl->target;
+    return *formats::format_frame_pattern(m_impl->pattern, frame);
+}
+
+void FrameWriter::write(int frame, const RgbImage& linear) {
+    if (linear.width != m_impl->width || linear.height != m_impl->height)
+        throw std::invalid_argument("FrameWriter::write: frame of another size");
+    if (!m_impl->video) {
+        write_image_file(path_of(frame), linear);
+        return;
+    }
+    cv::Mat mat(m_impl->height, m_impl->width, CV_8UC3);
+    for (int y = 0; y < m_impl->height; ++y) {
+        auto* row = mat.ptr<std::uint8_t>(y);
+        const float* in = linear.pixel(0, y);
+        for (int x = 0; x < m_impl->width; ++x)
+            for (int c = 0; c < 3; ++c)  // OpenCV wants BGR
+                row[3 * x + c] = static_cast<std::uint8_t>(std::lround(linear_to_srgb(in[3 * x + (2 - c)]) * 255.0f));
+    }
+    m_impl->writer.write(mat);
+}
+
+void FrameWriter::close() {
+    if (m_impl && m_impl->video && m_impl->writer.isOpened()) m_impl->writer.release();
+}
+
+void write_image(const std::string& path, const RgbImage& linear) { write_image_file(path, linear); }
+
+RgbImage read_image_linear(const std::string& path) {
+    const formats::Image image = formats::load_image(path, 3);
+    if (image.encoding == formats::Image::Encoding::linear) {
+        RgbImage out(image.width, image.height);
+        out.rgb = image.pixels;
+        return out;
+    }
+    return to_linear(display_rgb(image));
+}
+
+}  // namespace flowvid::flow

@@ -1,0 +1,256 @@
+#include "flowvid/flow/quality.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <random>
+#include <stdexcept>
+
+namespace flowvid::flow {
+
+std::vector<std::uint8_t> line_band_mask(const std::vector<std::vector<Eigen::Vector2d>>& lines, int width, int height,
+                                         double half_width_px) {
+    std::vector<std::uint8_t> mask(static_cast<std::size_t>(width) * height, 0);
+    for (const auto& line : lines) {
+        for (std::size_t i = 0; i + 1 < line.size(); ++i) {
+            const Eigen::Vector2d a = line[i], d = line[i + 1] - line[i];
+            const double len2 = d.squaredNorm();
+            const int x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), line[i + 1].x()) - half_width_px)));
+            const int x1 = std::min(width - 1, static_cast<int>(std::ceil(std::max(a.x(), line[i + 1].x()) + half_width_px)));
+            const int y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), line[i + 1].y()) - half_width_px)));
+            const int y1 = std::min(height - 1, static_cast<int>(std::ceil(std::max(a.y(), line[i + 1].y()) + half_width_px)));
+            for (int y = y0; y <= y1; ++y)
+                for (int x = x0; x <= x1; ++x) {
+                    const Eigen::Vector2d q(x, y);
+                    const double t = len2 > 0.0 ? std::clamp((q - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+                    if ((q - (a + t * d)).norm() <= half_width_px) mask[static_cast<std::size_t>(y) * width + x] = 1;
+                }
+        }
+    }
+    return mask;
+}
+
+SequenceStats sequence_stats(const std::vector<std::vector<float>>& frames, int width, int height,
+                             const std::vector<std::uint8_t>& mask) {
+    SequenceStats stats;
+    std::size_t inside = 0;
+    for (std::uint8_t m : mask) inside += m;
+    if (inside == 0) return stats;
+    for (std::size_t t = 0; t < frames.size(); ++t) {
+        const std::vector<float>& g = frames[t];
+        double hf = 0.0;
+        std::size_t n = 0;
+        for (int y = 1; y + 1 < height; ++y)
+            for (int x = 1; x + 1 < width; ++x) {
+                const std::size_t i = static_cast<std::size_t>(y) * width + x;
+                if (!mask[i]) continue;
+                double box = 0.0;
+                for (int dy = -1; dy <= 1; ++dy)
+                    for (int dx = -1; dx <= 1; ++dx) box += g[i + static_cast<std::size_t>(dy * width + dx)];
+                const double d = g[i] - box / 9.0;
+                hf += d * d;
+                ++n;
+            }
+        stats.hf_energy.push_back(n ? hf / static_cast<double>(n) : 0.0);
+        if (t + 1 < frames.size()) {
+            const std::vector<float>& h = frames[t + 1];
+            double sum = 0.0;
+            for (std::size_t i = 0; i < g.size(); ++i)
+                if (mask[i]) sum += std::fabs(static_cast<double>(h[i]) - g[i]);
+            stats.transitions.push_back(sum / static_cast<double>(inside));
+        }
+    }
+    return stats;
+}
+
+namespace {
+
+double percentile(std::vector<double> values, double p) {
+    if (values.empty()) return 0.0;
+    std::sort(values.begin(), values.end());
+    const double r = p * (values.size() - 1);
+    const std::size_t i = static_cast<std::size_t>(r);
+    const std::size_t j = std::min(i + 1, values.size() - 1);
+    return values[i] + (r - i) * (values[j] - values[i]);
+}
+
+double coefficient_of_variation(const std::vector<double>& values) {
+    if (values.size() < 2) return 0.0;
+    const double mean = std::accumulate(values.begin(), values.end(), 0.0) / values.size();
+    double var = 0.0;
+    for (double v : values) var += (v - mean) * (v - mean);
+    var /= static_cast<double>(values.size() - 1);
+    return mean > 0.0 ? std::sqrt(var) / mean : 0.0;
+}
+
+double mean(const std::vector<double>& values) {
+    return values.empty() ? 0.0 : std::accumulate(values.begin(), values.end(), 0.0) / values.size();
+}
+
+// Mean RMS distance from query patches of `queries_from` to their nearest
+// patch in `search_in`, at offsets within the radius, skipping frames closer
+// than `exclude` when both sequences are the same.
+double nearest_patch_distance(const std::vector<std::vector<float>>& queries_from,
+                              const std::vector<std::vector<float>>& search_in, bool same, int width, int height,
+                              const std::vector<std::uint8_t>& mask, const QualitySettings& s, std::uint64_t seed) {
+    const int p = s.patch_px;
+    std::vector<std::pair<int, int>> centres;  // top-left corners whose patch lies inside the mask
+    for (int y = s.search_radius_px; y + p + s.search_radius_px <= height; y += 2)
+        for (int x = s.search_radius_px; x + p + s.search_radius_px <= width; x += 2) {
+            const std::size_t c = static_cast<std::size_t>(y + p / 2) * width + (x + p / 2);
+            if (mask[c] && mask[static_cast<std::size_t>(y) * width + x] &&
+                mask[static_cast<std::size_t>(y + p - 1) * width + (x + p - 1)])
+                centres.emplace_back(x, y);
+        }
+    if (centres.empty() || queries_from.empty() || search_in.empty()) return 0.0;
+    std::mt19937_64 rng(seed);
+    double total = 0.0;
+    int counted = 0;
+    for (int q = 0; q < s.queries; ++q) {
+        const auto [qx, qy] = centres[rng() % centres.size()];
+        const int qt = static_cast<int>(rng() % queries_from.size());
+        const std::vector<float>& src = queries_from[static_cast<std::size_t>(qt)];
+        double best = std::numeric_limits<double>::infinity();
+        for (std::size_t f = 0; f < search_in.size(); ++f) {
+            if (same && std::abs(static_cast<int>(f) - qt) < s.exclude_frames) continue;
+            const std::vector<float>& dst = search_in[f];
+            for (int dy = -s.search_radius_px; dy <= s.search_radius_px; dy += s.search_stride_px)
+                for (int dx = -s.search_radius_px; dx <= s.search_radius_px; dx += s.search_stride_px) {
+                    double ssd = 0.0;
+                    for (int y = 0; y < p && ssd < best; ++y) {
+                        const float* a = src.data() + static_cast<std::size_t>(qy + y) * width + qx;
+                        const float* b = dst.data() + static_cast<std::size_t>(qy + y + dy) * width + qx + dx;
+                        for (int x = 0; x < p; ++x) {
+                            const double d = a[x] - b[x];
+                            ssd += d * d;
+                        }
+                    }
+                    best = std::min(best, ssd);
+                }
+        }
+        if (std::isfinite(best)) {
+            total += std::sqrt(best / (p * p));
+            ++counted;
+        }
+    }
+    return counted ? total / counted : 0.0;
+}
+
+}  // namespace
+
+QualityReport measure_quality(const std::vector<std::vector<float>>& clip_luma,
+                              const std::vector<std::vector<float>>& output_luma, int width, int height,
+                              const std::vector<std::uint8_t>& mask, const QualitySettings& settings) {
+    QualityReport r;
+    const SequenceStats clip = sequence_stats(clip_luma, width, height, mask);
+    const SequenceStats out = sequence_stats(output_luma, width, height, mask);
+    r.clip_p95 = percentile(clip.transitions, 0.95);
+    r.clip_p99 = percentile(clip.transitions, 0.99);
+    r.clip_max = clip.transitions.empty() ? 0.0 : *std::max_element(clip.transitions.begin(), clip.transitions.end());
+    r.transitions = static_cast<int>(out.transitions.size());
+    if (!out.transitions.empty() && r.clip_p95 > 0.0) {
+        r.max_transition_ratio = *std::max_element(out.transitions.begin(), out.transitions.end()) / r.clip_p95;
+        int above = 0;
+        for (double d : out.transitions) above += d > r.clip_p99 ? 1 : 0;
+        r.share_above_p99 = static_cast<double>(above) / out.transitions.size();
+    }
+    r.pulsing = coefficient_of_variation(out.hf_energy);
+    r.clip_pulsing = coefficient_of_variation(clip.hf_energy);
+    const double clip_hf = mean(clip.hf_energy);
+    r.hf_power_ratio = clip_hf > 0.0 ? mean(out.hf_energy) / clip_hf : 0.0;
+    r.patch_distance = nearest_patch_distance(output_luma, clip_luma, false, width, height, mask, settings, settings.seed);
+    r.clip_self_distance = nearest_patch_distance(clip_luma, clip_luma, true, width, height, mask, settings, settings.seed + 1);
+    return r;
+}
+
+RgbImage naive_loop_frame(const ClipFrames& clip, int frame) {
+    const int n = clip.count();
+    if (n == 0) throw std::invalid_argument("empty clip");
+    return clip.linear((((frame - 1) % n) + n) % n);
+}
+
+VelocityField velocity_field(const ParticleStreams& streams, int width, int height, double sigma_px) {
+    VelocityField field;
+    field.width = width;
+    field.height = height;
+    const std::size_t pixels = static_cast<std::size_t>(width) * height;
+    std::vector<double> vx(pixels, 0.0), vy(pixels, 0.0), w(pixels, 0.0);
+    const formats::ParticleBank& bank = streams.bank();
+    const int radius = static_cast<int>(std::ceil(3.0 * sigma_px));
+    constexpr double bin_px = 4.0;
+    for (std::size_t k = 0; k < streams.schedule().lines.size(); ++k) {
+        const LineGeometry& g = streams.geometry(static_cast<int>(k));
+        const std::string& id = streams.schedule().lines[k].line_id;
+        const std::size_t bins = static_cast<std::size_t>(g.length_px() / bin_px) + 1;
+        std::vector<double> sum(bins, 0.0), count(bins, 0.0);
+        for (const formats::TrackedParticle& p : bank.particles) {
+            if (p.line_id != id) continue;
+            for (std::size_t i = 1; i < p.arc_length_px.size(); ++i) {
+                const std::size_t b = std::min(bins - 1, static_cast<std::size_t>(std::max(0.0f, p.arc_length_px[i - 1]) / bin_px));
+                sum[b] += p.arc_length_px[i] - p.arc_length_px[i - 1];
+                count[b] += 1.0;
+            }
+        }
+        double last = 0.0;
+        for (std::size_t b = 0; b < bins; ++b) {
+            const double speed = count[b] > 0.0 ? sum[b] / count[b] : last;
+            last = speed;
+            const double s = (b + 0.5) * bin_px;
+            const Eigen::Vector2d p = g.point(s), t = g.tangent(s);
+            const int cx = static_cast<int>(std::lround(p.x())), cy = static_cast<int>(std::lround(p.y()));
+            for (int y = std::max(0, cy - radius); y <= std::min(height - 1, cy + radius); ++y)
+                for (int x = std::max(0, cx - radius); x <= std::min(width - 1, cx + radius); ++x) {
+                    const double d2 = (Eigen::Vector2d(x, y) - p).squaredNorm();
+                    const double k = std::exp(-d2 / (2.0 * sigma_px * sigma_px));
+                    const std::size_t i = static_cast<std::size_t>(y) * width + x;
+                    vx[i] += k * speed * t.x();
+                    vy[i] += k * speed * t.y();
+                    w[i] += k;
+                }
+        }
+    }
+    // Full coverage where the weight of one line's samples reaches half its
+    // on-line value (a Gaussian sampled every bin_px sums to sqrt(2 pi) sigma / bin_px).
+    const double full = 0.5 * std::sqrt(2.0 * M_PI) * sigma_px / bin_px;
+    field.velocity.resize(pixels);
+    field.coverage.resize(pixels);
+    for (std::size_t i = 0; i < pixels; ++i) {
+        field.velocity[i] = w[i] > 1e-9 ? Eigen::Vector2f(static_cast<float>(vx[i] / w[i]), static_cast<float>(vy[i] / w[i]))
+                                        : Eigen::Vector2f::Zero();
+        field.coverage[i] = static_cast<float>(std::min(1.0, w[i] / full));
+    }
+    return field;
+}
+
+FlowMapBaseline::FlowMapBaseline(VelocityField field, RgbImage texture, RgbImage background, int cycle_frames)
+    : m_field(std::move(field)), m_texture(std::move(texture)), m_background(std::move(background)),
+      m_cycle(std::max(2, cycle_frames)) {}
+
+RgbImage FlowMapBaseline::render(int frame) const {
+    const int w = m_field.width, h = m_field.height;
+    RgbImage out = m_background.width == w && m_background.height == h ? m_background : RgbImage(w, h);
+    const double phase = static_cast<double>(frame - 1) / m_cycle;
+    double f0 = phase - std::floor(phase);
+    double f1 = f0 + 0.5;
+    f1 -= std::floor(f1);
+    // Each layer's weight falls to zero when its advection offset resets.
+    const float w0 = static_cast<float>(1.0 - std::fabs(2.0 * f0 - 1.0));
+    const float w1 = 1.0f - w0;
+    const float o0 = static_cast<float>(f0 * m_cycle), o1 = static_cast<float>(f1 * m_cycle);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const std::size_t i = static_cast<std::size_t>(y) * w + x;
+            const float c = m_field.coverage[i];
+            if (c <= 0.0f) continue;
+            const Eigen::Vector2f v = m_field.velocity[i];
+            float a[3], b[3];
+            sample_bilinear(m_texture, x - v.x() * o0, y - v.y() * o0, a);
+            sample_bilinear(m_texture, x - v.x() * o1, y - v.y() * o1, b);
+            float* o = out.pixel(x, y);
+            for (int k = 0; k < 3; ++k) o[k] = o[k] * (1.0f - c) + (w0 * a[k] + w1 * b[k]) * c;
+        }
+    return out;
+}
+
+}  // namespace flowvid::flow

@@ -1,0 +1,801 @@
+#include "flowvid/flow/synthesis.hpp"
+
+#include "flowvid/flow/sampling.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <future>
+#include <limits>
+#include <map>
+#include <stdexcept>
+#include <thread>
+
+namespace flowvid::flow {
+
+namespace {
+
+long long floor_div(long long a, long long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+long long positive_mod(long long a, long long b) { return ((a % b) + b) % b; }
+
+std::uint64_t mix_seed(std::uint64_t x) {
+    x += 0x9E3779B97F4A7C15ULL;
+    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
+    return x ^ (x >> 31);
+}
+
+double smoothstep01(double x) {
+    const double t = std::clamp(x, 0.0, 1.0);
+    return t * t * (3.0 - 2.0 * t);
+}
+
+// Bicubic (Catmull-Rom) sample of a premultiplied RGBA patch at patch
+// coordinates (u, v) (pixel j's centre at j), zero outside the patch.
+void sample_patch_bicubic(const float* texture, int patch, float u, float v, float out[4]) {
+    const float fu = std::floor(u), fv = std::floor(v);
+    const int iu = static_cast<int>(fu), iv = static_cast<int>(fv);
+    const auto wu = catmull_rom_weights(u - fu);
+    const auto wv = catmull_rom_weights(v - fv);
+    out[0] = out[1] = out[2] = out[3] = 0.0f;
+    for (int b = 0; b < 4; ++b) {
+        const int y = iv - 1 + b;
+        if (y < 0 || y >= patch) continue;
+        float row[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+        for (int a = 0; a < 4; ++a) {
+            const int x = iu - 1 + a;
+            if (x < 0 || x >= patch) continue;
+            const float* t = texture + (static_cast<std::size_t>(y) * patch + x) * 4;
+            const float w = wu[static_cast<std::size_t>(a)];
+            row[0] += w * t[0];
+            row[1] += w * t[1];
+            row[2] += w * t[2];
+            row[3] += w * t[3];
+        }
+        const float w = wv[static_cast<std::size_t>(b)];
+        out[0] += w * row[0];
+        out[1] += w * row[1];
+        out[2] += w * row[2];
+        out[3] += w * row[3];
+    }
+}
+
+void sample_patch_bilinear(const float* texture, int patch, float u, float v, float out[4]) {
+    const float fu = std::floor(u), fv = std::floor(v);
+    const int iu = static_cast<int>(fu), iv = static_cast<int>(fv);
+    const float au = u - fu, av = v - fv;
+    out[0] = out[1] = out[2] = out[3] = 0.0f;
+    for (int b = 0; b < 2; ++b) {
+        const int y = iv + b;
+        if (y < 0 || y >= patch) continue;
+        const float wy = b ? av : 1.0f - av;
+        for (int a = 0; a < 2; ++a) {
+            const int x = iu + a;
+            if (x < 0 || x >= patch) continue;
+            const float w = wy * (a ? au : 1.0f - au);
+            const float* t = texture + (static_cast<std::size_t>(y) * patch + x) * 4;
+            out[0] += w * t[0];
+            out[1] += w * t[1];
+            out[2] += w * t[2];
+            out[3] += w * t[3];
+        }
+    }
+}
+
+// Accumulation buffer: premultiplied colour times feather weight, and the weight.
+struct Accumulator {
+    int width = 0;
+    int height = 0;
+    std::vector<float> rgbw;  // 4 per pixel
+
+    void reset(int w, int h) {
+        width = w;
+        height = h;
+        rgbw.assign(static_cast<std::size_t>(w) * h * 4, 0.0f);
+    }
+};
+
+// Splats a feathered patch back on the whole pixels it was cut from
+// (patch_origin of its centre): an exact copy, weighted.
+void splat_patch(Accumulator& acc, const float* texture, int patch, const Eigen::Vector2d& centre, float weight,
+                 const std::vector<float>& feather) {
+    const int ox = patch_origin(centre.x(), patch), oy = patch_origin(centre.y(), patch);
+    const int j_lo = std::max(0, -ox), j_hi = std::min(patch, acc.width - ox);
+    for (int i = 0; i < patch; ++i) {
+        const int y = oy + i;
+        if (y < 0 || y >= acc.height) continue;
+        const float fy = feather[static_cast<std::size_t>(i)] * weight;
+        float* dst = acc.rgbw.data() + (static_cast<std::size_t>(y) * acc.width + ox) * 4;
+        const float* src = texture + static_cast<std::size_t>(i) * patch * 4;
+        for (int j = j_lo; j < j_hi; ++j) {
+            const float w = fy * feather[static_cast<std::size_t>(j)];
+            const float* t = src + static_cast<std::size_t>(j) * 4;
+            float* d = dst + static_cast<std::size_t>(j) * 4;
+            d[0] += w * t[0];
+            d[1] += w * t[1];
+            d[2] += w * t[2];
+            d[3] += w * t[3];
+        }
+    }
+}
+
+// Output pixels near an output line, mapped into the input frame.
+struct WarpEntry {
+    int pixel = 0;
+    float qx = 0.0f, qy = 0.0f;  // input-frame position
+    float fade = 1.0f;
+};
+struct WarpTable {
+    double s_min = 0.0;                  // arc of bucket 0 (input line)
+    std::vector<int> bucket_start;       // entries of bucket b: [bucket_start[b], bucket_start[b+1])
+    std::vector<WarpEntry> entries;
+    double reach_in = 0.0;               // input-space reach of a patch around its centre
+};
+
+double mapping_scale(ArcMapping mapping, double length_in, double length_out) {
+    return mapping == ArcMapping::scaled && length_out > 0.0 ? length_in / length_out : 1.0;
+}
+
+WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, ArcMapping mapping, int patch, int width,
+                     int height) {
+    WarpTable table;
+    const double half = (patch - 1) / 2.0;
+    const double length_out = out_line.length_px(), length_in = in_line.length_px();
+    const double scale = mapping_scale(mapping, length_in, length_out);
+    table.reach_in = (half + 1.0) * std::sqrt(2.0) + 1.0;
+    const double reach_out = table.reach_in * std::max(1.0, 1.0 / scale);
+
+    const auto& pts = out_line.points();
+    Eigen::Vector2d lo = pts.front(), hi = pts.front();
+    for (const auto& p : pts) {
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+    }
+    const int bx0 = std::max(0, static_cast<int>(std::floor(lo.x() - 2.0 * reach_out)));
+    const int by0 = std::max(0, static_cast<int>(std::floor(lo.y() - 2.0 * reach_out)));
+    const int bx1 = std::min(width - 1, static_cast<int>(std::ceil(hi.x() + 2.0 * reach_out)));
+    const int by1 = std::min(height - 1, static_cast<int>(std::ceil(hi.y() + 2.0 * reach_out)));
+    if (bx1 < bx0 || by1 < by0) return table;
+    const int bw = bx1 - bx0 + 1, bh = by1 - by0 + 1;
+    std::vector<float> best(static_cast<std::size_t>(bw) * bh, std::numeric_limits<float>::infinity());
+    std::vector<float> best_s(best.size()), best_n(best.size());
+    const auto& arc = out_line.arc_lengths();
+    const std::size_t segments = pts.size() - 1;
+    for (std::size_t i = 0; i < segments; ++i) {
+        const Eigen::Vector2d a = pts[i];
+        const Eigen::Vector2d d = pts[i + 1] - a;
+        const double len = d.norm();
+        if (len <= 0.0) continue;
+        const Eigen::Vector2d u = d / len, normal(-u.y(), u.x());
+        const double t_lo = i == 0 ? -reach_out : 0.0;
+        const double t_hi = i + 1 == segments ? len + reach_out : len;
+        const Eigen::Vector2d e0 = a + t_lo * u, e1 = a + t_hi * u;
+        const int x0 = std::max(bx0, static_cast<int>(std::floor(std::min(e0.x(), e1.x()) - reach_out)));
+        const int x1 = std::min(bx1, static_cast<int>(std::ceil(std::max(e0.x(), e1.x()) + reach_out)));
+        const int y0 = std::max(by0, static_cast<int>(std::floor(std::min(e0.y(), e1.y()) - reach_out)));
+        const int y1 = std::min(by1, static_cast<int>(std::ceil(std::max(e0.y(), e1.y()) + reach_out)));
+        for (int y = y0; y <= y1; ++y)
+            for (int x = x0; x <= x1; ++x) {
+                const Eigen::Vector2d q(x, y);
+                const double t = std::clamp((q - a).dot(u), t_lo, t_hi);
+                const Eigen::Vector2d r = q - (a + t * u);
+                const float dist = static_cast<float>(r.norm());
+                const std::size_t k = static_cast<std::size_t>(y - by0) * bw + (x - bx0);
+                if (dist < best[k]) {
+                    best[k] = dist;
+                    best_s[k] = static_cast<float>(arc[i] + t);
+                    best_n[k] = static_cast<float>(r.dot(normal) >= 0.0 ? dist : -dist);
+                }
+            }
+    }
+    std::vector<std::pair<float, WarpEntry>> entries;
+    for (int y = by0; y <= by1; ++y)
+        for (int x = bx0; x <= bx1; ++x) {
+            const std::size_t k = static_cast<std::size_t>(y - by0) * bw + (x - bx0);
+            if (!(best[k] <= reach_out)) continue;
+            const double s_out = best_s[k];
+            const double s_in = s_out * scale;
+            if (s_in < -table.reach_in || s_in > length_in + table.reach_in) continue;
+            const Eigen::Vector2d q_in = in_line.point(s_in) + static_cast<double>(best_n[k]) * in_line.normal(s_in);
+            WarpEntry entry;
+            entry.pixel = y * width + x;
+            entry.qx = static_cast<float>(q_in.x());
+            entry.qy = static_cast<float>(q_in.y());
+            // Particles carried past the end of a shorter output line fade out
+            // instead of being cut.
+            entry.fade = s_out > length_out ? static_cast<float>(std::clamp(1.0 - (s_out - length_out) / reach_out, 0.0, 1.0)) : 1.0f;
+            if (entry.fade <= 0.0f) continue;
+            entries.emplace_back(static_cast<float>(s_in), entry);
+        }
+    table.s_min = -table.reach_in - 1.0;
+    const int buckets = static_cast<int>(std::ceil(length_in + 2.0 * table.reach_in + 2.0)) + 1;
+    std::vector<int> count(static_cast<std::size_t>(buckets) + 1, 0);
+    const auto bucket_of = [&](float s) {
+        return std::clamp(static_cast<int>(std::floor(s - table.s_min)), 0, buckets - 1);
+    };
+    for (const auto& e : entries) ++count[static_cast<std::size_t>(bucket_of(e.first)) + 1];
+    table.bucket_start.assign(static_cast<std::size_t>(buckets) + 1, 0);
+    for (int b = 0; b < buckets; ++b) table.bucket_start[static_cast<std::size_t>(b) + 1] = table.bucket_start[static_cast<std::size_t>(b)] + count[static_cast<std::size_t>(b) + 1];
+    table.entries.resize(entries.size());
+    std::vector<int> fill(table.bucket_start.begin(), table.bucket_start.end() - 1);
+    for (const auto& e : entries) table.entries[static_cast<std::size_t>(fill[static_cast<std::size_t>(bucket_of(e.first))]++)] = e.second;
+    return table;
+}
+
+void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStreams::Visible& particle, int patch) {
+    if (table.bucket_start.size() < 2) return;
+    const int buckets = static_cast<int>(table.bucket_start.size()) - 1;
+    const int b0 = std::clamp(static_cast<int>(std::floor(particle.arc_px - table.reach_in - table.s_min)), 0, buckets - 1);
+    const int b1 = std::clamp(static_cast<int>(std::floor(particle.arc_px + table.reach_in - table.s_min)), 0, buckets - 1);
+    const float cx = static_cast<float>(patch_origin(particle.centre.x(), patch));
+    const float cy = static_cast<float>(patch_origin(particle.centre.y(), patch));
+    for (int i = table.bucket_start[static_cast<std::size_t>(b0)]; i < table.bucket_start[static_cast<std::size_t>(b1) + 1]; ++i) {
+        const WarpEntry& e = table.entries[static_cast<std::size_t>(i)];
+        const float u = e.qx - cx, v = e.qy - cy;
+        if (u <= -0.5f || v <= -0.5f || u >= patch - 0.5f || v >= patch - 0.5f) continue;
+        const float w = feather_weight(u, patch) * feather_weight(v, patch) * e.fade * particle.weight;
+        if (w <= 0.0f) continue;
+        float c[4];
+        sample_patch_bicubic(particle.texture, patch, u, v, c);
+        float* d = acc.rgbw.data() + static_cast<std::size_t>(e.pixel) * 4;
+        const float alpha = std::clamp(c[3], 0.0f, 1.0f);
+        d[0] += w * c[0];
+        d[1] += w * c[1];
+        d[2] += w * c[2];
+        d[3] += w * alpha;
+
+    }
+}
+
+bool same_points(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vector2d>& b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t i = 0; i < a.size(); ++i)
+        if ((a[i] - b[i]).norm() > 1e-9) return false;
+    return true;
+}
+
+}  // namespace
+
+const char* to_string(ArcMapping mapping) { return mapping == ArcMapping::equal ? "equal" : "scaled"; }
+
+ArcMapping arc_mapping_from_string(const std::string& text) {
+    if (text == "equal") return ArcMapping::equal;
+    if (text == "scaled") return ArcMapping::scaled;
+    throw std::invalid_argument("unknown arc-length mapping '" + text + "' (equal or scaled)");
+}
+
+// ---- schedule ----------------------------------------------------------------------------------
+
+Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSettings& settings) {
+    Schedule schedule;
+    std::map<std::string, std::vector<std::pair<int, int>>> by_line;  // id -> (start, particle index)
+    for (std::size_t i = 0; i < bank.particles.size(); ++i)
+        by_line[bank.particles[i].line_id].emplace_back(bank.particles[i].start_frame, static_cast<int>(i));
+    std::vector<const formats::BankFlowLine*> lines;
+    std::vector<std::string> empty_lines;
+    for (const formats::BankFlowLine& line : bank.lines) {
+        auto it = by_line.find(line.id);
+        if (it == by_line.end() || it->second.empty()) {
+            empty_lines.push_back(line.id);
+            continue;
+        }
+        std::sort(it->second.begin(), it->second.end());
+        lines.push_back(&line);
+    }
+    if (lines.empty()) throw std::invalid_argument("the bank has no particle to synthesize from");
+    // Summaries, not one warning per line: a densified bank has hundreds.
+    const auto some = [](const std::vector<std::string>& ids) {
+        std::string text;
+        for (std::size_t i = 0; i < ids.size() && i < 3; ++i) text += (i ? ", " : "") + ids[i];
+        if (ids.size() > 3) text += ", ...";
+        return text;
+    };
+    if (!empty_lines.empty())
+        schedule.warnings.push_back(std::to_string(empty_lines.size()) + " of " + std::to_string(bank.lines.size()) +
+                                    " lines have no tracked particle and are not synthesized (" + some(empty_lines) + ")");
+
+    int step = 0;
+    int first_start = std::numeric_limits<int>::max(), last_start = std::numeric_limits<int>::min();
+    for (const auto* line : lines) {
+        const auto& starts = by_line[line->id];
+        for (std::size_t i = 1; i < starts.size(); ++i) {
+            const int d = starts[i].first - starts[i - 1].first;
+            if (d > 0 && (step == 0 || d < step)) step = d;
+        }
+        first_start = std::min(first_start, starts.front().first);
+        last_start = std::max(last_start, starts.back().first);
+    }
+    if (step == 0) step = 1;
+    // Which start slots (first_start + i * step) each line has a particle for.
+    const int slots = (last_start - first_start) / step + 1;
+    std::vector<std::vector<int>> has(lines.size(), std::vector<int>(static_cast<std::size_t>(slots) + 1, 0));  // prefix counts
+    for (std::size_t l = 0; l < lines.size(); ++l) {
+        std::vector<int> present(static_cast<std::size_t>(slots), 0);
+        for (const auto& [start, index] : by_line[lines[l]->id])
+            if ((start - first_start) % step == 0) present[static_cast<std::size_t>((start - first_start) / step)] = 1;
+        for (int i = 0; i < slots; ++i)
+            has[l][static_cast<std::size_t>(i) + 1] = has[l][static_cast<std::size_t>(i)] + present[static_cast<std::size_t>(i)];
+    }
+    const auto missing = [&](int first_slot, int count) {
+        int total = 0;
+        for (const auto& prefix : has)
+            total += count - (prefix[static_cast<std::size_t>(first_slot + count)] - prefix[static_cast<std::size_t>(first_slot)]);
+        return total;
+    };
+    // The window: as many particles as possible while at most a quarter of
+    // the slots (over all lines) lack a tracked particle of their own start
+    // frame; those borrow the nearest start, whose texture then matches its
+    // neighbours less well.
+    constexpr double kMaxMissingShare = 0.25;
+    const int line_count = static_cast<int>(lines.size());
+    int k = 1, first_slot = 0;
+    const int wanted = settings.particles > 0 ? std::min(settings.particles, slots) : 0;
+    if (settings.particles > slots)
+        schedule.warnings.push_back("asked for " + std::to_string(settings.particles) + " particles per line but the bank spans only " +
+                                    std::to_string(slots) + " start frames; using " + std::to_string(slots));
+    for (int count = wanted > 0 ? wanted : slots; count >= 1; --count) {
+        std::vector<int> fitting;
+        int best_missing = std::numeric_limits<int>::max();
+        for (int f = 0; f + count <= slots; ++f) {
+            const int m = missing(f, count);
+            if (m > kMaxMissingShare * count * line_count && wanted == 0) continue;
+            if (m < best_missing) {
+                best_missing = m;
+                fitting.clear();
+            }
+            if (m == best_missing) fitting.push_back(f);
+        }
+        if (fitting.empty()) continue;
+        k = count;
+        first_slot = fitting.front();
+        if (settings.first_start_frame >= 0) {
+            int nearest = fitting.front();
+            for (int f = 0; f + count <= slots; ++f)
+                if (std::abs(first_start + f * step - settings.first_start_frame) < std::abs(first_start + nearest * step - settings.first_start_frame))
+                    nearest = f;
+            first_slot = nearest;
+            if (first_start + nearest * step != settings.first_start_frame)
+                schedule.warnings.push_back("first start frame " + std::to_string(settings.first_start_frame) + " moved to " +
+                                            std::to_string(first_start + nearest * step));
+        } else if (settings.seed != 0) {
+            first_slot = fitting[static_cast<std::size_t>(mix_seed(settings.seed) % fitting.size())];
+        }
+        break;
+    }
+    const int s0 = first_start + first_slot * step;
+    schedule.particles_per_line = k;
+    schedule.start_every = step;
+    schedule.first_start_frame = s0;
+    schedule.period_frames = k * step;
+    for (const auto* line : lines) {
+        const auto& starts = by_line[line->id];
+        LineSchedule ls;
+        ls.line_id = line->id;
+        for (int i = 0; i < k; ++i) {
+            const int target = s0 + i * step;
+            const auto it = std::lower_bound(starts.begin(), starts.end(), std::make_pair(target, -1));
+            int chosen;
+            if (it != starts.end() && it->first == target) chosen = it->second;
+            else {
+                ++ls.substituted;
+                if (it == starts.end()) chosen = std::prev(it)->second;
+                else if (it == starts.begin()) chosen = it->second;
+                else chosen = (target - std::prev(it)->first <= it->first - target) ? std::prev(it)->second : it->second;
+            }
+            ls.particles.push_back(chosen);
+            ls.max_life = std::max(ls.max_life, bank.particles[static_cast<std::size_t>(chosen)].life_frames());
+        }
+        schedule.lines.push_back(std::move(ls));
+    }
+    int substituted = 0;
+    std::vector<std::string> affected;
+    for (const LineSchedule& ls : schedule.lines) {
+        substituted += ls.substituted;
+        if (ls.substituted > 0) affected.push_back(ls.line_id);
+    }
+    if (substituted > 0)
+        schedule.warnings.push_back(std::to_string(substituted) + " of " + std::to_string(k * static_cast<int>(schedule.lines.size())) +
+                                    " particle slots (on " + std::to_string(affected.size()) + " lines: " + some(affected) +
+                                    ") had no complete particle of their start frame and borrow the nearest one");
+    return schedule;
+}
+
+std::vector<ScheduledParticle> scheduled_particles(const Schedule& schedule, const formats::ParticleBank& bank,
+                                                   std::size_t line, int frame) {
+    std::vector<ScheduledParticle> out;
+    const LineSchedule& ls = schedule.lines.at(line);
+    const long long step = schedule.start_every, k = schedule.particles_per_line;
+    const long long t = static_cast<long long>(frame) - 1;
+    const long long m_hi = floor_div(t, step);
+    const long long m_lo = -floor_div(-(t - (ls.max_life - 1)), step);  // ceil
+    for (long long m = m_hi; m >= m_lo; --m) {
+        const int age = static_cast<int>(t - m * step);
+        const int particle = ls.particles[static_cast<std::size_t>(positive_mod(m, k))];
+        if (age < bank.particles[static_cast<std::size_t>(particle)].life_frames()) out.push_back({particle, age});
+    }
+    return out;
+}
+
+// ---- particle streams -----------------------------------------------------------------------------
+
+ParticleStreams::ParticleStreams(std::shared_ptr<const formats::ParticleBank> bank,
+                                 std::vector<std::vector<Eigen::Vector2d>> input_points, const SynthesisSettings& settings,
+                                 const formats::FlowLineSet* drawing)
+    : m_bank(std::move(bank)) {
+    if (!m_bank) throw std::invalid_argument("no particle bank");
+    if (input_points.size() != m_bank->lines.size())
+        throw std::invalid_argument("one polyline per bank line is needed");
+    m_schedule = make_schedule(*m_bank, settings);
+    m_fade_frames = settings.fade_frames >= 0 ? settings.fade_frames : std::clamp(m_schedule.start_every, 1, 3);
+    for (const LineSchedule& ls : m_schedule.lines) {
+        std::size_t i = 0;
+        while (m_bank->lines[i].id != ls.line_id) ++i;
+        m_geometry.emplace_back(input_points[i], m_bank->patch_size_px / 3.0);
+    }
+    // Group segments into the lines they were cut from.
+    for (std::size_t k = 0; k < m_schedule.lines.size(); ++k) {
+        const std::string& id = m_schedule.lines[k].line_id;
+        std::string base;
+        double from = 0.0, to = 0.0;
+        if (!parse_segment_id(id, base, from, to)) {
+            base = id;
+            from = 0.0;
+            to = m_geometry[k].length_px();
+        }
+        auto it = std::find_if(m_inputs.begin(), m_inputs.end(), [&](const InputLine& l) { return l.id == base; });
+        if (it == m_inputs.end()) {
+            m_inputs.push_back(InputLine{base, 0.0, {}});
+            it = std::prev(m_inputs.end());
+        }
+        it->segments.push_back({static_cast<int>(k), from, to});
+        it->length_px = std::max(it->length_px, to);
+    }
+    for (InputLine& line : m_inputs) {
+        std::sort(line.segments.begin(), line.segments.end(),
+                  [](const InputLine::Segment& a, const InputLine::Segment& b) { return a.from_px < b.from_px; });
+        if (drawing) {
+            try {
+                line.length_px = formats::polyline_length(input_line_points(*drawing, line.id, ""));
+            } catch (const std::exception&) {
+                // keep the tracked extent
+            }
+        }
+    }
+}
+
+int ParticleStreams::input_line_index(const std::string& id) const {
+    for (std::size_t i = 0; i < m_inputs.size(); ++i)
+        if (m_inputs[i].id == id) return static_cast<int>(i);
+    return -1;
+}
+
+std::vector<std::vector<Eigen::Vector2d>> ParticleStreams::input_points_from_drawing(const formats::ParticleBank& bank,
+                                                                                     const formats::FlowLineSet& drawing,
+                                                                                     const std::string& drawing_file) {
+    std::vector<std::vector<Eigen::Vector2d>> out;
+    for (const formats::BankFlowLine& line : bank.lines) out.push_back(input_line_points(drawing, line.id, drawing_file));
+    return out;
+}
+
+int ParticleStreams::stream_index(const std::string& line_id) const {
+    for (std::size_t i = 0; i < m_schedule.lines.size(); ++i)
+        if (m_schedule.lines[i].line_id == line_id) return static_cast<int>(i);
+    return -1;
+}
+
+void ParticleStreams::visible(int stream, int frame, std::vector<Visible>& out) const {
+    out.clear();
+    const int patch = m_bank->patch_size_px;
+    const std::size_t patch_values = static_cast<std::size_t>(patch) * patch * 4;
+    const LineGeometry& g = m_geometry[static_cast<std::size_t>(stream)];
+    for (const ScheduledParticle& sp : scheduled_particles(m_schedule, *m_bank, static_cast<std::size_t>(stream), frame)) {
+        const formats::TrackedParticle& p = m_bank->particles[static_cast<std::size_t>(sp.particle)];
+        Visible v;
+        v.arc_px = p.arc_length_px[static_cast<std::size_t>(sp.age)];
+        v.centre = g.point(v.arc_px);
+        // Particles fade in after entering and out before leaving, so that
+        // a particle whose texture differs from its predecessor's (where the
+        // diagonal order wraps, fig. 3.5b) does not pop, and segments hand over
+        // smoothly.
+        const double fade_in = (sp.age + 1.0) / (m_fade_frames + 1.0);
+        const double fade_out = (p.life_frames() - sp.age) / (m_fade_frames + 1.0);
+        v.weight = static_cast<float>(std::clamp(std::min(fade_in, fade_out), 0.0, 1.0));
+        v.texture = p.texture_rgba.data() + static_cast<std::size_t>(sp.age) * patch_values;
+        out.push_back(v);
+    }
+    std::sort(out.begin(), out.end(), [](const Visible& a, const Visible& b) { return a.arc_px < b.arc_px; });
+}
+
+namespace {
+
+}  // namespace
+
+ParticleStreams::SamplePoints ParticleStreams::prepare_samples(int input_line, ArcMapping mapping, double output_length_px,
+                                                               const std::vector<float>& s_out,
+                                                               const std::vector<float>& n) const {
+    SamplePoints points;
+    const std::size_t count = s_out.size();
+    points.stream.assign(count, -1);
+    points.s.assign(count, 0.0f);
+    points.qx.assign(count, 0.0f);
+    points.qy.assign(count, 0.0f);
+    if (input_line < 0) return points;
+    const InputLine& line = m_inputs[static_cast<std::size_t>(input_line)];
+    const double scale = mapping_scale(mapping, line.length_px, output_length_px);
+    for (std::size_t i = 0; i < count; ++i) {
+        const double s_in = s_out[i] * scale;
+        // The segment holding s_in (the first or last one beyond the ends).
+        std::size_t k = 0;
+        while (k + 1 < line.segments.size() && s_in >= line.segments[k + 1].from_px) ++k;
+        if (s_in < line.segments[k].from_px - patch_size() || s_in > line.segments[k].to_px + patch_size()) continue;
+        const int stream = line.segments[k].stream;
+        const double local = s_in - line.segments[k].from_px;
+        const LineGeometry& g = geometry(stream);
+        const Eigen::Vector2d q = g.point(local) + static_cast<double>(n[i]) * g.normal(local);
+        points.stream[i] = stream;
+        points.s[i] = static_cast<float>(local);
+        points.qx[i] = static_cast<float>(q.x());
+        points.qy[i] = static_cast<float>(q.y());
+    }
+    return points;
+}
+
+void ParticleStreams::sample(const SamplePoints& points, const FrameParticles& particles, Samples& out) const {
+    const std::size_t count = points.stream.size();
+    out.rgb.assign(count * 3, 0.0f);
+    out.weight.assign(count, 0.0f);
+    const int patch = patch_size();
+    const float half = (patch - 1) / 2.0f;
+    const float reach = (half + 1.0f) * std::sqrt(2.0f) + 1.0f;
+    for (std::size_t i = 0; i < count; ++i) {
+        if (points.stream[i] < 0) continue;
+        const std::vector<Visible>& visible = particles.streams[static_cast<std::size_t>(points.stream[i])];
+        const std::vector<float>& arcs = particles.arcs[static_cast<std::size_t>(points.stream[i])];
+        const float s = points.s[i];
+        const auto lo = std::lower_bound(arcs.begin(), arcs.end(), s - reach);
+        float acc[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+        for (auto it = lo; it != arcs.end() && *it <= s + reach; ++it) {
+            const Visible& v = visible[static_cast<std::size_t>(it - arcs.begin())];
+            const float u = points.qx[i] - static_cast<float>(patch_origin(v.centre.x(), patch));
+            const float w_ = points.qy[i] - static_cast<float>(patch_origin(v.centre.y(), patch));
+            if (u <= -0.5f || w_ <= -0.5f || u >= patch - 0.5f || w_ >= patch - 0.5f) continue;
+            const float w = feather_weight(u, patch) * feather_weight(w_, patch) * v.weight;
+            float c[4];
+            sample_patch_bilinear(v.texture, patch, u, w_, c);
+            acc[0] += w * c[0];
+            acc[1] += w * c[1];
+            acc[2] += w * c[2];
+            acc[3] += w * c[3];
+        }
+        if (acc[3] > 1e-6f) {
+            out.rgb[3 * i] = acc[0] / acc[3];
+            out.rgb[3 * i + 1] = acc[1] / acc[3];
+            out.rgb[3 * i + 2] = acc[2] / acc[3];
+            out.weight[i] = acc[3];
+        }
+    }
+}
+
+ParticleStreams::FrameParticles ParticleStreams::frame_particles(int frame) const {
+    FrameParticles out;
+    out.frame = frame;
+    out.streams.resize(m_schedule.lines.size());
+    out.arcs.resize(m_schedule.lines.size());
+    for (std::size_t k = 0; k < m_schedule.lines.size(); ++k) {
+        visible(static_cast<int>(k), frame, out.streams[k]);
+        for (const Visible& v : out.streams[k]) out.arcs[k].push_back(v.arc_px);
+    }
+    return out;
+}
+
+void ParticleStreams::sample(int stream, int frame, ArcMapping mapping, double output_length_px,
+                             const std::vector<float>& s_out, const std::vector<float>& n, Samples& out) const {
+    SamplePoints points;
+    const std::size_t count = s_out.size();
+    points.stream.assign(count, -1);
+    points.s.assign(count, 0.0f);
+    points.qx.assign(count, 0.0f);
+    points.qy.assign(count, 0.0f);
+    FrameParticles particles;
+    if (stream >= 0) {
+        const LineGeometry& g = geometry(stream);
+        const double scale = mapping_scale(mapping, g.length_px(), output_length_px);
+        for (std::size_t i = 0; i < count; ++i) {
+            const double s_in = s_out[i] * scale;
+            const Eigen::Vector2d q = g.point(s_in) + static_cast<double>(n[i]) * g.normal(s_in);
+            points.stream[i] = stream;
+            points.s[i] = static_cast<float>(s_in);
+            points.qx[i] = static_cast<float>(q.x());
+            points.qy[i] = static_cast<float>(q.y());
+        }
+        particles.streams.resize(m_schedule.lines.size());
+        particles.arcs.resize(m_schedule.lines.size());
+        visible(stream, frame, particles.streams[static_cast<std::size_t>(stream)]);
+        for (const Visible& v : particles.streams[static_cast<std::size_t>(stream)])
+            particles.arcs[static_cast<std::size_t>(stream)].push_back(v.arc_px);
+    }
+    sample(points, particles, out);
+}
+
+void ParticleStreams::sample_input_line(int input_line, int frame, ArcMapping mapping, double output_length_px,
+                                        const std::vector<float>& s_out, const std::vector<float>& n, Samples& out) const {
+    sample(prepare_samples(input_line, mapping, output_length_px, s_out, n), frame_particles(frame), out);
+}
+
+// ---- synthesizer --------------------------------------------------------------------------------------
+
+struct Synthesizer::Plan {
+    struct Line {
+        int stream = -1;
+        bool identity = false;
+        bool keyed = false;
+        formats::FlowLine line;  // keyed lines: geometry per frame
+        WarpTable warp;          // fixed, non-identity lines
+    };
+    std::vector<Line> lines;
+    int width = 0;
+    int height = 0;
+};
+
+Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::vector<OutputLine> outputs,
+                         Background background, const SynthesisSettings& settings)
+    : m_streams(std::move(streams)), m_plan(std::make_unique<Plan>()), m_background(std::move(background)),
+      m_settings(settings) {
+    if (!m_streams) throw std::invalid_argument("no particle streams");
+    const formats::ParticleBank& bank = m_streams->bank();
+    m_plan->width = bank.clip_width_px;
+    m_plan->height = bank.clip_height_px;
+    m_warnings = m_streams->schedule().warnings;
+    const int patch = bank.patch_size_px;
+    if (outputs.empty()) {
+        for (std::size_t i = 0; i < m_streams->schedule().lines.size(); ++i) {
+            Plan::Line line;
+            line.stream = static_cast<int>(i);
+            line.identity = true;
+            m_plan->lines.push_back(std::move(line));
+        }
+        return;
+    }
+    const auto add = [&](formats::FlowLine geometry, int stream) {
+        Plan::Line line;
+        line.stream = stream;
+        const LineGeometry& in = m_streams->geometry(stream);
+        line.keyed = geometry.is_time_varying();
+        if (!line.keyed) {
+            // An output line drawn exactly over its input line is the input
+            // line: render it exactly, without warping.
+            line.identity = same_points(geometry.points, in.points());
+            if (!line.identity)
+                line.warp = build_warp(LineGeometry(geometry.points, patch / 3.0), in, settings.mapping, patch,
+                                       m_plan->width, m_plan->height);
+        }
+        line.line = std::move(geometry);
+        m_plan->lines.push_back(std::move(line));
+    };
+    for (OutputLine& output : outputs) {
+        const int stream = m_streams->stream_index(output.from);
+        if (stream >= 0) {
+            add(std::move(output.line), stream);
+            continue;
+        }
+        const int group = m_streams->input_line_index(output.from);
+        if (group < 0) {
+            m_warnings.push_back("output line " + output.line.id + " carries " + output.from +
+                                 ", which has no tracked particle; it is left out");
+            continue;
+        }
+        // A line tracked in segments: each segment goes to the matching part
+        // of the output line (equal arc length, or scaled to the output's length).
+        const ParticleStreams::InputLine& in = m_streams->input_lines()[static_cast<std::size_t>(group)];
+        const auto part_of = [&](const std::vector<Eigen::Vector2d>& points, const ParticleStreams::InputLine::Segment& seg,
+                                 bool& empty) {
+            const double length = formats::polyline_length(points);
+            const double k = settings.mapping == ArcMapping::scaled && in.length_px > 0.0 ? length / in.length_px : 1.0;
+            const double from = std::min(seg.from_px * k, length), to = std::min(seg.to_px * k, length);
+            empty = to - from < 1.0;
+            return sub_polyline(points, from, std::max(to, std::min(length, from + 1.0)));
+        };
+        for (const ParticleStreams::InputLine::Segment& seg : in.segments) {
+            formats::FlowLine part;
+            part.id = output.line.id + "/" + m_streams->schedule().lines[static_cast<std::size_t>(seg.stream)].line_id;
+            bool empty = false;
+            if (!output.line.is_time_varying()) {
+                part.points = part_of(output.line.points, seg, empty);
+            } else {
+                bool all_empty = true;
+                for (const formats::FlowLineKey& key : output.line.keys) {
+                    bool key_empty = false;
+                    const std::vector<Eigen::Vector2d> sub = part_of(key.points, seg, key_empty);
+                    all_empty = all_empty && key_empty;
+                    part.keys.push_back({key.frame, blend_polylines(sub, sub, 0.0, 32)});
+                }
+                empty = all_empty;
+            }
+            if (!empty) add(std::move(part), seg.stream);
+        }
+    }
+}
+
+Synthesizer::~Synthesizer() = default;
+
+int Synthesizer::width() const { return m_plan->width; }
+int Synthesizer::height() const { return m_plan->height; }
+
+RgbImage Synthesizer::render(int frame) const { return render(frame, nullptr); }
+
+RgbImage Synthesizer::render(int frame, std::vector<float>* coverage) const {
+    const int w = m_plan->width, h = m_plan->height;
+    const int patch = m_streams->patch_size();
+    Accumulator acc;
+    acc.reset(w, h);
+    std::vector<ParticleStreams::Visible> visible;
+    std::vector<float> feather(static_cast<std::size_t>(patch));
+    for (int i = 0; i < patch; ++i) feather[static_cast<std::size_t>(i)] = feather_weight(static_cast<float>(i), patch);
+    for (const Plan::Line& line : m_plan->lines) {
+        m_streams->visible(line.stream, frame, visible);
+        if (line.identity) {
+            for (const auto& v : visible) splat_patch(acc, v.texture, patch, v.centre, v.weight, feather);
+            continue;
+        }
+        if (line.keyed) {
+            const WarpTable warp = build_warp(LineGeometry(formats::points_at_frame(line.line, frame), patch / 3.0),
+                                              m_streams->geometry(line.stream), m_settings.mapping, patch, w, h);
+            for (const auto& v : visible) splat_warped(acc, warp, v, patch);
+        } else {
+            for (const auto& v : visible) splat_warped(acc, line.warp, v, patch);
+        }
+    }
+    RgbImage out;
+    m_background.fill(frame, w, h, out);
+    if (coverage) coverage->assign(static_cast<std::size_t>(w) * h, 0.0f);
+    const float full = static_cast<float>(std::max(1e-6, m_settings.coverage_weight));
+    const std::size_t pixels = static_cast<std::size_t>(w) * h;
+    for (std::size_t i = 0; i < pixels; ++i) {
+        const float* a = acc.rgbw.data() + 4 * i;
+        if (a[3] <= 1e-6f) continue;
+        const float c = static_cast<float>(smoothstep01(a[3] / full));
+        const float inv = 1.0f / a[3];
+        float* o = out.rgb.data() + 3 * i;
+        o[0] = o[0] * (1.0f - c) + std::max(0.0f, a[0] * inv) * c;
+        o[1] = o[1] * (1.0f - c) + std::max(0.0f, a[1] * inv) * c;
+        o[2] = o[2] * (1.0f - c) + std::max(0.0f, a[2] * inv) * c;
+        if (coverage) (*coverage)[i] = c;
+    }
+    return out;
+}
+
+int Synthesizer::render_frames(int first, int last, int threads, const std::function<bool(int, const RgbImage&)>& sink) const {
+    const int workers = std::max(1, threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
+    int delivered = 0;
+    for (int batch = first; batch <= last; batch += workers) {
+        const int end = std::min(last, batch + workers - 1);
+        std::vector<std::future<RgbImage>> jobs;
+        for (int f = batch; f <= end; ++f) jobs.push_back(std::async(std::launch::async, [this, f] { return render(f); }));
+        for (int f = batch; f <= end; ++f) {
+            const RgbImage image = jobs[static_cast<std::size_t>(f - batch)].get();
+            if (!sink(f, image)) {
+                for (int g = f + 1; g <= end; ++g) jobs[static_cast<std::size_t>(g - batch)].wait();
+                return delivered;
+            }
+            ++delivered;
+        }
+    }
+    return delivered;
+}
+
+ParticleStreams::Samples Synthesizer::sample_line(const std::vector<Eigen::Vector2d>& output_points, const std::string& from,
+                                                  int frame, const std::vector<Eigen::Vector2d>& points) const {
+    const LineGeometry g(output_points, m_streams->patch_size() / 3.0);
+    std::vector<float> s(points.size()), n(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        const LineGeometry::Projection p = g.project(points[i], m_streams->patch_size());
+        s[i] = static_cast<float>(p.s);
+        n[i] = static_cast<float>(p.n);
+    }
+    ParticleStreams::Samples out;
+    const int stream = m_streams->stream_index(from);
+    if (stream >= 0) m_streams->sample(stream, frame, m_settings.mapping, g.length_px(), s, n, out);
+    else m_streams->sample_input_line(m_streams->input_line_index(from), frame, m_settings.mapping, g.length_px(), s, n, out);
+    return out;
+}
+
+}  // namespace flowvid::flow

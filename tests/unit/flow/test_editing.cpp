@@ -1,0 +1,292 @@
+// Editing (thesis 3.3): the dynamic programme of eq. 3.1 against brute force,
+// the known best assignment on a constructed case, dense interpolation,
+// texture warping with equal and scaled arc length (fig. 3.17), moving output
+// lines, and flow-line files round-tripping through SVG and JSON.
+
+#include "flowvid/flow/editing.hpp"
+#include "flowvid/flow/geometry.hpp"
+#include "flowvid/flow/synthesis.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+using namespace flowvid;
+using namespace flowvid::flow;
+
+namespace {
+
+// A bank of vertical input lines; particles enter every frame, live `life`
+// frames and run from y0 to y1. `colour(line, particle_arc, texel_row_offset)`
+// gives the grey level of a texel.
+std::shared_ptr<formats::ParticleBank> vertical_bank(const std::vector<double>& xs, double y0, double y1, int life,
+                                                     const std::function<float(int, double, double)>& colour,
+                                                     int width = 120, int height = 120, int patch = 8) {
+    auto bank = std::make_shared<formats::ParticleBank>();
+    bank->patch_size_px = patch;
+    bank->clip_width_px = width;
+    bank->clip_height_px = height;
+    const int count = 12;
+    bank->clip_frame_count = count + life;
+    for (std::size_t l = 0; l < xs.size(); ++l) {
+        const std::string id = "in-" + std::to_string(l);
+        bank->lines.push_back({id, static_cast<float>(y1 - y0)});
+        for (int p = 0; p < count; ++p) {
+            formats::TrackedParticle particle;
+            particle.line_id = id;
+            particle.start_frame = p;
+            for (int a = 0; a < life; ++a) {
+                const double s = (y1 - y0) * a / (life - 1);
+                particle.arc_length_px.push_back(static_cast<float>(s));
+                for (int i = 0; i < patch; ++i)
+                    for (int j = 0; j < patch; ++j) {
+                        const float g = colour(static_cast<int>(l), s, i - (patch - 1) / 2.0);
+                        particle.texture_rgba.insert(particle.texture_rgba.end(), {g, g, g, 1.0f});
+                    }
+            }
+            bank->particles.push_back(std::move(particle));
+        }
+    }
+    return bank;
+}
+
+formats::FlowLine line(const std::string& id, const std::vector<Eigen::Vector2d>& points, const std::string& from = {}) {
+    formats::FlowLine l;
+    l.id = id;
+    l.points = points;
+    l.from = from;
+    return l;
+}
+
+std::vector<std::vector<Eigen::Vector2d>> vertical_lines(const std::vector<double>& xs, double y0, double y1) {
+    std::vector<std::vector<Eigen::Vector2d>> out;
+    for (double x : xs) out.push_back({{x, y0}, {x, y1}});
+    return out;
+}
+
+double brute_force(const std::vector<Eigen::MatrixXd>& e, const std::vector<std::vector<int>>& allowed, int y_count,
+                   std::vector<int>& best_choice) {
+    const std::size_t x_count = allowed.size();
+    std::vector<int> choice(x_count, 0);
+    double best = std::numeric_limits<double>::infinity();
+    while (true) {
+        bool ok = true;
+        for (std::size_t x = 0; x < x_count; ++x)
+            if (!allowed[x].empty() && std::find(allowed[x].begin(), allowed[x].end(), choice[x]) == allowed[x].end()) ok = false;
+        if (ok) {
+            double cost = 0.0;
+            for (std::size_t x = 1; x < x_count; ++x) cost += e[x - 1](choice[x - 1], choice[x]);
+            if (cost < best) {
+                best = cost;
+                best_choice = choice;
+            }
+        }
+        std::size_t k = 0;
+        while (k < x_count && ++choice[k] == y_count) choice[k++] = 0;
+        if (k == x_count) break;
+    }
+    return best;
+}
+
+}  // namespace
+
+TEST(FlowEditing, DynamicProgrammeMatchesBruteForce) {
+    std::mt19937 rng(42);
+    std::uniform_real_distribution<double> cost(0.0, 1.0);
+    for (int trial = 0; trial < 20; ++trial) {
+        const int x_count = 6, y_count = 4;
+        std::vector<Eigen::MatrixXd> e;
+        for (int x = 1; x < x_count; ++x) {
+            Eigen::MatrixXd m(y_count, y_count);
+            for (int i = 0; i < y_count; ++i)
+                for (int j = 0; j < y_count; ++j) m(i, j) = cost(rng);
+            e.push_back(m);
+        }
+        std::vector<std::vector<int>> allowed(x_count);
+        allowed.front() = {trial % y_count};
+        allowed.back() = {(trial + 1) % y_count};
+        std::vector<int> expected;
+        const double best = brute_force(e, allowed, y_count, expected);
+        const ChainAssignment dp = solve_chain(e, allowed, y_count);
+        EXPECT_NEAR(dp.cost, best, 1e-12);
+        EXPECT_EQ(dp.choice, expected);
+    }
+    EXPECT_THROW(solve_chain({Eigen::MatrixXd::Zero(2, 2)}, {{0}, {5}}, 2), std::invalid_argument);
+}
+
+TEST(FlowEditing, PicksTheKnownBestAssignmentOnAConstructedCase) {
+    // Five input lines of solid grey 0.1, 0.3, 0.5, 0.7, 0.9. The artist draws
+    // two output lines 48 px apart carrying the darkest and the brightest; the
+    // three interpolated lines between them (12 px apart, 16-px patches, so
+    // neighbours overlap) should step through the middle greys in order: any
+    // other choice leaves a larger colour jump somewhere (the sum of squared
+    // steps is smallest for equal steps).
+    const std::vector<double> xs = {20, 35, 50, 65, 80};
+    auto bank = vertical_bank(xs, 10.0, 110.0, 10, [](int l, double, double) { return 0.1f + 0.2f * l; }, 120, 120, 16);
+    SynthesisSettings settings;
+    const ParticleStreams streams(bank, vertical_lines(xs, 10.0, 110.0), settings);
+    formats::FlowLineSet drawing;
+    drawing.width = drawing.height = 120;
+    for (std::size_t i = 0; i < xs.size(); ++i) drawing.inputs.push_back(line("in-" + std::to_string(i), {{xs[i], 10.0}, {xs[i], 110.0}}));
+    drawing.outputs.push_back(line("dark", {{36.0, 10.0}, {36.0, 110.0}}, "in-0"));
+    drawing.outputs.push_back(line("bright", {{84.0, 10.0}, {84.0, 110.0}}, "in-4"));
+    EditSettings edit;
+    edit.spacing_px = 12.0;
+    edit.correspondence_frames = 4;
+    edit.threads = 2;
+    const EditPlan plan = plan_edit(drawing, streams, edit);
+    ASSERT_EQ(plan.lines.size(), 5u);
+    ASSERT_EQ(plan.chains.size(), 1u);
+    std::vector<std::string> froms;
+    for (int index : plan.chains[0]) froms.push_back(plan.lines[static_cast<std::size_t>(index)].output.from);
+    EXPECT_EQ(froms, (std::vector<std::string>{"in-0", "in-1", "in-2", "in-3", "in-4"}));
+    EXPECT_TRUE(plan.lines[static_cast<std::size_t>(plan.chains[0].front())].drawn);
+    EXPECT_FALSE(plan.lines[static_cast<std::size_t>(plan.chains[0][2])].drawn);
+
+    // The same optimum by brute force over the measured overlap errors.
+    std::vector<formats::FlowLine> chain;
+    for (int index : plan.chains[0]) chain.push_back(plan.lines[static_cast<std::size_t>(index)].output.line);
+    std::vector<int> candidates = {0, 1, 2, 3, 4};
+    const auto errors = overlap_errors(streams, chain, candidates, edit);
+    // Overlap error of greys a and b is (a - b)^2 (solid colours, linear RGB, 3 channels summed).
+    EXPECT_NEAR(errors[0](0, 1), 3 * 0.04, 1e-4);
+    EXPECT_NEAR(errors[1](1, 1), 0.0, 1e-6);
+    std::vector<int> best;
+    const double cost = brute_force(errors, {{0}, {}, {}, {}, {4}}, 5, best);
+    EXPECT_EQ(best, (std::vector<int>{0, 1, 2, 3, 4}));
+    EXPECT_NEAR(plan.total_cost, cost, 1e-9);
+}
+
+TEST(FlowEditing, InterpolatesDenseLinesBetweenNeighboursOnly) {
+    const std::vector<std::vector<Eigen::Vector2d>> drawn = {
+        {{10.0, 0.0}, {12.0, 100.0}},   // a
+        {{40.0, 0.0}, {44.0, 100.0}},   // b: 30-32 px right of a
+        {{200.0, 0.0}, {200.0, 100.0}}, // c: too far
+        {{0.0, 50.0}, {100.0, 50.0}},   // d: flows across (90 degrees)
+    };
+    const auto chains = neighbour_chains(drawn, 60.0);
+    ASSERT_EQ(chains.size(), 3u);
+    EXPECT_EQ(chains[0], (std::vector<int>{0, 1}));
+    const auto between = interpolate_between(drawn, chains, 12.0);
+    ASSERT_EQ(between.size(), 2u);  // 32 px / 12 -> 2 lines at 1/3, 2/3
+    EXPECT_NEAR(between[0].weight, 1.0 / 3.0, 1e-12);
+    const std::string id = interpolated_line_id("out-1", "out-2", between[1].weight);
+    EXPECT_EQ(id, "out-1~out-2@0.667");
+    std::string a, b;
+    double w = 0.0;
+    ASSERT_TRUE(parse_interpolated_line_id(id, a, b, w));
+    EXPECT_EQ(a, "out-1");
+    EXPECT_EQ(b, "out-2");
+    EXPECT_DOUBLE_EQ(w, 0.667);
+    EXPECT_FALSE(parse_interpolated_line_id("in-1", a, b, w));
+    double f0 = 0.0, f1 = 0.0;
+    ASSERT_TRUE(parse_segment_id(segment_line_id("in-1~in-2@0.500", 12.0, 40.5), a, f0, f1));
+    EXPECT_EQ(a, "in-1~in-2@0.500");
+    EXPECT_DOUBLE_EQ(f1, 40.5);
+
+    // Densified input lines resolve back to geometry from the drawing alone.
+    formats::FlowLineSet drawing;
+    drawing.width = drawing.height = 120;
+    drawing.inputs = {line("in-1", drawn[0]), line("in-2", drawn[1])};
+    const auto dense = densify_input_lines(drawing, 12.0, 60.0);
+    ASSERT_EQ(dense.size(), 4u);
+    const auto rebuilt = input_line_points(drawing, dense[2].id, "drawing.svg");
+    ASSERT_EQ(rebuilt.size(), dense[2].points.size());
+    for (std::size_t i = 0; i < rebuilt.size(); ++i) EXPECT_TRUE(rebuilt[i].isApprox(dense[2].points[i]));
+    const auto segment = input_line_points(drawing, segment_line_id(dense[2].id, 10.0, 50.0), "drawing.svg");
+    EXPECT_NEAR(formats::polyline_length(segment), 40.0, 1e-9);
+    const std::string message = flowvid::testing::validation_messages([&] { input_line_points(drawing, "nope", "drawing.svg"); });
+    EXPECT_NE(message.find("drawing.svg"), std::string::npos) << message;
+    EXPECT_NE(message.find("nope"), std::string::npos) << message;
+}
+
+namespace {
+
+// Texel grey = arc position of the texel along the input line / 100: the
+// texture is a ramp along the flow, so a rendered grey tells which input arc
+// length a pixel shows.
+std::shared_ptr<formats::ParticleBank> ramp_bank() {
+    return vertical_bank({20.0}, 10.0, 50.0, 9, [](int, double s, double row) { return static_cast<float>((s + row) / 100.0); },
+                         120, 120, 8);
+}
+
+// Over a black background the colour is texture x coverage.
+double rendered_arc(const RgbImage& image, const std::vector<float>& coverage, int x, int y) {
+    const float c = coverage[static_cast<std::size_t>(y) * image.width + x];
+    if (c < 0.2f) return -1.0;
+    return image.pixel(x, y)[0] / c * 100.0;
+}
+
+}  // namespace
+
+TEST(FlowEditing, WarpsTextureWithEqualOrScaledArcLength) {
+    auto bank = ramp_bank();
+    for (ArcMapping mapping : {ArcMapping::equal, ArcMapping::scaled}) {
+        SynthesisSettings settings;
+        settings.mapping = mapping;
+        settings.fade_frames = 0;
+        auto streams = std::make_shared<ParticleStreams>(bank, vertical_lines({20.0}, 10.0, 50.0), settings);
+        // The output line is twice as long (80 px) and 50 px to the right.
+        const Synthesizer synth(streams, {{line("out", {{70.0, 10.0}, {70.0, 90.0}}), "in-0"}}, Background(), settings);
+        std::vector<float> coverage;
+        const RgbImage image = synth.render(20, &coverage);
+        for (int s_out : {8, 16, 24, 32}) {
+            const double shown = rendered_arc(image, coverage, 70, 10 + s_out);
+            const double expected = mapping == ArcMapping::equal ? s_out : s_out / 2.0;
+            EXPECT_NEAR(shown, expected, 1.0) << to_string(mapping) << " at output arc " << s_out;
+        }
+        if (mapping == ArcMapping::equal) {
+            // Past the input line's end (40 px + half a patch) nothing is drawn.
+            EXPECT_LT(coverage[static_cast<std::size_t>(10 + 60) * 120 + 70], 0.01f);
+        } else {
+            EXPECT_NEAR(rendered_arc(image, coverage, 70, 10 + 72), 36.0, 1.5);
+        }
+    }
+}
+
+TEST(FlowEditing, TimeVaryingOutputLinesFollowTheirKeys) {
+    auto bank = ramp_bank();
+    SynthesisSettings settings;
+    auto streams = std::make_shared<ParticleStreams>(bank, vertical_lines({20.0}, 10.0, 50.0), settings);
+    formats::FlowLine moving;
+    moving.id = "sway";
+    moving.keys = {{1, {{60.0, 10.0}, {60.0, 50.0}}}, {11, {{80.0, 10.0}, {80.0, 50.0}}}};
+    const Synthesizer synth(streams, {{moving, "in-0"}}, Background(), settings);
+    for (int frame : {1, 6, 11, 20}) {
+        std::vector<float> coverage;
+        synth.render(frame, &coverage);
+        // The covered columns on row 30 are centred on the line's x at this frame.
+        double sum = 0.0, weight = 0.0;
+        for (int x = 0; x < 120; ++x) {
+            sum += x * coverage[30 * 120 + static_cast<std::size_t>(x)];
+            weight += coverage[30 * 120 + static_cast<std::size_t>(x)];
+        }
+        const double expected = frame >= 11 ? 80.0 : 60.0 + 2.0 * (frame - 1);
+        ASSERT_GT(weight, 0.0);
+        EXPECT_NEAR(sum / weight, expected, 0.6) << "frame " << frame;
+    }
+}
+
+TEST(FlowEditing, DensePlanRoundTripsThroughSvgAndJson) {
+    const std::vector<double> xs = {20, 35, 50};
+    auto bank = vertical_bank(xs, 10.0, 110.0, 10, [](int l, double, double) { return 0.2f + 0.3f * l; });
+    const ParticleStreams streams(bank, vertical_lines(xs, 10.0, 110.0), SynthesisSettings{});
+    formats::FlowLineSet drawing;
+    drawing.width = drawing.height = 120;
+    for (std::size_t i = 0; i < xs.size(); ++i) drawing.inputs.push_back(line("in-" + std::to_string(i), {{xs[i], 10.0}, {xs[i], 110.0}}));
+    drawing.outputs.push_back(line("left", {{30.0, 10.0}, {26.0, 110.0}}, "in-0"));
+    drawing.outputs.push_back(line("right", {{54.0, 10.0}, {60.0, 110.0}}, "in-2"));
+    EditSettings edit;
+    edit.correspondence_frames = 2;
+    const formats::FlowLineSet dense = plan_to_flowlines(drawing, plan_edit(drawing, streams, edit));
+    ASSERT_GT(dense.outputs.size(), 2u);
+    const std::string dir = flowvid::testing::scratch_dir("flow_editing");
+    formats::write_flowlines_svg(dir + "/dense.svg", dense);
+    const formats::FlowLineSet from_svg = formats::import_flowlines_svg(dir + "/dense.svg");
+    EXPECT_EQ(from_svg.outputs, dense.outputs);
+    EXPECT_EQ(from_svg.inputs, dense.inputs);
+    formats::write_flowline_set(dir + "/dense.flowlines.json", dense);
+    EXPECT_EQ(formats::read_flowline_set(dir + "/dense.flowlines.json"), dense);
+}

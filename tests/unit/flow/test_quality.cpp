@@ -1,0 +1,111 @@
+// The quality measures (seam, pulsing, fidelity) on sequences whose answer is
+// known, and the two baselines they compare against.
+
+#include "flowvid/flow/quality.hpp"
+#include "flowvid/flow/synthetic.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+using namespace flowvid;
+using namespace flowvid::flow;
+
+namespace {
+
+constexpr int kW = 64, kH = 48;
+
+std::vector<float> noise_frame(double shift, std::uint64_t seed, double feature = 4.0) {
+    std::vector<float> g(static_cast<std::size_t>(kW) * kH);
+    for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x) g[static_cast<std::size_t>(y) * kW + x] = value_noise(x / feature, (y - shift) / feature, seed);
+    return g;
+}
+
+std::vector<float> box_blur(const std::vector<float>& g) {
+    std::vector<float> out = g;
+    for (int y = 1; y + 1 < kH; ++y)
+        for (int x = 1; x + 1 < kW; ++x) {
+            float sum = 0.0f;
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) sum += g[static_cast<std::size_t>(y + dy) * kW + x + dx];
+            out[static_cast<std::size_t>(y) * kW + x] = sum / 9.0f;
+        }
+    return out;
+}
+
+std::vector<std::uint8_t> everywhere() { return std::vector<std::uint8_t>(static_cast<std::size_t>(kW) * kH, 1); }
+
+}  // namespace
+
+TEST(FlowQuality, NaiveLoopSpikesOncePerPeriod) {
+    // A texture sliding 1 px per frame for 30 frames, looped 3 times.
+    std::vector<std::vector<float>> clip, looped;
+    for (int t = 0; t < 30; ++t) clip.push_back(noise_frame(t, 1));
+    for (int t = 0; t < 90; ++t) looped.push_back(clip[static_cast<std::size_t>(t % 30)]);
+    QualitySettings settings;
+    settings.search_radius_px = 2;  // a pure translation would otherwise match itself a few frames later
+    const QualityReport q = measure_quality(clip, looped, kW, kH, everywhere(), settings);
+    EXPECT_GT(q.max_transition_ratio, 3.0);
+    // Above the clip's 99th percentile: the two wraps, and the clip's own
+    // largest transition once per repetition.
+    EXPECT_NEAR(q.share_above_p99, 5.0 / 89.0, 1e-9);
+    const SequenceStats stats = sequence_stats(looped, kW, kH, everywhere());
+    int jumps = 0;
+    for (double d : stats.transitions) jumps += d > 2.0 * q.clip_max ? 1 : 0;
+    EXPECT_EQ(jumps, 2);
+    EXPECT_NEAR(q.patch_distance, 0.0, 1e-9);            // every output patch is a clip patch
+    EXPECT_NEAR(q.hf_power_ratio, 1.0, 1e-9);
+    EXPECT_GT(q.clip_self_distance, 0.0);
+}
+
+TEST(FlowQuality, CrossFadingPulsesAndBlurLowersHighFrequencyPower) {
+    std::vector<std::vector<float>> clip, faded, blurred;
+    for (int t = 0; t < 40; ++t) clip.push_back(noise_frame(t, 2));
+    // Two layers half a cycle apart, cross-faded: detail halves at mid-fade.
+    for (int t = 0; t < 40; ++t) {
+        const double phase = (t % 16) / 16.0;
+        const float w = static_cast<float>(1.0 - std::fabs(2.0 * phase - 1.0));
+        const std::vector<float> a = noise_frame(t % 16, 3), b = noise_frame((t + 8) % 16, 4);
+        std::vector<float> mix(a.size());
+        for (std::size_t i = 0; i < a.size(); ++i) mix[i] = w * a[i] + (1.0f - w) * b[i];
+        faded.push_back(mix);
+        blurred.push_back(box_blur(clip[static_cast<std::size_t>(t)]));
+    }
+    const QualityReport fade = measure_quality(clip, faded, kW, kH, everywhere());
+    const QualityReport blur = measure_quality(clip, blurred, kW, kH, everywhere());
+    std::printf("pulsing: clip %.3f, cross-fade %.3f; blur hf ratio %.3f\n", fade.clip_pulsing, fade.pulsing, blur.hf_power_ratio);
+    EXPECT_GT(fade.pulsing, 3.0 * fade.clip_pulsing);
+    EXPECT_LT(blur.hf_power_ratio, 0.5);
+    EXPECT_GT(blur.patch_distance, 0.0);
+}
+
+TEST(FlowQuality, BandMaskAndStats) {
+    const auto mask = line_band_mask({{{10.0, 0.0}, {10.0, 47.0}}}, kW, kH, 3.0);
+    int inside = 0;
+    for (auto m : mask) inside += m;
+    EXPECT_EQ(inside, 7 * 48);
+    const SequenceStats stats = sequence_stats({noise_frame(0, 5), noise_frame(0, 5)}, kW, kH, mask);
+    ASSERT_EQ(stats.transitions.size(), 1u);
+    EXPECT_EQ(stats.transitions[0], 0.0);
+    EXPECT_EQ(stats.hf_energy.size(), 2u);
+}
+
+TEST(FlowQuality, FlowMapBaselineAdvectsAndCrossFades) {
+    VelocityField field;
+    field.width = kW;
+    field.height = kH;
+    field.velocity.assign(static_cast<std::size_t>(kW) * kH, Eigen::Vector2f(0.0f, 1.0f));
+    field.coverage.assign(field.velocity.size(), 1.0f);
+    RgbImage texture(kW, kH);
+    for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x)
+            for (int c = 0; c < 3; ++c) texture.pixel(x, y)[c] = static_cast<float>(y) / kH;  // a vertical ramp
+    const FlowMapBaseline baseline(field, texture, RgbImage(kW, kH), 16);
+    // Frame 1: layer 0 at phase 0 (weight 0), layer 1 at phase 1/2 (offset 8 px, weight 1).
+    const RgbImage first = baseline.render(1);
+    EXPECT_NEAR(first.pixel(20, 30)[0], (30.0f - 8.0f) / kH, 1e-5f);
+    // Frame 5: layer 0 offset 4 (weight 1/2), layer 1 offset 12 (weight 1/2).
+    EXPECT_NEAR(baseline.render(5).pixel(20, 30)[0], 0.5f * (26.0f + 18.0f) / kH, 1e-5f);
+    EXPECT_EQ(baseline.render(3).rgb, baseline.render(3 + 16).rgb);  // periodic
+}
