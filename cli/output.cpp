@@ -1,6 +1,9 @@
 #include "output.hpp"
 
+#include <atomic>
+#include <csignal>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <sstream>
 #include <unistd.h>
@@ -70,5 +73,29 @@ void Progress::done() {
     if (m_mode == "json") std::cerr << nlohmann::json{{"event", "done"}, {"task", m_task}}.dump() << std::endl;
     else if (m_mode == "bar") std::cerr << '\n';
 }
+
+void prepare_output_folder(const std::string& file_path) {
+    const std::filesystem::path folder = std::filesystem::path(file_path).parent_path();
+    if (folder.empty()) return;
+    std::error_code error;
+    std::filesystem::create_directories(folder, error);
+    if (error || !std::filesystem::is_directory(folder))
+        throw IoError(file_path, "", "cannot create the folder " + folder.string() + ": " + error.message(),
+                      "choose a writable location");
+}
+
+namespace {
+std::atomic<bool> g_interrupt_requested{false};
+void on_interrupt(int) { g_interrupt_requested = true; }
+using SignalHandler = void (*)(int);
+SignalHandler g_previous_handler = SIG_DFL;
+}  // namespace
+
+InterruptWatch::InterruptWatch() {
+    g_interrupt_requested = false;
+    g_previous_handler = std::signal(SIGINT, on_interrupt);
+}
+InterruptWatch::~InterruptWatch() { std::signal(SIGINT, g_previous_handler); }
+bool InterruptWatch::requested() const { return g_interrupt_requested.load(); }
 
 }  // namespace flowvid::cli

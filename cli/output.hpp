@@ -29,4 +29,21 @@ private:
     int m_last_percent = -1;
 };
 
+// Creates the folder a result file will go into, before long work starts, so
+// a typo in --out fails at once instead of after the work. Throws IoError
+// naming the option's path when it cannot.
+void prepare_output_folder(const std::string& file_path);
+
+// Ctrl-C during long work: while one of these lives, SIGINT sets a flag the
+// work's progress callback polls (so it can stop cleanly and write nothing)
+// instead of killing the process. The previous handler comes back on exit.
+class InterruptWatch {
+public:
+    InterruptWatch();
+    ~InterruptWatch();
+    InterruptWatch(const InterruptWatch&) = delete;
+    InterruptWatch& operator=(const InterruptWatch&) = delete;
+    bool requested() const;
+};
+
 }  // namespace flowvid::cli

@@ -1,0 +1,41 @@
+#pragma once
+// Options the cloth commands share (simulate, fit/predict/eval cloth,
+// recognize): simulation mesh, integrator, threads, and "RxC" grids.
+
+#include "command.hpp"
+
+#include "flowvid/cloth/swatch.hpp"
+#include "flowvid/formats/fabric_preset.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <optional>
+#include <string>
+#include <utility>
+
+namespace flowvid::cli {
+
+struct ClothRunOptions {
+    std::string resolution = "24x24";  // simulation mesh, rows x cols of vertices
+    std::string integrator = "implicit";
+    int threads = 0;                   // 0 = all cores
+};
+
+// Adds --resolution, --integrator and --threads to a command.
+void add_cloth_run_options(CLI::App& app, ClothRunOptions& options);
+
+// "RxC" (also "R×C" is not accepted: ASCII x only), both 2..512. nullopt,
+// after logging which option is wrong and what it expects, otherwise.
+std::optional<std::pair<int, int>> parse_grid(const std::string& text, const std::string& option);
+
+// The swatch options of a command's flags; nullopt (logged) for a bad --resolution.
+std::optional<cloth::SwatchOptions> swatch_options(const ClothRunOptions& options);
+
+// Threads to use: the option, or every core for 0.
+int thread_count(int requested);
+
+// A preset's material (throws ValidationError naming the file for a preset
+// the simulator cannot use).
+formats::FabricPreset read_preset_for_simulation(const std::string& path);
+
+}  // namespace flowvid::cli

@@ -1,0 +1,117 @@
+// flowvid simulate as a user runs it: a preset driven by a shared capture's pins.
+
+#include "cli_runner.hpp"
+#include "test_support.hpp"
+
+#include "flowvid/cloth/swatch.hpp"
+#include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/motion_gltf.hpp"
+#include "flowvid/formats/vertex_animation.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <unistd.h>
+
+using namespace flowvid::testing;
+namespace fs = std::filesystem;
+
+namespace {
+
+bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+std::string own_dir(const std::string& name) { return scratch_dir(name + "_" + std::to_string(::getpid())); }
+
+const std::string kWaving = "captures/cloth-cotton-waving-1";
+
+TEST(CliSimulate, PinnedCornersFollowTheCapturesPinsAndFilesAgree) {
+    const std::string dir = own_dir("cli_simulate");
+    const int frames = 12;
+    const CliResult result = run_flowvid({"simulate", "--preset", source_path("formats/examples/cotton.fabric.json"),
+                                          "--capture", shared_path(kWaving), "--out", dir + "/nested/wave.glb", "--vat",
+                                          dir + "/wave.exr", "--frames", std::to_string(frames), "--grid", "13x13",
+                                          "--json"});
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const nlohmann::json summary = nlohmann::json::parse(result.out);
+    EXPECT_EQ(summary["frames"], frames);
+    EXPECT_LT(summary["equilibrium_residual_N"].get<double>(), 1e-6);
+
+    const flowvid::formats::VertexAnimation vat = flowvid::formats::read_vertex_animation(dir + "/wave.exr");
+    ASSERT_EQ(vat.frame_count, frames);
+    ASSERT_EQ(vat.grid_rows.value_or(0), 13);
+    ASSERT_EQ(vat.grid_cols.value_or(0), 13);
+    EXPECT_DOUBLE_EQ(vat.fps, 30.0);
+
+    // Reference: the capture's own pin trajectories. The grid point at each
+    // pin's uv is the pinned vertex (13x13 grid points fall on 24x24 vertices
+    // only at the corners, where the pins are).
+    const flowvid::formats::Capture capture = flowvid::formats::read_capture(shared_path(kWaving));
+    const flowvid::cloth::SwatchExperiment experiment = flowvid::cloth::experiment_from_capture(capture);
+    double worst_m = 0.0;
+    for (const flowvid::cloth::PinTrajectory& pin : experiment.pins) {
+        const int c = static_cast<int>(std::lround(pin.uv.x() * 12));
+        const int r = static_cast<int>(std::lround(pin.uv.y() * 12));
+        for (int f = 0; f < frames; ++f)
+            worst_m = std::max(worst_m, (vat.position(f, r * 13 + c).cast<double>() - pin.positions_m[static_cast<std::size_t>(f)]).norm());
+    }
+    std::printf("[measured] worst pinned-corner distance from the capture's pins: %.2e m\n", worst_m);
+    EXPECT_LT(worst_m, 1e-5);  // float32 storage of ~1 m coordinates
+
+    // The cloth hangs below its pins at rest and moves with them.
+    double lowest_pin_z = 1e9, mean_z = 0.0;
+    for (const auto& pin : experiment.pins) lowest_pin_z = std::min(lowest_pin_z, pin.positions_m[0].z());
+    for (int v = 0; v < vat.vertex_count; ++v) mean_z += vat.position(0, v).z() / vat.vertex_count;
+    EXPECT_LT(mean_z, lowest_pin_z - 0.05);
+
+    // The glTF holds the same positions (float rounding) and the grid's triangles.
+    const flowvid::formats::MeshAnimation gltf = flowvid::formats::read_motion_gltf(dir + "/nested/wave.glb");
+    ASSERT_EQ(gltf.frame_count(), frames);
+    ASSERT_EQ(gltf.vertex_count(), 169);
+    EXPECT_EQ(gltf.triangles.size(), 2u * 12u * 12u);
+    double gltf_vs_vat = 0.0;
+    for (int f = 0; f < frames; ++f)
+        for (int v = 0; v < 169; ++v)
+            gltf_vs_vat = std::max(gltf_vs_vat, static_cast<double>((gltf.frames_positions_m[f][v] - vat.position(f, v)).norm()));
+    EXPECT_LT(gltf_vs_vat, 1e-5);
+}
+
+TEST(CliSimulate, BadRequestsNameTheProblemAndWriteNothing) {
+    const std::string dir = own_dir("cli_simulate_bad");
+    const std::string preset = source_path("formats/examples/cotton.fabric.json");
+    const CliResult nothing = run_flowvid({"simulate", "--preset", preset, "--capture", shared_path(kWaving)});
+    EXPECT_EQ(nothing.exit_code, 2);
+    EXPECT_TRUE(mentions(nothing.err, "--out")) << nothing.err;
+
+    const CliResult grid = run_flowvid({"simulate", "--preset", preset, "--capture", shared_path(kWaving), "--out",
+                                        dir + "/a.glb", "--grid", "24by24"});
+    EXPECT_EQ(grid.exit_code, 2);
+    EXPECT_TRUE(mentions(grid.err, "--grid 24by24")) << grid.err;
+
+    const CliResult rigid = run_flowvid({"simulate", "--preset", preset, "--capture",
+                                         shared_path("captures/rigid-toss-major"), "--out", dir + "/a.glb"});
+    EXPECT_EQ(rigid.exit_code, 3);
+    EXPECT_TRUE(mentions(rigid.err, "capture.json")) << rigid.err;
+    EXPECT_TRUE(mentions(rigid.err, "/kind")) << rigid.err;
+
+    // A preset whose fabric cannot hold together: the run blows up, the
+    // message names the frame, and no file appears.
+    std::string text = read_text(preset);
+    const std::string key = "\"stretch_warp_stiffness_N_per_m\":";
+    const std::size_t at = text.find(key);
+    ASSERT_NE(at, std::string::npos);
+    const std::size_t value = text.find("\"value\":", at);
+    const std::size_t end = text.find(',', value);
+    text.replace(value, end - value, "\"value\": 0.001");
+    const std::size_t range = text.find("[10.0", at);
+    text.replace(range, 5, "[0.0001");
+    write_text(dir + "/limp.fabric.json", text);
+    const CliResult limp = run_flowvid({"simulate", "--preset", dir + "/limp.fabric.json", "--capture",
+                                        shared_path(kWaving), "--out", dir + "/limp.glb", "--frames", "20",
+                                        "--integrator", "rk4"});
+    EXPECT_EQ(limp.exit_code, 1) << limp.out << limp.err;
+    EXPECT_TRUE(mentions(limp.err, "at frame")) << limp.err;
+    EXPECT_FALSE(fs::exists(dir + "/limp.glb"));
+}
+
+}  // namespace
