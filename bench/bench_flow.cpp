@@ -161,6 +161,13 @@ void speed_table() {
         std::printf("%-44s %8.1f %10.2f\n", (std::string("synthesis, ") + std::to_string(threads) + " thread(s)").c_str(), s,
                     s / flow_map_fps);
     }
+    {
+        SynthesisSettings plain;
+        plain.preserve_detail = false;
+        const Synthesizer plain_synth(scene_streams(), {}, Background::plate(scene().plate), plain);
+        const double s = fps([&](int frames) { plain_synth.render_frames(1, frames, 2, [](int, const RgbImage&) { return true; }); }, n);
+        std::printf("%-44s %8.1f %10.2f\n", "synthesis, plain blending, 2 thread(s)", s, s / flow_map_fps);
+    }
     for (int threads : {1, 2}) {
         const double s = fps([&](int frames) { edit.render_frames(1, frames, threads, [](int, const RgbImage&) { return true; }); }, n);
         std::printf("%-44s %8.1f %10.2f\n", (std::string("edit (warped, bent lines), ") + std::to_string(threads) + " thread(s)").c_str(),
@@ -260,12 +267,13 @@ struct QualityRow {
 
 void print_quality(const char* clip, const std::vector<QualityRow>& rows) {
     std::printf("\n%s\n", clip);
-    std::printf("%-9s %10s %10s | %8s %8s | %9s %9s %9s\n", "method", "seam max", "share>p99", "pulsing", "(clip)",
-                "patch d", "(self d)", "HF ratio");
+    std::printf("%-9s %9s %9s %7s | %8s %8s | %9s %9s %8s | %7s\n", "method", "seam max", "share>p99", "spike", "pulsing",
+                "(clip)", "patch d", "(self d)", "HF ratio", "motion");
     for (const QualityRow& r : rows)
-        std::printf("%-9s %10.2f %10.3f | %8.3f %8.3f | %9.4f %9.4f %9.2f\n", r.name, r.report.max_transition_ratio,
-                    r.report.share_above_p99, r.report.pulsing, r.report.clip_pulsing, r.report.patch_distance,
-                    r.report.clip_self_distance, r.report.hf_power_ratio);
+        std::printf("%-9s %9.2f %9.3f %7.2f | %8.3f %8.3f | %9.4f %9.4f %8.2f | %7.2f\n", r.name, r.report.max_transition_ratio,
+                    r.report.share_above_p99, r.report.seam_spike, r.report.pulsing, r.report.clip_pulsing,
+                    r.report.patch_distance, r.report.clip_self_distance, r.report.hf_power_ratio, r.report.motion_ratio);
+    if (!rows.empty()) std::printf("clip's own spike (largest / median transition): %.2f\n", rows.front().report.clip_seam_spike);
 }
 
 void quality_on(const std::string& name, formats::ParticleDynamics dynamics, double densify_px) {
@@ -290,32 +298,21 @@ void quality_on(const std::string& name, formats::ParticleDynamics dynamics, dou
                                                      settings, &drawing);
     const RgbImage plate = median_plate(*clip);
     const Synthesizer synth(streams, {}, Background::plate(plate), settings);
-    const int width = clip->width(), height = clip->height(), count = clip->count(), frames_out = 2 * count;
-    std::vector<std::vector<float>> clip_luma, ours, loop, flowmap;
-    for (int i = 0; i < count; ++i) clip_luma.push_back(clip->luma(i));
-    synth.render_frames(1, frames_out, 0, [&](int, const RgbImage& image) {
-        ours.push_back(luma(to_display(image)));
-        return true;
-    });
-    for (int t = 1; t <= frames_out; ++t) loop.push_back(luma(to_display(naive_loop_frame(*clip, t))));
-    const FlowMapBaseline baseline(velocity_field(*streams, width, height, bank->patch_size_px / 2.0), clip->linear(0), plate, 32);
-    for (int t = 1; t <= frames_out; ++t) flowmap.push_back(luma(to_display(baseline.render(t))));
-    std::vector<std::vector<Eigen::Vector2d>> lines;
-    for (std::size_t k = 0; k < streams->schedule().lines.size(); ++k) lines.push_back(streams->geometry(static_cast<int>(k)).points());
-    const auto mask = line_band_mask(lines, width, height, bank->patch_size_px / 4.0);
+    const Comparison comparison = compare_with_baselines(*clip, *streams, synth, plate);
+    const int frames_out = comparison.output_frames;
     std::size_t substituted = 0;
     for (const auto& l : streams->schedule().lines) substituted += static_cast<std::size_t>(l.substituted);
     char title[512];
     std::snprintf(title, sizeof title,
                   "%s (%s, densify %.0f px): tracked %zu segments in %.1f s, %zu particles; K = %d, step %d, period %d "
-                  "frames, %zu of %zu slots borrowed; %d output frames",
+                  "frames, %zu of %zu slots empty; %d output frames",
                   name.c_str(), formats::to_string(dynamics), densify_px, tracked.report.lines.size(), track_seconds,
                   bank->particles.size(), streams->schedule().particles_per_line, streams->schedule().start_every,
                   streams->schedule().period_frames, substituted,
                   streams->schedule().lines.size() * static_cast<std::size_t>(streams->schedule().particles_per_line), frames_out);
-    print_quality(title, {{"ours", measure_quality(clip_luma, ours, width, height, mask)},
-                          {"loop", measure_quality(clip_luma, loop, width, height, mask)},
-                          {"flow map", measure_quality(clip_luma, flowmap, width, height, mask)}});
+    std::vector<QualityRow> rows;
+    for (const MethodQuality& m : comparison.methods) rows.push_back({m.method.c_str(), m.report});
+    print_quality(title, rows);
 }
 
 void quality_table() {
@@ -324,7 +321,9 @@ void quality_table() {
     std::printf("seam max = largest frame-to-frame difference / clip's 95th percentile; share>p99 = output\n"
                 "transitions above the clip's 99th percentile; pulsing = coefficient of variation of per-frame\n"
                 "high-frequency energy; patch d = RMS distance of 16x16 output patches to their nearest clip patch\n"
-                "(self d: the clip's patches to other frames >= 5 apart); HF ratio = output / clip HF energy\n");
+                "(self d: the clip's patches to other frames >= 5 apart); HF ratio = output / clip HF energy;\n"
+                "complementary: spike = largest / own median transition, motion = output / clip median transition\n"
+                "(the same table as `flowvid quality --bank BANK`)\n");
     quality_on("video-waterfall-cascade", formats::ParticleDynamics::stationary, 12.0);
     quality_on("video-fire-pot", formats::ParticleDynamics::non_stationary, 0.0);
 }

@@ -179,3 +179,33 @@ TEST(CliFlow, BadInputExitCodesNameTheProblem) {
     EXPECT_TRUE(mentions(other.err, dir + "/other.svg")) << other.err;
     EXPECT_TRUE(mentions(other.err, "in-1")) << other.err;
 }
+
+TEST(CliFlow, QualityPrintsOursAgainstBothBaselines) {
+    const CliResult help = run_flowvid({"help", "quality"});
+    EXPECT_EQ(help.exit_code, 0);
+    EXPECT_TRUE(mentions(help.out, "Examples")) << help.out;
+    EXPECT_TRUE(mentions(help.out, "pulsing")) << help.out;
+
+    const CliResult table = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60"});
+    ASSERT_EQ(table.exit_code, 0) << table.err;
+    for (const char* part : {"ours", "loop", "flow map", "seam max", "share>p99", "pulsing", "patch d", "HF ratio"})
+        EXPECT_TRUE(mentions(table.out, part)) << part << "\n" << table.out;
+
+    const CliResult json = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60", "--json"});
+    ASSERT_EQ(json.exit_code, 0) << json.err;
+    const nlohmann::json j = nlohmann::json::parse(json.out);
+    EXPECT_EQ(j.at("output_frames").get<int>(), 60);
+    const auto& loop = j.at("methods").at("loop");
+    const auto& ours = j.at("methods").at("ours");
+    // The loop jumps once per 40-frame clip; our synthesis of the uniform
+    // procedural flow has no transition above the clip's 99th percentile.
+    EXPECT_GT(loop.at("share_above_clip_p99").get<double>(), 0.0);
+    EXPECT_EQ(ours.at("share_above_clip_p99").get<double>(), 0.0);
+    EXPECT_LT(ours.at("seam_max_ratio").get<double>(), loop.at("seam_max_ratio").get<double>());
+    EXPECT_NEAR(loop.at("hf_power_ratio").get<double>(), 1.0, 0.02);  // 60 frames: the clip's first 20 twice
+    EXPECT_TRUE(j.at("methods").contains("flow map"));
+
+    const CliResult missing = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", own_dir("cli_flow_q") + "/nothing"});
+    EXPECT_NE(missing.exit_code, 0);
+    EXPECT_TRUE(mentions(missing.err, "nothing")) << missing.err;
+}

@@ -155,6 +155,11 @@ QualityReport measure_quality(const std::vector<std::vector<float>>& clip_luma,
         for (double d : out.transitions) above += d > r.clip_p99 ? 1 : 0;
         r.share_above_p99 = static_cast<double>(above) / out.transitions.size();
     }
+    const double clip_median = percentile(clip.transitions, 0.5), out_median = percentile(out.transitions, 0.5);
+    if (clip_median > 0.0) r.clip_seam_spike = r.clip_max / clip_median;
+    if (out_median > 0.0 && !out.transitions.empty())
+        r.seam_spike = *std::max_element(out.transitions.begin(), out.transitions.end()) / out_median;
+    if (clip_median > 0.0) r.motion_ratio = out_median / clip_median;
     r.pulsing = coefficient_of_variation(out.hf_energy);
     r.clip_pulsing = coefficient_of_variation(clip.hf_energy);
     const double clip_hf = mean(clip.hf_energy);
@@ -250,6 +255,63 @@ RgbImage FlowMapBaseline::render(int frame) const {
             float* o = out.pixel(x, y);
             for (int k = 0; k < 3; ++k) o[k] = o[k] * (1.0f - c) + (w0 * a[k] + w1 * b[k]) * c;
         }
+    return out;
+}
+
+Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams& streams, const Synthesizer& synth,
+                                  const RgbImage& plate, const ComparisonSettings& settings,
+                                  const std::function<bool(double)>& progress) {
+    const int width = clip.width(), height = clip.height(), count = clip.count();
+    if (count < 2) throw std::invalid_argument("the clip needs at least two frames to be compared with");
+    if (synth.width() != width || synth.height() != height)
+        throw std::invalid_argument("the synthesis and the clip differ in size");
+    Comparison out;
+    out.output_frames = settings.output_frames > 0 ? settings.output_frames : 2 * count;
+    const int n = out.output_frames;
+    // Steps: clip, ours, loop, flow map (n frames each but the clip).
+    const double total = static_cast<double>(count + 3 * n);
+    double done = 0.0;
+    const auto tick = [&] {
+        done += 1.0;
+        if (progress && !progress(done / total)) throw std::runtime_error("cancelled");
+    };
+    std::vector<std::vector<float>> clip_luma, ours, loop, flowmap;
+    for (int i = 0; i < count; ++i) {
+        clip_luma.push_back(clip.luma(i));
+        tick();
+    }
+    bool stopped = false;
+    synth.render_frames(1, n, settings.threads, [&](int, const RgbImage& image) {
+        ours.push_back(luma(to_display(image)));
+        try {
+            tick();
+        } catch (const std::runtime_error&) {
+            stopped = true;
+            return false;
+        }
+        return true;
+    });
+    if (stopped) throw std::runtime_error("cancelled");
+    for (int t = 1; t <= n; ++t) {
+        loop.push_back(luma(to_display(naive_loop_frame(clip, t))));
+        tick();
+    }
+    const int patch = streams.patch_size();
+    const FlowMapBaseline baseline(velocity_field(streams, width, height, patch / 2.0), clip.linear(0), plate,
+                                   settings.flow_map_cycle_frames);
+    for (int t = 1; t <= n; ++t) {
+        flowmap.push_back(luma(to_display(baseline.render(t))));
+        tick();
+    }
+    std::vector<std::vector<Eigen::Vector2d>> lines;
+    for (std::size_t k = 0; k < streams.schedule().lines.size(); ++k)
+        lines.push_back(streams.geometry(static_cast<int>(k)).points());
+    const double half_width = settings.band_half_width_px > 0.0 ? settings.band_half_width_px : patch / 4.0;
+    const std::vector<std::uint8_t> mask = line_band_mask(lines, width, height, half_width);
+    for (std::uint8_t m : mask) out.mask_pixels += m;
+    out.methods.push_back({"ours", measure_quality(clip_luma, ours, width, height, mask, settings.quality)});
+    out.methods.push_back({"loop", measure_quality(clip_luma, loop, width, height, mask, settings.quality)});
+    out.methods.push_back({"flow map", measure_quality(clip_luma, flowmap, width, height, mask, settings.quality)});
     return out;
 }
 

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <future>
+#include <condition_variable>
+#include <exception>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <stdexcept>
 #include <thread>
 
@@ -23,6 +25,11 @@ std::uint64_t mix_seed(std::uint64_t x) {
     x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
     return x ^ (x >> 31);
 }
+
+// Detail-preserving blending rescales detail by at most this (two groups
+// mixed evenly: sqrt(2)), around a local mean over this radius.
+constexpr float kMaxDetailGain = 1.4142f;
+constexpr int kDetailRadiusPx = 2;
 
 double smoothstep01(double x) {
     const double t = std::clamp(x, 0.0, 1.0);
@@ -81,31 +88,77 @@ void sample_patch_bilinear(const float* texture, int patch, float u, float v, fl
     }
 }
 
-// Accumulation buffer: premultiplied colour times feather weight, and the weight.
+// Accumulation buffer: premultiplied colour times feather weight, and the
+// weight. With detail preservation also the weight of each group of patches
+// showing one input frame, per pixel (two groups by id, the rest lumped
+// together: more than two input frames rarely meet at a pixel).
 struct Accumulator {
     int width = 0;
     int height = 0;
-    std::vector<float> rgbw;  // 4 per pixel
+    bool groups = false;
+    std::vector<float> rgbw;          // 4 per pixel
+    std::vector<int> group_id;        // 2 per pixel, -1 = none yet
+    std::vector<float> group_weight;  // 3 per pixel: the two groups, the rest
 
-    void reset(int w, int h) {
+    void reset(int w, int h, bool with_groups) {
         width = w;
         height = h;
-        rgbw.assign(static_cast<std::size_t>(w) * h * 4, 0.0f);
+        groups = with_groups;
+        const std::size_t pixels = static_cast<std::size_t>(w) * h;
+        rgbw.assign(pixels * 4, 0.0f);
+        if (groups) {
+            group_id.assign(pixels * 2, -1);
+            group_weight.assign(pixels * 3, 0.0f);
+        }
+    }
+    void add_group(std::size_t pixel, float wa, int group) {
+        int* g = group_id.data() + pixel * 2;
+        float* gw = group_weight.data() + pixel * 3;
+        if (g[0] == group) gw[0] += wa;
+        else if (g[0] < 0) {
+            g[0] = group;
+            gw[0] = wa;
+        } else if (g[1] == group) gw[1] += wa;
+        else if (g[1] < 0) {
+            g[1] = group;
+            gw[1] = wa;
+        } else gw[2] += wa;
     }
 };
 
+// Horizontal sums of 4-channel `values` over 2r+1 pixels, zero outside, for
+// the rows [y0, y1]: the first pass of a box mean, the second done only at the
+// pixels that need it.
+void row_box_sums(const std::vector<float>& values, int width, int y0, int y1, int r, std::vector<float>& out) {
+    out.resize(values.size());
+    for (int y = y0; y <= y1; ++y) {
+        const float* src = values.data() + static_cast<std::size_t>(y) * width * 4;
+        float* dst = out.data() + static_cast<std::size_t>(y) * width * 4;
+        float sum[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+        for (int x = 0; x < std::min(r, width); ++x)
+            for (int c = 0; c < 4; ++c) sum[c] += src[x * 4 + c];
+        for (int x = 0; x < width; ++x) {
+            for (int c = 0; c < 4; ++c) {
+                if (x + r < width) sum[c] += src[(x + r) * 4 + c];
+                if (x - r - 1 >= 0) sum[c] -= src[(x - r - 1) * 4 + c];
+                dst[x * 4 + c] = sum[c];
+            }
+        }
+    }
+}
+
 // Splats a feathered patch back on the whole pixels it was cut from
 // (patch_origin of its centre): an exact copy, weighted.
-void splat_patch(Accumulator& acc, const float* texture, int patch, const Eigen::Vector2d& centre, float weight,
-                 const std::vector<float>& feather) {
-    const int ox = patch_origin(centre.x(), patch), oy = patch_origin(centre.y(), patch);
+void splat_patch(Accumulator& acc, const ParticleStreams::Visible& v, int patch, const std::vector<float>& feather) {
+    const int ox = patch_origin(v.centre.x(), patch), oy = patch_origin(v.centre.y(), patch);
     const int j_lo = std::max(0, -ox), j_hi = std::min(patch, acc.width - ox);
     for (int i = 0; i < patch; ++i) {
         const int y = oy + i;
         if (y < 0 || y >= acc.height) continue;
-        const float fy = feather[static_cast<std::size_t>(i)] * weight;
-        float* dst = acc.rgbw.data() + (static_cast<std::size_t>(y) * acc.width + ox) * 4;
-        const float* src = texture + static_cast<std::size_t>(i) * patch * 4;
+        const float fy = feather[static_cast<std::size_t>(i)] * v.weight;
+        const std::size_t row = static_cast<std::size_t>(y) * acc.width + ox;
+        float* dst = acc.rgbw.data() + row * 4;
+        const float* src = v.texture + static_cast<std::size_t>(i) * patch * 4;
         for (int j = j_lo; j < j_hi; ++j) {
             const float w = fy * feather[static_cast<std::size_t>(j)];
             const float* t = src + static_cast<std::size_t>(j) * 4;
@@ -115,6 +168,11 @@ void splat_patch(Accumulator& acc, const float* texture, int patch, const Eigen:
             d[2] += w * t[2];
             d[3] += w * t[3];
         }
+        if (acc.groups)
+            for (int j = j_lo; j < j_hi; ++j) {
+                const float wa = fy * feather[static_cast<std::size_t>(j)] * src[static_cast<std::size_t>(j) * 4 + 3];
+                acc.add_group(row + static_cast<std::size_t>(j), wa, v.input_frame);
+            }
     }
 }
 
@@ -127,7 +185,9 @@ struct WarpEntry {
 struct WarpTable {
     double s_min = 0.0;                  // arc of bucket 0 (input line)
     std::vector<int> bucket_start;       // entries of bucket b: [bucket_start[b], bucket_start[b+1])
-    std::vector<WarpEntry> entries;
+    std::vector<WarpEntry> entries;      // by bucket, then by pixel
+    std::vector<int> bucket_row_lo;      // image rows a bucket's entries span (lo > hi: none)
+    std::vector<int> bucket_row_hi;
     double reach_in = 0.0;               // input-space reach of a patch around its centre
 };
 
@@ -217,7 +277,15 @@ WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, 
     for (int b = 0; b < buckets; ++b) table.bucket_start[static_cast<std::size_t>(b) + 1] = table.bucket_start[static_cast<std::size_t>(b)] + count[static_cast<std::size_t>(b) + 1];
     table.entries.resize(entries.size());
     std::vector<int> fill(table.bucket_start.begin(), table.bucket_start.end() - 1);
-    for (const auto& e : entries) table.entries[static_cast<std::size_t>(fill[static_cast<std::size_t>(bucket_of(e.first))]++)] = e.second;
+    table.bucket_row_lo.assign(static_cast<std::size_t>(buckets), std::numeric_limits<int>::max());
+    table.bucket_row_hi.assign(static_cast<std::size_t>(buckets), std::numeric_limits<int>::min());
+    for (const auto& e : entries) {
+        const auto b = static_cast<std::size_t>(bucket_of(e.first));
+        table.entries[static_cast<std::size_t>(fill[b]++)] = e.second;
+        const int row = e.second.pixel / width;
+        table.bucket_row_lo[b] = std::min(table.bucket_row_lo[b], row);
+        table.bucket_row_hi[b] = std::max(table.bucket_row_hi[b], row);
+    }
     return table;
 }
 
@@ -242,7 +310,7 @@ void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStream
         d[1] += w * c[1];
         d[2] += w * c[2];
         d[3] += w * alpha;
-
+        if (acc.groups) acc.add_group(static_cast<std::size_t>(e.pixel), w * alpha, particle.input_frame);
     }
 }
 
@@ -377,12 +445,13 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
             if (it != starts.end() && it->first == target) chosen = it->second;
             else {
                 ++ls.substituted;
-                if (it == starts.end()) chosen = std::prev(it)->second;
+                if (settings.missing_slots == SynthesisSettings::MissingSlots::empty) chosen = -1;
+                else if (it == starts.end()) chosen = std::prev(it)->second;
                 else if (it == starts.begin()) chosen = it->second;
                 else chosen = (target - std::prev(it)->first <= it->first - target) ? std::prev(it)->second : it->second;
             }
             ls.particles.push_back(chosen);
-            ls.max_life = std::max(ls.max_life, bank.particles[static_cast<std::size_t>(chosen)].life_frames());
+            if (chosen >= 0) ls.max_life = std::max(ls.max_life, bank.particles[static_cast<std::size_t>(chosen)].life_frames());
         }
         schedule.lines.push_back(std::move(ls));
     }
@@ -395,7 +464,10 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
     if (substituted > 0)
         schedule.warnings.push_back(std::to_string(substituted) + " of " + std::to_string(k * static_cast<int>(schedule.lines.size())) +
                                     " particle slots (on " + std::to_string(affected.size()) + " lines: " + some(affected) +
-                                    ") had no complete particle of their start frame and borrow the nearest one");
+                                    ") had no complete particle of their start frame and " +
+                                    (settings.missing_slots == SynthesisSettings::MissingSlots::empty
+                                         ? "are left empty (their neighbours cover them)"
+                                         : "borrow the nearest one"));
     return schedule;
 }
 
@@ -410,7 +482,8 @@ std::vector<ScheduledParticle> scheduled_particles(const Schedule& schedule, con
     for (long long m = m_hi; m >= m_lo; --m) {
         const int age = static_cast<int>(t - m * step);
         const int particle = ls.particles[static_cast<std::size_t>(positive_mod(m, k))];
-        if (age < bank.particles[static_cast<std::size_t>(particle)].life_frames()) out.push_back({particle, age});
+        if (particle < 0) continue;  // an empty slot
+        if (age < bank.particles[static_cast<std::size_t>(particle)].life_frames()) out.push_back({particle, age, static_cast<int>(positive_mod(m, k))});
     }
     return out;
 }
@@ -426,6 +499,7 @@ ParticleStreams::ParticleStreams(std::shared_ptr<const formats::ParticleBank> ba
         throw std::invalid_argument("one polyline per bank line is needed");
     m_schedule = make_schedule(*m_bank, settings);
     m_fade_frames = settings.fade_frames >= 0 ? settings.fade_frames : std::clamp(m_schedule.start_every, 1, 3);
+    m_wrap_fade_frames = settings.wrap_fade_frames;
     for (const LineSchedule& ls : m_schedule.lines) {
         std::size_t i = 0;
         while (m_bank->lines[i].id != ls.line_id) ++i;
@@ -496,10 +570,15 @@ void ParticleStreams::visible(int stream, int frame, std::vector<Visible>& out) 
         // a particle whose texture differs from its predecessor's (where the
         // diagonal order wraps, fig. 3.5b) does not pop, and segments hand over
         // smoothly.
-        const double fade_in = (sp.age + 1.0) / (m_fade_frames + 1.0);
+        int fade = m_fade_frames;
+        if (sp.slot == 0 && m_schedule.particles_per_line > 1)
+            fade = std::max(fade, m_wrap_fade_frames >= 0 ? m_wrap_fade_frames
+                                                           : std::min(m_schedule.start_every, p.life_frames() / 2));
+        const double fade_in = (sp.age + 1.0) / (fade + 1.0);
         const double fade_out = (p.life_frames() - sp.age) / (m_fade_frames + 1.0);
         v.weight = static_cast<float>(std::clamp(std::min(fade_in, fade_out), 0.0, 1.0));
         v.texture = p.texture_rgba.data() + static_cast<std::size_t>(sp.age) * patch_values;
+        v.input_frame = p.start_frame + sp.age;
         out.push_back(v);
     }
     std::sort(out.begin(), out.end(), [](const Visible& a, const Visible& b) { return a.arc_px < b.arc_px; });
@@ -722,18 +801,20 @@ int Synthesizer::height() const { return m_plan->height; }
 
 RgbImage Synthesizer::render(int frame) const { return render(frame, nullptr); }
 
-RgbImage Synthesizer::render(int frame, std::vector<float>* coverage) const {
+// The straightforward whole-frame version of render_into, kept as the
+// reference the banded renderer must reproduce (SynthesisSettings::reference_rendering).
+RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) const {
     const int w = m_plan->width, h = m_plan->height;
     const int patch = m_streams->patch_size();
     Accumulator acc;
-    acc.reset(w, h);
+    acc.reset(w, h, m_settings.preserve_detail);
     std::vector<ParticleStreams::Visible> visible;
     std::vector<float> feather(static_cast<std::size_t>(patch));
     for (int i = 0; i < patch; ++i) feather[static_cast<std::size_t>(i)] = feather_weight(static_cast<float>(i), patch);
     for (const Plan::Line& line : m_plan->lines) {
         m_streams->visible(line.stream, frame, visible);
         if (line.identity) {
-            for (const auto& v : visible) splat_patch(acc, v.texture, patch, v.centre, v.weight, feather);
+            for (const auto& v : visible) splat_patch(acc, v, patch, feather);
             continue;
         }
         if (line.keyed) {
@@ -749,36 +830,464 @@ RgbImage Synthesizer::render(int frame, std::vector<float>* coverage) const {
     if (coverage) coverage->assign(static_cast<std::size_t>(w) * h, 0.0f);
     const float full = static_cast<float>(std::max(1e-6, m_settings.coverage_weight));
     const std::size_t pixels = static_cast<std::size_t>(w) * h;
+    // Detail preservation: where groups of different input frames mix, the
+    // detail around the local mean (a normalised box mean of the blend, fine
+    // scale: larger structures of nearby frames are alike and blend as they
+    // are) is rescaled by sum(W) / sqrt(sum(W_g^2)), 1 for a single group.
+    std::vector<float> gain;
+    std::vector<float> rows;
+    if (acc.groups) {
+        int y0 = h, y1 = -1;
+        gain.assign(pixels, 1.0f);
+        for (std::size_t i = 0; i < pixels; ++i) {
+            const float* gw = acc.group_weight.data() + 3 * i;
+            if (!(gw[1] > 0.0f)) continue;
+            const float squares = gw[0] * gw[0] + gw[1] * gw[1] + gw[2] * gw[2];
+            const float total = gw[0] + gw[1] + gw[2];
+            if (squares > 0.0f) gain[i] = std::clamp(total / std::sqrt(squares), 1.0f, kMaxDetailGain);
+            if (gain[i] > 1.0f) {
+                const int y = static_cast<int>(i / static_cast<std::size_t>(w));
+                y0 = std::min(y0, y);
+                y1 = std::max(y1, y);
+            }
+        }
+        if (y1 >= 0) row_box_sums(acc.rgbw, w, std::max(0, y0 - kDetailRadiusPx), std::min(h - 1, y1 + kDetailRadiusPx),
+                                  kDetailRadiusPx, rows);
+        else gain.clear();
+    }
     for (std::size_t i = 0; i < pixels; ++i) {
         const float* a = acc.rgbw.data() + 4 * i;
         if (a[3] <= 1e-6f) continue;
         const float c = static_cast<float>(smoothstep01(a[3] / full));
         const float inv = 1.0f / a[3];
+        float tex[3] = {a[0] * inv, a[1] * inv, a[2] * inv};
+        if (!gain.empty() && gain[i] > 1.0f) {
+            const int y = static_cast<int>(i / static_cast<std::size_t>(w)), x = static_cast<int>(i % static_cast<std::size_t>(w));
+            float l[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+            for (int yy = std::max(0, y - kDetailRadiusPx); yy <= std::min(h - 1, y + kDetailRadiusPx); ++yy) {
+                const float* r = rows.data() + (static_cast<std::size_t>(yy) * w + x) * 4;
+                for (int k = 0; k < 4; ++k) l[k] += r[k];
+            }
+            if (l[3] > 1e-6f)
+                for (int k = 0; k < 3; ++k) {
+                    const float mean = l[k] / l[3];
+                    tex[k] = mean + (tex[k] - mean) * gain[i];
+                }
+        }
         float* o = out.rgb.data() + 3 * i;
-        o[0] = o[0] * (1.0f - c) + std::max(0.0f, a[0] * inv) * c;
-        o[1] = o[1] * (1.0f - c) + std::max(0.0f, a[1] * inv) * c;
-        o[2] = o[2] * (1.0f - c) + std::max(0.0f, a[2] * inv) * c;
+        o[0] = o[0] * (1.0f - c) + std::max(0.0f, tex[0]) * c;
+        o[1] = o[1] * (1.0f - c) + std::max(0.0f, tex[1]) * c;
+        o[2] = o[2] * (1.0f - c) + std::max(0.0f, tex[2]) * c;
         if (coverage) (*coverage)[i] = c;
     }
     return out;
 }
 
-int Synthesizer::render_frames(int first, int last, int threads, const std::function<bool(int, const RgbImage&)>& sink) const {
-    const int workers = std::max(1, threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
-    int delivered = 0;
-    for (int batch = first; batch <= last; batch += workers) {
-        const int end = std::min(last, batch + workers - 1);
-        std::vector<std::future<RgbImage>> jobs;
-        for (int f = batch; f <= end; ++f) jobs.push_back(std::async(std::launch::async, [this, f] { return render(f); }));
-        for (int f = batch; f <= end; ++f) {
-            const RgbImage image = jobs[static_cast<std::size_t>(f - batch)].get();
-            if (!sink(f, image)) {
-                for (int g = f + 1; g <= end; ++g) jobs[static_cast<std::size_t>(g - batch)].wait();
-                return delivered;
+// ---- banded rendering ----------------------------------------------------------------------------
+// The whole-frame pass above touches several frame-sized buffers per frame
+// (~35 MB at 1280 x 720 with detail preservation); here the frame goes by
+// bands of kBandRows rows through a ring holding the band and the
+// kDetailRadiusPx rows either side the local mean reads. Step k adds every
+// patch crossing rows [lo_k, hi_k) (the rows not yet accumulated that band k
+// needs), in the whole-frame order, so each pixel sees the same additions in
+// the same order; then band k is finished.
+
+namespace {
+
+constexpr int kBandRows = 16;
+
+struct RenderBuffers {
+    // One patch to add: identity lines put the patch on whole pixels at
+    // (ox, oy); warped lines go through a warp table.
+    struct Splat {
+        const float* texture = nullptr;
+        float weight = 1.0f;
+        int input_frame = 0;
+        int ox = 0, oy = 0;               // identity: patch origin
+        const WarpTable* warp = nullptr;  // warped: the table, its buckets and the patch origin
+        int b0 = 0, b1 = -1;
+        float cx = 0.0f, cy = 0.0f;
+        int row_lo = 0, row_hi = 0;       // image rows touched, [lo, hi)
+    };
+    struct Cell {  // the groups of one pixel: ids by first arrival (-1 = none), weights (two, the rest)
+        int id[2];
+        float weight[3];
+    };
+
+    std::vector<ParticleStreams::Visible> visible;
+    std::vector<float> feather;
+    std::vector<WarpTable> keyed_warps;
+    std::vector<Splat> splats;
+    std::vector<int> step_start;  // splats of step k: step_splats[step_start[k] .. step_start[k + 1])
+    std::vector<int> step_splats;
+    int width = 0;
+    int ring_rows = 0;
+    std::vector<float> rgbw;      // ring: 4 per pixel
+    std::vector<Cell> cells;      // ring, with groups
+    std::vector<float> row_sums;  // ring, with groups: horizontal box sums of rgbw
+
+    std::size_t ring_pixel(int y, int x) const {
+        return static_cast<std::size_t>(y % ring_rows) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
+    }
+};
+
+using Splat = RenderBuffers::Splat;
+using Cell = RenderBuffers::Cell;
+
+inline void add_to_cell(Cell& cell, float wa, int group) {
+    if (cell.id[0] == group) cell.weight[0] += wa;
+    else if (cell.id[0] < 0) {
+        cell.id[0] = group;
+        cell.weight[0] = wa;
+    } else if (cell.id[1] == group) cell.weight[1] += wa;
+    else if (cell.id[1] < 0) {
+        cell.id[1] = group;
+        cell.weight[1] = wa;
+    } else cell.weight[2] += wa;
+}
+
+// Rows [lo, hi) of an identity patch (as splat_patch).
+void splat_patch_rows(RenderBuffers& s, bool groups, const Splat& p, int patch, int lo, int hi) {
+    const int i_lo = std::max(0, lo - p.oy), i_hi = std::min(patch, hi - p.oy);
+    const int j_lo = std::max(0, -p.ox), j_hi = std::min(patch, s.width - p.ox);
+    const float* feather = s.feather.data();
+    for (int i = i_lo; i < i_hi; ++i) {
+        const int y = p.oy + i;
+        const float fy = feather[i] * p.weight;
+        // Patch column j_lo + j lands on ring pixel row + j.
+        const std::size_t row = s.ring_pixel(y, 0) + static_cast<std::size_t>(p.ox + j_lo);
+        float* dst = s.rgbw.data() + row * 4;
+        const float* src = p.texture + (static_cast<std::size_t>(i) * patch + j_lo) * 4;
+        const int n = j_hi - j_lo;
+        if (!groups) {
+            for (int j = 0; j < n; ++j) {
+                const float w = fy * feather[j_lo + j];
+                const float* t = src + static_cast<std::size_t>(j) * 4;
+                float* d = dst + static_cast<std::size_t>(j) * 4;
+                d[0] += w * t[0];
+                d[1] += w * t[1];
+                d[2] += w * t[2];
+                d[3] += w * t[3];
             }
-            ++delivered;
+            continue;
+        }
+        Cell* cells = s.cells.data() + row;
+        for (int j = 0; j < n; ++j) {
+            const float w = fy * feather[j_lo + j];
+            const float* t = src + static_cast<std::size_t>(j) * 4;
+            float* d = dst + static_cast<std::size_t>(j) * 4;
+            d[0] += w * t[0];
+            d[1] += w * t[1];
+            d[2] += w * t[2];
+            d[3] += w * t[3];
+            (void)cells;
         }
     }
+}
+
+// The entries of a warped patch on rows [lo, hi) (as splat_warped).
+void splat_warped_rows(RenderBuffers& s, bool groups, const Splat& p, int patch, int lo, int hi) {
+    const WarpTable& table = *p.warp;
+    const int pixel_lo = lo * s.width, pixel_hi = hi * s.width;
+    const auto before = [](const WarpEntry& e, int pixel) { return e.pixel < pixel; };
+    for (int b = p.b0; b <= p.b1; ++b) {
+        const auto bi = static_cast<std::size_t>(b);
+        if (table.bucket_row_hi[bi] < lo || table.bucket_row_lo[bi] >= hi) continue;
+        const WarpEntry* first = table.entries.data() + table.bucket_start[bi];
+        const WarpEntry* last = table.entries.data() + table.bucket_start[bi + 1];
+        if (table.bucket_row_lo[bi] < lo) first = std::lower_bound(first, last, pixel_lo, before);
+        if (table.bucket_row_hi[bi] >= hi) last = std::lower_bound(first, last, pixel_hi, before);
+        for (const WarpEntry* e = first; e != last; ++e) {
+            const float u = e->qx - p.cx, v = e->qy - p.cy;
+            if (u <= -0.5f || v <= -0.5f || u >= patch - 0.5f || v >= patch - 0.5f) continue;
+            const float w = feather_weight(u, patch) * feather_weight(v, patch) * e->fade * p.weight;
+            if (w <= 0.0f) continue;
+            float c[4];
+            sample_patch_bicubic(p.texture, patch, u, v, c);
+            const int y = e->pixel / s.width, x = e->pixel - y * s.width;
+            const std::size_t pixel = s.ring_pixel(y, x);
+            float* d = s.rgbw.data() + pixel * 4;
+            const float alpha = std::clamp(c[3], 0.0f, 1.0f);
+            d[0] += w * c[0];
+            d[1] += w * c[1];
+            d[2] += w * c[2];
+            d[3] += w * alpha;
+            if (groups) add_to_cell(s.cells[pixel], w * alpha, p.input_frame);
+        }
+    }
+}
+
+// Horizontal box sums of one ring row (as row_box_sums).
+void ring_row_sums(RenderBuffers& s, int y, int r) {
+    const int width = s.width;
+    const float* src = s.rgbw.data() + s.ring_pixel(y, 0) * 4;
+    float* dst = s.row_sums.data() + s.ring_pixel(y, 0) * 4;
+    float sum[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    for (int x = 0; x < std::min(r, width); ++x)
+        for (int c = 0; c < 4; ++c) sum[c] += src[x * 4 + c];
+    // The same additions and subtractions, in the same order, without the
+    // per-pixel bounds tests: while x + r < width, add; once x > r, subtract.
+    const int add_end = std::max(0, width - r), sub_begin = std::min(width, r + 1);
+    int x = 0;
+    for (; x < std::min(add_end, sub_begin); ++x)
+        for (int c = 0; c < 4; ++c) dst[x * 4 + c] = sum[c] += src[(x + r) * 4 + c];
+    for (; x < add_end; ++x)
+        for (int c = 0; c < 4; ++c) {
+            sum[c] += src[(x + r) * 4 + c];
+            sum[c] -= src[(x - r - 1) * 4 + c];
+            dst[x * 4 + c] = sum[c];
+        }
+    for (; x < sub_begin; ++x)
+        for (int c = 0; c < 4; ++c) dst[x * 4 + c] = sum[c];
+    for (; x < width; ++x)
+        for (int c = 0; c < 4; ++c) dst[x * 4 + c] = sum[c] -= src[(x - r - 1) * 4 + c];
+}
+
+}  // namespace
+
+struct Synthesizer::Scratch : RenderBuffers {};
+
+void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* coverage, Scratch& s) const {
+    const int w = m_plan->width, h = m_plan->height;
+    const int patch = m_streams->patch_size();
+    const bool groups = m_settings.preserve_detail;
+    m_background.fill(frame, w, h, out);
+    if (coverage) coverage->assign(static_cast<std::size_t>(w) * h, 0.0f);
+    if (w <= 0 || h <= 0) return;
+
+    s.feather.resize(static_cast<std::size_t>(patch));
+    for (int i = 0; i < patch; ++i) s.feather[static_cast<std::size_t>(i)] = feather_weight(static_cast<float>(i), patch);
+
+    // The patches of the frame, in whole-frame order.
+    s.splats.clear();
+    std::size_t keyed = 0;
+    for (const Plan::Line& line : m_plan->lines) keyed += line.keyed ? 1 : 0;
+    s.keyed_warps.resize(keyed);  // never reallocated below: splats point into it
+    keyed = 0;
+    for (const Plan::Line& line : m_plan->lines) {
+        m_streams->visible(line.stream, frame, s.visible);
+        const WarpTable* warp = nullptr;
+        if (line.keyed) {
+            warp = &s.keyed_warps[keyed++];
+            s.keyed_warps[keyed - 1] = build_warp(LineGeometry(formats::points_at_frame(line.line, frame), patch / 3.0),
+                                                  m_streams->geometry(line.stream), m_settings.mapping, patch, w, h);
+        } else if (!line.identity) {
+            warp = &line.warp;
+        }
+        for (const auto& v : s.visible) {
+            Splat p;
+            p.texture = v.texture;
+            p.weight = v.weight;
+            p.input_frame = v.input_frame;
+            if (!warp) {
+                p.ox = patch_origin(v.centre.x(), patch);
+                p.oy = patch_origin(v.centre.y(), patch);
+                p.row_lo = std::max(0, p.oy);
+                p.row_hi = std::min(h, p.oy + patch);
+            } else {
+                if (warp->bucket_start.size() < 2) continue;
+                const int buckets = static_cast<int>(warp->bucket_start.size()) - 1;
+                p.warp = warp;
+                p.b0 = std::clamp(static_cast<int>(std::floor(v.arc_px - warp->reach_in - warp->s_min)), 0, buckets - 1);
+                p.b1 = std::clamp(static_cast<int>(std::floor(v.arc_px + warp->reach_in - warp->s_min)), 0, buckets - 1);
+                p.cx = static_cast<float>(patch_origin(v.centre.x(), patch));
+                p.cy = static_cast<float>(patch_origin(v.centre.y(), patch));
+                p.row_lo = std::numeric_limits<int>::max();
+                p.row_hi = std::numeric_limits<int>::min();
+                for (int b = p.b0; b <= p.b1; ++b) {
+                    p.row_lo = std::min(p.row_lo, warp->bucket_row_lo[static_cast<std::size_t>(b)]);
+                    p.row_hi = std::max(p.row_hi, warp->bucket_row_hi[static_cast<std::size_t>(b)] + 1);
+                }
+            }
+            if (p.row_lo < p.row_hi) s.splats.push_back(p);
+        }
+    }
+
+    // Steps: band k = rows [k B, (k + 1) B) needs rows up to hi_k = (k + 1) B + R;
+    // step k accumulates rows [hi_(k-1), hi_k).
+    const int radius = groups ? kDetailRadiusPx : 0;
+    const int bands = (h + kBandRows - 1) / kBandRows;
+    const auto step_hi = [&](int k) { return std::min(h, (k + 1) * kBandRows + radius); };
+    const auto step_of = [&](int y) { return std::clamp(y < radius ? 0 : (y - radius) / kBandRows, 0, bands - 1); };
+    s.step_start.assign(static_cast<std::size_t>(bands) + 1, 0);
+    for (const Splat& p : s.splats)
+        for (int k = step_of(p.row_lo); k <= step_of(p.row_hi - 1); ++k) ++s.step_start[static_cast<std::size_t>(k) + 1];
+    for (int k = 0; k < bands; ++k) s.step_start[static_cast<std::size_t>(k) + 1] += s.step_start[static_cast<std::size_t>(k)];
+    s.step_splats.resize(static_cast<std::size_t>(s.step_start.back()));
+    {
+        std::vector<int>& fill = s.step_start;  // advanced while filling, then restored
+        for (std::size_t i = 0; i < s.splats.size(); ++i)
+            for (int k = step_of(s.splats[i].row_lo); k <= step_of(s.splats[i].row_hi - 1); ++k)
+                s.step_splats[static_cast<std::size_t>(fill[static_cast<std::size_t>(k)]++)] = static_cast<int>(i);
+        for (int k = bands; k > 0; --k) fill[static_cast<std::size_t>(k)] = fill[static_cast<std::size_t>(k) - 1];
+        fill[0] = 0;
+    }
+
+    // The ring: band k reads rows [k B - R, hi_k), at most B + 2R rows.
+    s.width = w;
+    s.ring_rows = std::min(h, kBandRows + 2 * radius);
+    const std::size_t ring_pixels = static_cast<std::size_t>(s.ring_rows) * w;
+    s.rgbw.resize(ring_pixels * 4);
+    if (groups) {
+        s.cells.resize(ring_pixels);
+        s.row_sums.resize(ring_pixels * 4);
+    }
+
+    const float full = static_cast<float>(std::max(1e-6, m_settings.coverage_weight));
+    int lo = 0;
+    for (int k = 0; k < bands; ++k) {
+        const int hi = step_hi(k);
+        for (int y = lo; y < hi; ++y) {
+            const std::size_t row = s.ring_pixel(y, 0);
+            std::fill_n(s.rgbw.data() + row * 4, static_cast<std::size_t>(w) * 4, 0.0f);
+            if (groups) std::fill_n(s.cells.data() + row, static_cast<std::size_t>(w), Cell{{-1, -1}, {0.0f, 0.0f, 0.0f}});
+        }
+        for (int i = s.step_start[static_cast<std::size_t>(k)]; i < s.step_start[static_cast<std::size_t>(k) + 1]; ++i) {
+            const Splat& p = s.splats[static_cast<std::size_t>(s.step_splats[static_cast<std::size_t>(i)])];
+            const int a = std::max(lo, p.row_lo), b = std::min(hi, p.row_hi);
+            if (a >= b) continue;
+            if (p.warp) splat_warped_rows(s, groups, p, patch, a, b);
+            else splat_patch_rows(s, groups, p, patch, a, b);
+        }
+        if (groups)
+            for (int y = lo; y < hi; ++y) ring_row_sums(s, y, kDetailRadiusPx);
+        lo = hi;
+
+        // Finish band k (as the whole-frame pass: see render_reference).
+        for (int y = k * kBandRows; y < std::min(h, (k + 1) * kBandRows); ++y) {
+            const float* arow = s.rgbw.data() + s.ring_pixel(y, 0) * 4;
+            const Cell* crow = groups ? s.cells.data() + s.ring_pixel(y, 0) : nullptr;
+            float* orow = out.rgb.data() + static_cast<std::size_t>(y) * w * 3;
+            float* cov = coverage ? coverage->data() + static_cast<std::size_t>(y) * w : nullptr;
+            // The row sums the local mean adds, in row order.
+            const float* sums[2 * kDetailRadiusPx + 1];
+            int sum_rows = 0;
+            if (groups)
+                for (int yy = std::max(0, y - kDetailRadiusPx); yy <= std::min(h - 1, y + kDetailRadiusPx); ++yy)
+                    sums[sum_rows++] = s.row_sums.data() + s.ring_pixel(yy, 0) * 4;
+            for (int x = 0; x < w; ++x) {
+                const float* a = arow + 4 * x;
+                if (a[3] <= 1e-6f) continue;
+                const float c = static_cast<float>(smoothstep01(a[3] / full));
+                const float inv = 1.0f / a[3];
+                float tex[3] = {a[0] * inv, a[1] * inv, a[2] * inv};
+                if (crow && crow[x].weight[1] > 0.0f) {
+                    const float* gw = crow[x].weight;
+                    const float squares = gw[0] * gw[0] + gw[1] * gw[1] + gw[2] * gw[2];
+                    const float total = gw[0] + gw[1] + gw[2];
+                    const float gain = squares > 0.0f ? std::clamp(total / std::sqrt(squares), 1.0f, kMaxDetailGain) : 1.0f;
+                    if (gain > 1.0f) {
+                        float l[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+                        for (int r = 0; r < sum_rows; ++r)
+                            for (int q = 0; q < 4; ++q) l[q] += sums[r][4 * x + q];
+                        if (l[3] > 1e-6f)
+                            for (int q = 0; q < 3; ++q) {
+                                const float mean = l[q] / l[3];
+                                tex[q] = mean + (tex[q] - mean) * gain;
+                            }
+                    }
+                }
+                float* o = orow + 3 * x;
+                o[0] = o[0] * (1.0f - c) + std::max(0.0f, tex[0]) * c;
+                o[1] = o[1] * (1.0f - c) + std::max(0.0f, tex[1]) * c;
+                o[2] = o[2] * (1.0f - c) + std::max(0.0f, tex[2]) * c;
+                if (cov) cov[x] = c;
+            }
+        }
+    }
+}
+
+RgbImage Synthesizer::render(int frame, std::vector<float>* coverage) const {
+    if (m_settings.reference_rendering) return render_reference(frame, coverage);
+    Scratch scratch;
+    RgbImage out;
+    render_into(frame, out, coverage, scratch);
+    return out;
+}
+
+int Synthesizer::render_frames(int first, int last, int threads, const std::function<bool(int, const RgbImage&)>& sink) const {
+    if (last < first) return 0;
+    const int count = last - first + 1;
+    const int workers =
+        std::min(count, std::max(1, threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))));
+    const auto render_one = [&](int frame, RgbImage& image, Scratch& scratch) {
+        if (m_settings.reference_rendering) image = render_reference(frame, nullptr);
+        else render_into(frame, image, nullptr, scratch);
+    };
+    if (workers == 1) {
+        Scratch scratch;
+        RgbImage image;
+        for (int f = first; f <= last; ++f) {
+            render_one(f, image, scratch);
+            if (!sink(f, image)) return f - first;
+        }
+        return count;
+    }
+    // Worker j renders frames first + j, first + j + workers, ... into its two
+    // slots in turn (frame index i uses slot i mod 2 workers), each with its
+    // own scratch; a slot is reused once its frame has been delivered.
+    const int slots = 2 * workers;
+    std::vector<RgbImage> images(static_cast<std::size_t>(slots));
+    std::vector<char> ready(static_cast<std::size_t>(slots), 0);
+    std::mutex mutex;
+    std::condition_variable changed;
+    int delivered = 0;  // frame indices below this are delivered
+    bool stop = false;
+    std::exception_ptr failure;
+    std::vector<std::thread> pool;
+    for (int j = 0; j < workers; ++j)
+        pool.emplace_back([&, j] {
+            Scratch scratch;
+            for (int i = j; i < count; i += workers) {
+                const auto slot = static_cast<std::size_t>(i % slots);
+                {
+                    std::unique_lock<std::mutex> lock(mutex);
+                    changed.wait(lock, [&] { return stop || delivered > i - slots; });
+                    if (stop) return;
+                }
+                try {
+                    render_one(first + i, images[slot], scratch);
+                } catch (...) {
+                    const std::lock_guard<std::mutex> lock(mutex);
+                    if (!failure) failure = std::current_exception();
+                    stop = true;
+                    changed.notify_all();
+                    return;
+                }
+                const std::lock_guard<std::mutex> lock(mutex);
+                ready[slot] = 1;
+                changed.notify_all();
+            }
+        });
+    for (int i = 0; i < count; ++i) {
+        const auto slot = static_cast<std::size_t>(i % slots);
+        {
+            std::unique_lock<std::mutex> lock(mutex);
+            changed.wait(lock, [&] { return stop || ready[slot]; });
+            if (stop) break;
+        }
+        bool more = false;
+        try {
+            more = sink(first + i, images[slot]);
+        } catch (...) {
+            const std::lock_guard<std::mutex> lock(mutex);
+            if (!failure) failure = std::current_exception();
+            stop = true;
+            changed.notify_all();
+            break;
+        }
+        const std::lock_guard<std::mutex> lock(mutex);
+        if (!more) {
+            stop = true;
+            changed.notify_all();
+            break;
+        }
+        ready[slot] = 0;
+        delivered = i + 1;
+        changed.notify_all();
+    }
+    for (std::thread& t : pool) t.join();
+    if (failure) std::rethrow_exception(failure);
     return delivered;
 }
 

@@ -26,6 +26,8 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <functional>
+#include <string>
 #include <vector>
 
 namespace flowvid::flow {
@@ -62,6 +64,16 @@ struct QualityReport {
     double patch_distance = 0.0;         // output patches to their nearest clip patch (RMS luma)
     double clip_self_distance = 0.0;
     double hf_power_ratio = 0.0;         // mean output HF energy / mean clip HF energy
+    // Complementary measures (not the issue's; they say what the do not):
+    // seam_spike: largest output transition / the output's own median
+    // transition, i.e. how much a seam stands out from the motion around it
+    // (clip_seam_spike: the clip's own). A sequence that barely moves (a still
+    // frame slid along, as the flow map does) scores well on the seam ratio
+    // above without looking like the clip; motion_ratio shows that: the
+    // output's median transition / the clip's (1 = moves like the clip).
+    double seam_spike = 0.0;
+    double clip_seam_spike = 0.0;
+    double motion_ratio = 0.0;
     int transitions = 0;
 };
 
@@ -100,5 +112,36 @@ private:
     RgbImage m_background;
     int m_cycle = 32;
 };
+
+// ---- our synthesis against both baselines on one clip ---------------------------------
+
+struct ComparisonSettings {
+    int output_frames = 0;            // frames of output measured; 0 = twice the clip
+    double band_half_width_px = 0.0;  // mask: within this of the tracked lines; 0 = a quarter patch
+    int flow_map_cycle_frames = 32;
+    int threads = 0;                  // rendering threads (0 = hardware)
+    QualitySettings quality;
+};
+
+struct MethodQuality {
+    std::string method;  // "ours", "loop", "flow map"
+    QualityReport report;
+};
+
+struct Comparison {
+    int output_frames = 0;
+    std::size_t mask_pixels = 0;
+    std::vector<MethodQuality> methods;  // ours, loop, flow map
+};
+
+// Renders `output_frames` of `synth` (frames 1..N), of the naive loop of
+// `clip` and of the flow-map baseline (the clip's first frame advected by the
+// tracked speeds, over `plate`), and measures each against the clip in the
+// band around the tracked lines of `streams`. `progress` gets the fraction
+// done and may return false to stop (the comparison then throws
+// std::runtime_error("cancelled")).
+Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams& streams, const Synthesizer& synth,
+                                  const RgbImage& plate, const ComparisonSettings& settings = {},
+                                  const std::function<bool(double)>& progress = {});
 
 }  // namespace flowvid::flow

@@ -28,6 +28,11 @@
 // arc s_out and lateral offset n on the output line; s_in = s_out (equal arc
 // length) or s_out * L_in / L_out (scaled, fig. 3.17); the texture is read at
 // P_in(s_in) + n N_in(s_in) from the particles near s_in.
+// A frame is rendered in bands of rows through a small ring of rows (the
+// band, plus the rows the detail-preserving local mean reaches): every patch
+// is added to each band it crosses in the same order as a whole-frame pass,
+// so the result is that of the whole-frame pass, with cache-sized buffers
+// reused from frame to frame.
 
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/geometry.hpp"
@@ -58,13 +63,42 @@ struct SynthesisSettings {
     // before leaving it; -1 = automatic (the entry spacing, 1 to 3 frames).
     // Without it the particle entering where the diagonal order wraps pops.
     int fade_frames = -1;
+    // The first particle of each repetition of the window (k = 0, where the
+    // diagonal order wraps) shows other input frames than the particles it
+    // meets, on every line at once: it fades in over this many frames, so
+    // that the change is spread instead of stepping; -1 = automatic (the
+    // entry spacing, at most half the particle's life).
+    int wrap_fade_frames = -1;
+    // A slot of the window whose start frame has no complete particle on a
+    // line: left empty (its neighbours on the line, which show the same input
+    // frame, and the neighbouring lines cover it), or filled with the particle
+    // of the nearest start, which then shows other input frames than its
+    // neighbours all its life (their overlap blurs).
+    enum class MissingSlots { empty, borrow };
+    MissingSlots missing_slots = MissingSlots::empty;
+    // Where patches showing different input frames overlap (the wrap of the
+    // diagonal order, borrowed slots), their weighted mean loses fine detail
+    // in proportion to how evenly they mix, and the loss comes and goes with
+    // the wraps: detail pulses. Detail-preserving blending keeps the local
+    // mean (a 5 x 5 normalised box mean of the blend) and rescales the detail
+    // around it by sum(W) / sqrt(sum(W_g^2)) over the groups g of patches
+    // showing one input frame (Heitz and Neyret's variance-preserving blend
+    // for uncorrelated detail, applied only across groups: copies of the same
+    // input frame are identical and blend exactly as before).
+    bool preserve_detail = true;
+    // Testing: render with the straightforward whole-frame accumulation
+    // (several full-size buffers per frame) instead of the banded renderer,
+    // which reproduces it to float rounding. Slower; same frames.
+    bool reference_rendering = false;
 };
 
 // The diagonal order (fig. 3.5b) of one line.
 struct LineSchedule {
     std::string line_id;
-    std::vector<int> particles;  // K indices into bank.particles, in order k = 0..K-1
-    int substituted = 0;         // how many of the K had no tracked particle and borrowed the nearest start
+    std::vector<int> particles;  // K indices into bank.particles, in order k = 0..K-1; -1 = empty slot
+    // How many of the K had no complete particle of their start frame (left
+    // empty, or borrowing the nearest start: SynthesisSettings::missing_slots).
+    int substituted = 0;
     int max_life = 0;            // frames
 };
 
@@ -86,6 +120,7 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
 struct ScheduledParticle {
     int particle = 0;
     int age = 0;
+    int slot = 0;  // k, its place in the window
 };
 std::vector<ScheduledParticle> scheduled_particles(const Schedule& schedule, const formats::ParticleBank& bank,
                                                    std::size_t line, int frame);
@@ -133,6 +168,7 @@ public:
         Eigen::Vector2d centre;    // input-frame pixel position
         const float* texture = nullptr;  // patch x patch x 4, linear premultiplied RGBA
         float weight = 1.0f;             // fade in after entering, out before leaving
+        int input_frame = 0;             // clip frame the texture was cut from (start + age)
     };
     // The particles of a stream at an output frame, sorted by arc length.
     void visible(int stream, int frame, std::vector<Visible>& out) const;
@@ -175,6 +211,7 @@ private:
     std::vector<LineGeometry> m_geometry;  // per schedule line
     std::vector<InputLine> m_inputs;
     int m_fade_frames = 2;
+    int m_wrap_fade_frames = -1;
 };
 
 // One line of the output and the input line whose particles it carries.
@@ -205,9 +242,10 @@ public:
     // The same, also returning how much each pixel is covered by texture (0..1).
     RgbImage render(int frame, std::vector<float>* coverage) const;
 
-    // Renders frames first..last on `threads` threads (0 = hardware) and hands
-    // them to `sink` in order; `sink` returns false to stop. Returns the number
-    // of frames delivered.
+    // Renders frames first..last on `threads` threads (0 = hardware), each
+    // frame on one thread, and hands them to `sink` in order (on the calling
+    // thread); `sink` returns false to stop. Returns the number of frames
+    // delivered. The frames do not depend on the thread count.
     int render_frames(int first, int last, int threads, const std::function<bool(int, const RgbImage&)>& sink) const;
 
     // Colour and weight at image `points` of the line `output_points`
@@ -217,6 +255,9 @@ public:
 
 private:
     struct Plan;
+    struct Scratch;  // a rendering thread's working buffers, reused from frame to frame
+    void render_into(int frame, RgbImage& out, std::vector<float>* coverage, Scratch& scratch) const;
+    RgbImage render_reference(int frame, std::vector<float>* coverage) const;
     std::shared_ptr<const ParticleStreams> m_streams;
     std::unique_ptr<Plan> m_plan;
     Background m_background;

@@ -1,0 +1,199 @@
+// flowvid quality: the measured quality of flow-based synthesis from a
+// particle bank against the two baselines of issue 6 (naive looping of the
+// clip; the flow-map method games use), on the bank's clip (flow/quality.hpp).
+
+#include "command.hpp"
+#include "output.hpp"
+
+#include "flowvid/flow/frames.hpp"
+#include "flowvid/flow/quality.hpp"
+#include "flowvid/flow/synthesis.hpp"
+#include "flowvid/formats/any_file.hpp"
+#include "flowvid/formats/flowlines.hpp"
+#include "flowvid/formats/particle_bank.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+namespace flowvid::cli {
+namespace {
+
+struct QualityOptions {
+    std::string bank;
+    std::string capture;
+    std::string flowlines;
+    int frames = 0;
+    int particles = 0;
+    int first_start = -1;
+    unsigned long long seed = 0;
+    double band_px = 0.0;
+    int cycle = 32;
+    int threads = 0;
+    bool json = false;
+};
+
+formats::FlowLineSet read_lines(const std::string& path, std::vector<Problem>& warnings) {
+    if (formats::detect_file_kind(path) == formats::FileKind::flowline_svg) return formats::import_flowlines_svg(path, &warnings);
+    return formats::read_flowline_set(path, &warnings);
+}
+
+nlohmann::json report_json(const flow::QualityReport& r) {
+    return {{"seam_max_ratio", r.max_transition_ratio},
+            {"share_above_clip_p99", r.share_above_p99},
+            {"pulsing", r.pulsing},
+            {"clip_pulsing", r.clip_pulsing},
+            {"patch_distance", r.patch_distance},
+            {"clip_self_distance", r.clip_self_distance},
+            {"hf_power_ratio", r.hf_power_ratio},
+            {"motion_ratio", r.motion_ratio},
+            {"seam_spike", r.seam_spike},
+            {"clip_seam_spike", r.clip_seam_spike},
+            {"clip_transition_p95", r.clip_p95},
+            {"clip_transition_p99", r.clip_p99},
+            {"transitions", r.transitions}};
+}
+
+int run_quality(const QualityOptions& options, const GlobalOptions& global) {
+    std::vector<Problem> warnings;
+    auto bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(options.bank, &warnings));
+    print_problems(warnings);
+    const std::string capture_path = options.capture.empty() ? bank->source_clip : options.capture;
+    std::error_code ec;
+    if (capture_path.empty() || !std::filesystem::exists(capture_path, ec)) {
+        log_message("error: " + options.bank + ": the measures need the source clip (" +
+                    (capture_path.empty() ? std::string("not recorded in the bank") : capture_path + " not found") +
+                    "); give --capture");
+        return kExitUsage;
+    }
+    const formats::Capture capture = flow::open_clip(capture_path, bank->fps);
+    std::string lines_path = options.flowlines;
+    if (lines_path.empty() && !capture.flowlines.empty()) lines_path = capture.resolve(capture.flowlines);
+    if (lines_path.empty()) {
+        log_message("error: no flow lines: give --flowlines FILE (the drawing the bank was tracked with)");
+        return kExitUsage;
+    }
+    const formats::FlowLineSet drawing = read_lines(lines_path, warnings);
+    print_problems(warnings);
+
+    flow::SynthesisSettings settings;
+    settings.particles = options.particles;
+    settings.first_start_frame = options.first_start;
+    settings.seed = options.seed;
+    auto streams = std::make_shared<flow::ParticleStreams>(
+        bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
+    for (const std::string& w : streams->schedule().warnings) log_message("warning: " + w);
+
+    Progress reading(global, "read clip");
+    flow::CaptureFrames frames(capture);
+    if (frames.width() != bank->clip_width_px || frames.height() != bank->clip_height_px) {
+        log_message("error: " + capture_path + ": frames are " + std::to_string(frames.width()) + " x " +
+                    std::to_string(frames.height()) + " but the bank was tracked at " +
+                    std::to_string(bank->clip_width_px) + " x " + std::to_string(bank->clip_height_px));
+        return kExitInvalidInput;
+    }
+    const flow::ClipFrames clip = flow::ClipFrames::read_all(frames, 0, [&](double f) {
+        reading.update(f);
+        return true;
+    });
+    reading.done();
+    const flow::RgbImage plate = flow::median_plate(clip);
+    const flow::Synthesizer synth(streams, {}, flow::Background::plate(plate), settings);
+
+    flow::ComparisonSettings compare;
+    compare.output_frames = options.frames;
+    compare.band_half_width_px = options.band_px;
+    compare.flow_map_cycle_frames = options.cycle;
+    compare.threads = options.threads;
+    Progress progress(global, "measure");
+    InterruptWatch interrupt;
+    flow::Comparison result;
+    try {
+        result = flow::compare_with_baselines(clip, *streams, synth, plate, compare, [&](double f) {
+            progress.update(f);
+            return !interrupt.requested();
+        });
+    } catch (const std::runtime_error& e) {
+        if (std::string(e.what()) != "cancelled") throw;
+        log_message("interrupted");
+        return kExitInterrupted;
+    }
+    progress.done();
+
+    const flow::Schedule& schedule = streams->schedule();
+    int missing = 0;  // slots without a particle of their start frame (left empty by default)
+    for (const flow::LineSchedule& l : schedule.lines) missing += l.substituted;
+    nlohmann::json summary = {{"bank", options.bank},
+                              {"clip", capture_path},
+                              {"clip_frames", clip.count()},
+                              {"output_frames", result.output_frames},
+                              {"mask_pixels", result.mask_pixels},
+                              {"particles_per_line", schedule.particles_per_line},
+                              {"start_every", schedule.start_every},
+                              {"period_frames", schedule.period_frames},
+                              {"lines", schedule.lines.size()},
+                              {"missing_slots", missing}};
+    nlohmann::json methods = nlohmann::json::object();
+    for (const flow::MethodQuality& m : result.methods) methods[m.method] = report_json(m.report);
+    summary["methods"] = methods;
+    if (options.json) {
+        std::cout << summary.dump(2) << '\n';
+        return kExitOk;
+    }
+    std::printf("%s: %d clip frames, %d output frames, %zu lines, K = %d, step %d, period %d frames, %d of %zu slots "
+                "without a particle\n",
+                capture_path.c_str(), clip.count(), result.output_frames, schedule.lines.size(),
+                schedule.particles_per_line, schedule.start_every, schedule.period_frames, missing,
+                schedule.lines.size() * static_cast<std::size_t>(schedule.particles_per_line));
+    std::printf("%-9s %9s %9s %9s | %8s %8s | %9s %9s %8s | %7s\n", "method", "seam max", "share>p99", "spike", "pulsing",
+                "(clip)", "patch d", "(self d)", "HF ratio", "motion");
+    for (const flow::MethodQuality& m : result.methods) {
+        const flow::QualityReport& r = m.report;
+        std::printf("%-9s %9.2f %9.3f %9.2f | %8.3f %8.3f | %9.4f %9.4f %8.2f | %7.2f\n", m.method.c_str(),
+                    r.max_transition_ratio, r.share_above_p99, r.seam_spike, r.pulsing, r.clip_pulsing, r.patch_distance,
+                    r.clip_self_distance, r.hf_power_ratio, r.motion_ratio);
+    }
+    std::printf("clip: spike %.2f (its own largest transition / its median)\n", result.methods.front().report.clip_seam_spike);
+    return kExitOk;
+}
+
+const RegisterCommand registration{Command{
+    "quality", "measure synthesis from a bank against naive looping and the flow-map method",
+    [](CLI::App& app) -> CommandRunner {
+        auto options = std::make_shared<QualityOptions>();
+        app.footer(
+            "Renders frames 1..N of the infinite sequence (as flowvid synth does, median background), the\n"
+            "clip looped, and the flow-map method games use (the clip's first frame advected by the tracked\n"
+            "speeds in two layers half a cycle apart, cross-faded), and measures each against the clip on\n"
+            "luma in the band around the tracked lines (issue 6):\n"
+            "  seam max   largest frame-to-frame difference / the clip's 95th percentile\n"
+            "  share>p99  share of transitions above the clip's 99th percentile\n"
+            "  spike      largest transition / the method's own median transition (a seam stands out\n"
+            "             from the motion around it; the clip's own value is printed below the table)\n"
+            "  pulsing    coefficient of variation of per-frame high-frequency energy (clip: its own)\n"
+            "  patch d    RMS distance of 16x16 output patches to their nearest clip patch (self d: the\n"
+            "             clip's patches to frames >= 5 apart)\n"
+            "  HF ratio   output / clip high-frequency energy (blur lowers it)\n"
+            "  motion     output / clip median frame-to-frame difference (a still frame slid along: low)\n\n"
+            "Examples:\n"
+            "  flowvid track --capture ../shared/captures/video-waterfall-cascade --densify 12 --out w.bank.exr\n"
+            "  flowvid quality --bank w.bank.exr\n"
+            "  flowvid quality --bank fire.bank.exr --capture ../shared/captures/video-fire-pot --json");
+        app.add_option("--bank", options->bank, "particle bank written by flowvid track (.exr)")->required();
+        app.add_option("--capture,--clip", options->capture, "the source clip (default: the one recorded in the bank)");
+        app.add_option("--flowlines", options->flowlines, "the drawing the bank was tracked with (default: the capture's)");
+        app.add_option("--frames", options->frames, "output frames measured (0 = twice the clip)")
+            ->check(CLI::NonNegativeNumber);
+        app.add_option("--particles", options->particles, "K particles per line (0 = as many as fit), as in synth");
+        app.add_option("--first-start", options->first_start, "input start frame of the first particle, as in synth");
+        app.add_option("--seed", options->seed, "chooses the K-particle window, as in synth");
+        app.add_option("--band", options->band_px, "measure within PX of the tracked lines (0 = a quarter patch)");
+        app.add_option("--cycle", options->cycle, "flow-map layer life in frames")->capture_default_str();
+        app.add_option("--threads", options->threads, "frames rendered at once (0 = all cores)");
+        app.add_flag("--json", options->json, "print the measures as JSON");
+        return [options](const GlobalOptions& global) { return run_quality(*options, global); };
+    }}};
+
+}  // namespace
+}  // namespace flowvid::cli
