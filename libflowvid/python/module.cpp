@@ -11,4 +11,6 @@ PYBIND11_MODULE(flowvid, module) {
     module.attr("__version__") = flowvid::version();
     flowvid::python::bind_errors(module);
     flowvid::python::bind_formats(module);
+    flowvid::python::bind_cloth(module);
+    flowvid::python::bind_flow(module);
 }

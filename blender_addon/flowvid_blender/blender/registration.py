@@ -1,14 +1,18 @@
 """Registers the add-on's classes symmetrically."""
 import bpy
 
-classes = ()
+from . import operators, panels, properties
+
+classes = properties.classes + operators.classes + panels.classes
 
 
 def register():
     for cls in classes:
         bpy.utils.register_class(cls)
+    properties.register_properties()
 
 
 def unregister():
+    properties.unregister_properties()
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)

@@ -10,6 +10,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 
 
 class BackendError(RuntimeError):
@@ -33,11 +34,30 @@ class NativeBackend:
     def __init__(self, module):
         self.module = module
 
-    def read_fabric_preset(self, path):
+    def _call(self, function, *arguments, **options):
         try:
-            return self.module.formats.read_fabric_preset(path)
+            return function(*arguments, **options)
         except self.module.Error as error:
             raise BackendError(str(error)) from None
+
+    def read_fabric_preset(self, path):
+        return self._call(self.module.formats.read_fabric_preset, path)
+
+    def write_fabric_preset(self, path, preset):
+        self._call(self.module.formats.write_fabric_preset, path, preset)
+
+    def write_flowline_set(self, path, flowlines):
+        self._call(self.module.flow.write_flowline_set, path, flowlines)
+
+    def read_flowline_set(self, path):
+        return self._call(self.module.flow.read_flowline_set, path)
+
+    def simulate_swatch(self, experiment, parameters, **options):
+        """The library's swatch experiment (flowvid.cloth.simulate_swatch); raises BackendError unless ok."""
+        result = self._call(self.module.cloth.simulate_swatch, experiment, parameters, **options)
+        if result["status"] != "ok":
+            raise BackendError("the library's swatch simulation stopped: %s (%s)" % (result["status"], result["reason"]))
+        return result
 
 
 class CliBackend:
@@ -57,6 +77,31 @@ class CliBackend:
         self.run("validate", "--lenient", path)
         with open(path, encoding="utf-8") as handle:
             return json.load(handle)
+
+    read_flowline_set = read_fabric_preset
+
+    def _write_json(self, path, document):
+        # Written beside the target, validated by the tool, then renamed over it.
+        folder = os.path.dirname(os.path.abspath(path))
+        handle, temporary = tempfile.mkstemp(prefix=".flowvid-", suffix=os.path.basename(path), dir=folder)
+        try:
+            with os.fdopen(handle, "w", encoding="utf-8") as stream:
+                json.dump(document, stream, indent=2)
+            self.run("validate", temporary)
+            os.replace(temporary, path)
+        finally:
+            if os.path.exists(temporary):
+                os.unlink(temporary)
+
+    def write_fabric_preset(self, path, preset):
+        self._write_json(path, preset)
+
+    def write_flowline_set(self, path, flowlines):
+        self._write_json(path, flowlines)
+
+    def simulate_swatch(self, experiment, parameters, **options):
+        raise BackendError("the swatch simulation needs the native flowvid module built for this Python "
+                           "(set FLOWVID_PYTHON_DIR); the flowvid tool cannot run it yet")
 
 
 def find_backend(module_paths=(), executable=None):

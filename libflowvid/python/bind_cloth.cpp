@@ -1,0 +1,154 @@
+#include "bindings.hpp"
+
+#include "flowvid/cloth/material.hpp"
+#include "flowvid/cloth/swatch.hpp"
+#include "flowvid/error.hpp"
+
+#include <pybind11/functional.h>
+#include <pybind11/stl.h>
+
+#include <chrono>
+#include <cmath>
+
+namespace py = pybind11;
+
+namespace flowvid::python {
+
+namespace {
+
+// A preset's `parameters` ({"key": {"value": v}} or {"key": v}) -> material.
+// Every missing or non-numeric key is reported at once, named by JSON pointer.
+cloth::ClothMaterial material_from_dict(const py::dict& parameters) {
+    Diagnostics diagnostics("<parameters>");
+    formats::FabricParameters fabric;
+    for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table()) {
+        const std::string field = std::string("/parameters/") + info.key;
+        if (!parameters.contains(info.key)) {
+            diagnostics.error(field, "missing", "give every parameter of the fabric preset format");
+            continue;
+        }
+        py::object entry = parameters[info.key];
+        if (py::isinstance<py::dict>(entry)) entry = entry.cast<py::dict>()["value"];
+        try {
+            (fabric.*(info.member)).value = entry.cast<double>();
+        } catch (const py::cast_error&) {
+            diagnostics.error(field, "not a number", "write the value as a number in SI units");
+        }
+    }
+    diagnostics.throw_if_errors();
+    cloth::ClothMaterial material = cloth::material_from_fabric(fabric);
+    if (std::vector<Problem> problems = cloth::check_material(material); !problems.empty()) {
+        throw ValidationError(problems);
+    }
+    return material;
+}
+
+Eigen::Vector3d vector3(const py::handle& value) {
+    auto sequence = value.cast<std::vector<double>>();
+    if (sequence.size() != 3) throw Error("<experiment>", "/pins/positions_m", "expected [x, y, z]", "give three numbers in metres");
+    return {sequence[0], sequence[1], sequence[2]};
+}
+
+cloth::SwatchExperiment experiment_from_dict(const py::dict& experiment) {
+    cloth::SwatchExperiment result;
+    result.source = "<experiment>";
+    result.width_m = experiment["width_m"].cast<double>();
+    result.height_m = experiment["height_m"].cast<double>();
+    if (experiment.contains("mass_kg")) result.mass_kg = experiment["mass_kg"].cast<double>();
+    result.fps = experiment["fps"].cast<double>();
+    result.frame_count = experiment["frame_count"].cast<int>();
+    for (const py::handle& pin_handle : experiment["pins"].cast<py::list>()) {
+        py::dict pin = pin_handle.cast<py::dict>();
+        cloth::PinTrajectory trajectory;
+        auto uv = pin["uv"].cast<std::vector<double>>();
+        trajectory.uv = {uv.at(0), uv.at(1)};
+        for (const py::handle& position : pin["positions_m"].cast<py::list>())
+            trajectory.positions_m.push_back(vector3(position));
+        result.pins.push_back(std::move(trajectory));
+    }
+    return result;
+}
+
+cloth::Integrator integrator_from_name(const std::string& name) {
+    for (cloth::Integrator integrator : {cloth::Integrator::rk4_adaptive, cloth::Integrator::dopri54,
+                                         cloth::Integrator::bogacki_shampine32, cloth::Integrator::implicit_euler,
+                                         cloth::Integrator::bdf2})
+        if (name == cloth::integrator_name(integrator)) return integrator;
+    throw Error("<options>", "integrator", "unknown integrator '" + name + "'",
+                "use rk4_adaptive, rk45_adaptive, rk23_adaptive, implicit_euler or bdf2");
+}
+
+py::list frames_to_python(const std::vector<Eigen::MatrixX3d>& frames) {
+    py::list result;
+    for (const Eigen::MatrixX3d& frame : frames) {
+        py::list rows;
+        for (Eigen::Index i = 0; i < frame.rows(); ++i) rows.append(py::make_tuple(frame(i, 0), frame(i, 1), frame(i, 2)));
+        result.append(rows);
+    }
+    return result;
+}
+
+}  // namespace
+
+void bind_cloth(py::module_& module) {
+    py::module_ cloth_module = module.def_submodule("cloth", "The cloth simulator (swatch experiments)");
+    cloth_module.def(
+        "simulate_swatch",
+        [](const py::dict& experiment, const py::dict& parameters, int rows, int cols, const std::string& integrator,
+           int substeps, double initial_bow, const std::vector<double>& gravity, const py::object& progress,
+           const std::vector<std::vector<double>>& initial_positions) {
+            const cloth::SwatchExperiment parsed = experiment_from_dict(experiment);
+            const cloth::ClothMaterial material = material_from_dict(parameters);
+            cloth::SwatchOptions options;
+            options.rows = rows;
+            options.cols = cols;
+            options.simulation.integrator = integrator_from_name(integrator);
+            options.simulation.implicit_substeps_per_frame = substeps;
+            options.initial_bow = initial_bow;
+            if (gravity.size() == 3) options.environment.gravity_m_per_s2 = {gravity[0], gravity[1], gravity[2]};
+            if (!initial_positions.empty()) {
+                if (initial_positions.size() != static_cast<size_t>(rows) * static_cast<size_t>(cols))
+                    throw Error("<options>", "initial_positions", "needs rows * cols points",
+                                "give one [x, y, z] per vertex r * cols + c");
+                options.initial_positions.resize(3 * static_cast<Eigen::Index>(initial_positions.size()));
+                for (size_t i = 0; i < initial_positions.size(); ++i) {
+                    if (initial_positions[i].size() != 3)
+                        throw Error("<options>", "initial_positions", "expected [x, y, z]", "three numbers, metres");
+                    for (int k = 0; k < 3; ++k)
+                        options.initial_positions[3 * static_cast<Eigen::Index>(i) + k] = initial_positions[i][k];
+                }
+            }
+            cloth::ProgressCallback callback;
+            if (!progress.is_none())
+                callback = [&progress](const cloth::SimulationProgress& p) {
+                    return progress(p.frame, p.frame_count).cast<bool>();
+                };
+            const auto start = std::chrono::steady_clock::now();
+            cloth::SwatchRun run = cloth::simulate_swatch(parsed, material, options, callback);
+            const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            py::dict result;
+            result["status"] = cloth::status_name(run.simulation.report.status);
+            result["reason"] = run.simulation.report.reason;
+            result["equilibrium_converged"] = run.equilibrium.converged;
+            result["frames"] = frames_to_python(cloth::sample_frames(run.swatch.mesh, run.simulation.frames, rows, cols));
+            py::list pinned;
+            for (const cloth::PinnedVertex& pin : run.swatch.pins) pinned.append(pin.vertex);
+            result["pinned_vertices"] = pinned;
+            result["wall_time_s"] = wall_s;
+            return result;
+        },
+        py::arg("experiment"), py::arg("parameters"), py::arg("rows") = 12, py::arg("cols") = 12,
+        py::arg("integrator") = "implicit_euler", py::arg("substeps") = 10, py::arg("initial_bow") = 1.0,
+        py::arg("gravity") = std::vector<double>{0.0, 0.0, -9.81}, py::arg("progress") = py::none(),
+        py::arg("initial_positions") = std::vector<std::vector<double>>{},
+        R"(Static equilibrium under the first pin positions, then frame_count frames.
+
+experiment: {"width_m", "height_m", "fps", "frame_count", "mass_kg" (optional, > 0 overrides the
+density), "pins": [{"uv": [u, v], "positions_m": [[x, y, z] per frame]}]}; parameters: a fabric
+preset's "parameters". Returns {"status", "reason", "equilibrium_converged", "frames": per frame
+rows*cols (x, y, z) tuples (vertex r*cols + c, row 0 at v = 0), "pinned_vertices", "wall_time_s"}.
+progress(frame, frame_count) -> bool may cancel (status "cancelled"); initial_positions (rows*cols
+[x, y, z]) starts the equilibrium search there instead of the hanging start.)");
+}
+
+}  // namespace flowvid::python

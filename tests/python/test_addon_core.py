@@ -1,0 +1,115 @@
+"""The add-on's bpy-free core: the preset -> Blender mapping, its inverse, the
+calibration helpers. Plain python3 (no Blender)."""
+import json
+import math
+import os
+import sys
+import unittest
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.join(REPO, "blender_addon"))
+
+from flowvid_blender.core import calibration, mapping  # noqa: E402
+
+EXAMPLE = os.path.join(REPO, "formats", "examples", "cotton.fabric.json")
+
+
+def cotton():
+    with open(EXAMPLE) as handle:
+        return json.load(handle)["parameters"]
+
+
+class MappingTest(unittest.TestCase):
+    def test_gravity_time_unit(self):
+        # Blender's gravity is 0.001 g per (solver time unit)^2: real only when tau^2 = 0.001 s^2.
+        for fps in (24.0, 25.0, 30.0, 60.0):
+            tau = mapping.time_unit_s(fps, mapping.gravity_time_scale(fps))
+            self.assertAlmostEqual(0.001 * 9.81 / tau ** 2, 9.81, places=9)
+
+    def test_stiffness_scales_with_edge_length(self):
+        coarse = mapping.map_preset(cotton(), mapping.MeshStats(100, 0.02, 0.04), 30.0).settings
+        fine = mapping.map_preset(cotton(), mapping.MeshStats(400, 0.01, 0.04), 30.0).settings
+        # Springs: tension = k L (same membrane stiffness); bending = 20 D / L^2; mass per vertex = rho A / N.
+        self.assertAlmostEqual(fine["tension_stiffness"] / coarse["tension_stiffness"], 0.5, places=12)
+        self.assertAlmostEqual(fine["bending_stiffness"] / coarse["bending_stiffness"], 4.0, places=12)
+        self.assertAlmostEqual(fine["mass"] / coarse["mass"], 0.25, places=12)
+        self.assertAlmostEqual(fine["air_damping"] / coarse["air_damping"], 0.25, places=12)
+
+    def test_inverse_round_trip(self):
+        stats = mapping.MeshStats(576, 0.3 / 23, 0.09)
+        settings = mapping.map_preset(cotton(), stats, 30.0).settings
+        back = mapping.parameters_from_settings(settings, stats, areal_density_kg_per_m2=0.15)
+        for key in ("stretch_warp_stiffness_N_per_m", "shear_stiffness_N_per_m", "bend_stiffness_N_m",
+                    "stretch_warp_damping_N_s_per_m", "bend_damping_N_m_s"):
+            self.assertAlmostEqual(back[key] / cotton()[key]["value"], 1.0, places=9, msg=key)
+        # Drag comes back as the linear drag of the reference speed.
+        self.assertAlmostEqual(back["drag_tangential_kg_per_m2_s"], 0.6 * 0.5 / (1 + 0.1 * 0.25), places=9)
+
+    def test_clamps_and_notes(self):
+        parameters = cotton()
+        parameters["stretch_warp_damping_N_s_per_m"]["value"] = 100.0
+        parameters["stretch_weft_stiffness_N_per_m"]["value"] = 400.0
+        result = mapping.map_preset(parameters, mapping.MeshStats(100, 0.02, 0.04), 30.0)
+        self.assertEqual(result.settings["tension_damping"], 50.0)
+        text = " ".join(result.not_represented)
+        self.assertIn("tension_damping", text)
+        self.assertIn("anisotropic stretch", text)
+
+    def test_bad_preset_names_fields(self):
+        parameters = cotton()
+        del parameters["bend_stiffness_N_m"]
+        parameters["drag_normal_kg_per_m3"]["value"] = float("nan")
+        with self.assertRaises(mapping.MappingError) as caught:
+            mapping.map_preset(parameters, mapping.MeshStats(100, 0.02, 0.04), 30.0)
+        self.assertIn("/parameters/bend_stiffness_N_m", str(caught.exception))
+        self.assertIn("/parameters/drag_normal_kg_per_m3", str(caught.exception))
+
+
+class CalibrationHelpersTest(unittest.TestCase):
+    def test_nelder_mead_finds_minimum(self):
+        best, value, evaluations = calibration.nelder_mead(
+            lambda x: (x[0] - 0.3) ** 2 + 2 * (x[1] + 0.2) ** 2 + 1.0, [0.0, 0.0], max_evaluations=80,
+            tolerance=1e-12)
+        self.assertLess(abs(best[0] - 0.3), 1e-3)
+        self.assertLess(abs(best[1] + 0.2), 1e-3)
+        self.assertLessEqual(evaluations, 80)
+
+    def test_rms_mirror(self):
+        a = [[(0.0, 0.1, 0.0), (1.0, -0.2, 0.0)]]
+        b = [[(0.0, -0.1, 0.0), (1.0, 0.2, 0.0)]]
+        self.assertAlmostEqual(calibration.rms_error(a, b), 0.0)
+        self.assertAlmostEqual(calibration.rms_error(a, b, mirror_y=False), math.sqrt((0.04 + 0.16) / 2))
+
+    def test_experiments(self):
+        static, waving = calibration.swatch_experiments(fps=25.0, waving_frames=26)
+        self.assertEqual(len(waving["pins"][1]["positions_m"]), 26)
+        # One period of 1.2 Hz at 25 fps: the right pin is back near its start after 21 frames.
+        self.assertAlmostEqual(waving["pins"][1]["positions_m"][0][0], 0.12)
+        self.assertEqual(static["pins"][0]["positions_m"][0], [-0.12, 0.0, 0.0])
+
+
+class LibraryTest(unittest.TestCase):
+    """The native module's swatch simulation (skipped when it is not built)."""
+
+    def test_simulate_swatch(self):
+        try:
+            import flowvid
+        except ImportError:
+            self.skipTest("native flowvid module not on PYTHONPATH")
+        static, _ = calibration.swatch_experiments(static_frames=1)
+        result = flowvid.cloth.simulate_swatch(static, cotton(), rows=8, cols=8)
+        self.assertEqual(result["status"], "ok")
+        frame = result["frames"][0]
+        self.assertEqual(len(frame), 64)
+        # Pinned corners stay where the experiment puts them; the rest hangs below.
+        self.assertAlmostEqual(frame[7 * 8][0], -0.12, places=9)
+        self.assertGreater(calibration.mean_sag(frame), 0.1)
+        broken = cotton()
+        del broken["shear_stiffness_N_per_m"]
+        with self.assertRaises(flowvid.ValidationError) as caught:
+            flowvid.cloth.simulate_swatch(static, broken, rows=8, cols=8)
+        self.assertIn("/parameters/shear_stiffness_N_per_m", str(caught.exception))
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
