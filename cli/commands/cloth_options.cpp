@@ -31,6 +31,11 @@ void add_cloth_run_options(CLI::App& app, ClothRunOptions& options) {
                    "(fast, damps); bdf2: implicit, damps less; dopri54, bs32: other adaptive Runge-Kutta pairs")
         ->check(CLI::IsMember(names))
         ->capture_default_str();
+    app.add_option("--initial-bow", options.initial_bow,
+                   "start of the equilibrium solve: the slack between the pins bows to the swatch's front (1) or back "
+                   "(-1); hung cloth has several equilibria and this picks one")
+        ->check(CLI::Range(-2.0, 2.0))
+        ->capture_default_str();
     app.add_option("--threads", options.threads, "worker threads (0 = all cores); results do not depend on it")
         ->check(CLI::Range(0, 256))
         ->capture_default_str();
@@ -54,6 +59,7 @@ std::optional<cloth::SwatchOptions> swatch_options(const ClothRunOptions& option
     swatch.cols = grid->second;
     swatch.simulation.integrator = integrators().at(options.integrator);
     swatch.simulation.threads = thread_count(options.threads);
+    swatch.initial_bow = options.initial_bow;
     if (swatch.simulation.integrator == cloth::Integrator::rk4_adaptive ||
         swatch.simulation.integrator == cloth::Integrator::dopri54 ||
         swatch.simulation.integrator == cloth::Integrator::bogacki_shampine32)

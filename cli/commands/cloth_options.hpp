@@ -19,6 +19,7 @@ struct ClothRunOptions {
     std::string resolution = "24x24";  // simulation mesh, rows x cols of vertices
     std::string integrator = "implicit";
     int threads = 0;                   // 0 = all cores
+    double initial_bow = 1.0;          // which way the slack between the pins bows at the start
 };
 
 // Adds --resolution, --integrator and --threads to a command.

@@ -20,7 +20,13 @@ std::vector<FitKind>& predict_kinds() {
 }
 
 RegisterFitKind::RegisterFitKind(FitKind kind) { fit_kinds().push_back(std::move(kind)); }
+std::vector<FitKind>& eval_kinds() {
+    static std::vector<FitKind> kinds;
+    return kinds;
+}
+
 RegisterPredictKind::RegisterPredictKind(FitKind kind) { predict_kinds().push_back(std::move(kind)); }
+RegisterEvalKind::RegisterEvalKind(FitKind kind) { eval_kinds().push_back(std::move(kind)); }
 
 std::optional<std::pair<std::optional<int>, std::optional<int>>> parse_frame_range(const std::string& text) {
     const std::size_t colon = text.find(':');
@@ -88,20 +94,30 @@ CommandRunner setup_kinds(CLI::App& app, std::vector<FitKind>& kinds) {
 }
 
 const RegisterCommand fit_registration{Command{
-    "fit", "fit a simulator to a capture: `flowvid fit rigid ...`", [](CLI::App& app) -> CommandRunner {
+    "fit", "fit a simulator to captures: `flowvid fit cloth|rigid ...`", [](CLI::App& app) -> CommandRunner {
         app.footer("Run 'flowvid fit <kind> --help' for a kind's options.\n\n"
                    "Examples:\n"
+                   "  flowvid fit cloth --capture cloth-cotton-static-1 --capture cloth-cotton-waving-1 --out cotton.fabric.json\n"
                    "  flowvid fit rigid --capture ../shared/captures/rigid-toss-major --out fit.json\n"
                    "  flowvid fit rigid --capture toss/ --out fit.json --frames 1:18 --guess guess.json");
         return setup_kinds(app, fit_kinds());
     }}};
 
 const RegisterCommand predict_registration{Command{
-    "predict", "render what a fit predicts: `flowvid predict rigid ...`", [](CLI::App& app) -> CommandRunner {
+    "predict", "what a fit predicts: `flowvid predict cloth|rigid ...`", [](CLI::App& app) -> CommandRunner {
         app.footer("Run 'flowvid predict <kind> --help' for a kind's options.\n\n"
                    "Examples:\n"
+                   "  flowvid predict cloth --preset cotton.fabric.json --capture wave2/ --grid 24x24 --out pred.exr\n"
                    "  flowvid predict rigid --fit fit.json --capture toss/ --out predicted/ --frames 19:36");
         return setup_kinds(app, predict_kinds());
+    }}};
+
+const RegisterCommand eval_registration{Command{
+    "eval", "how well a fitted model matches a capture: `flowvid eval cloth ...`", [](CLI::App& app) -> CommandRunner {
+        app.footer("Run 'flowvid eval <kind> --help' for a kind's options.\n\n"
+                   "Examples:\n"
+                   "  flowvid eval cloth --preset cotton.fabric.json --capture ../shared/captures/cloth-cotton-waving-2");
+        return setup_kinds(app, eval_kinds());
     }}};
 
 }  // namespace

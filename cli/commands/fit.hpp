@@ -33,11 +33,15 @@ struct FitKind {
 
 std::vector<FitKind>& fit_kinds();
 std::vector<FitKind>& predict_kinds();
+std::vector<FitKind>& eval_kinds();
 struct RegisterFitKind {
     explicit RegisterFitKind(FitKind kind);
 };
 struct RegisterPredictKind {
     explicit RegisterPredictKind(FitKind kind);
+};
+struct RegisterEvalKind {
+    explicit RegisterEvalKind(FitKind kind);
 };
 
 // Reads a capture folder and checks its kind: throws ValidationError naming

@@ -7,6 +7,7 @@
 
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/cloth/swatch_output.hpp"
+#include "flowvid/video/cloth_fit.hpp"
 
 #include <filesystem>
 #include <iostream>
@@ -24,6 +25,9 @@ struct SimulateOptions {
     int frames = 0;
     ClothRunOptions run;
     bool json = false;
+    // Start from the equilibrium branch that matches the footage's first
+    // frame (predict; the fit does the same) instead of --initial-bow alone.
+    bool match_footage = false;
 };
 
 int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
@@ -55,11 +59,18 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
 
     for (const std::string& path : {options.out, options.vat})
         if (!path.empty()) prepare_output_folder(path);
+    const cloth::ClothMaterial material = cloth::material_from_fabric(preset.parameters);
+    if (options.match_footage) {
+        video::ClothFitSettings settings;
+        settings.swatch = *swatch;
+        const Eigen::VectorXd start = video::matching_equilibrium(video::load_trial(capture, {}), material, settings);
+        if (start.size() > 0) swatch->initial_positions = start;
+    }
 
     Progress progress(global, "simulate");
     const InterruptWatch interrupt;
     const cloth::SwatchRun run = cloth::simulate_swatch(
-        experiment, cloth::material_from_fabric(preset.parameters), *swatch, [&](const cloth::SimulationProgress& p) {
+        experiment, material, *swatch, [&](const cloth::SimulationProgress& p) {
             progress.update(static_cast<double>(p.frame) / std::max(1, p.frame_count),
                             "frame " + std::to_string(p.frame) + "/" + std::to_string(p.frame_count));
             return !interrupt.requested();
@@ -125,6 +136,32 @@ const RegisterCommand registration{Command{
         app.add_option("--grid", options->grid, "sample the surface at RxC uv points (default: the simulation mesh)");
         app.add_option("--frames", options->frames, "simulate only the first N frames (default: all the pins cover)")
             ->check(CLI::Range(1, 100000));
+        add_cloth_run_options(app, options->run);
+        app.add_flag("--json", options->json, "print the summary as JSON");
+        return [options](const GlobalOptions& global) { return run_simulate(*options, global); };
+    }}};
+
+// `flowvid predict cloth`: the same run, written in the truth/positions.exr layout.
+const RegisterPredictKind predict_registration{FitKind{
+    "cloth", "vertex positions a fabric preset predicts for a cloth capture (truth/positions.exr layout)",
+    [](CLI::App& app) -> CommandRunner {
+        auto options = std::make_shared<SimulateOptions>();
+        options->grid = "24x24";
+        options->match_footage = true;
+        app.footer(
+            "Drives the preset's fabric with the capture's pins (as `flowvid simulate`, starting from the\n"
+            "equilibrium whose first frame matches the footage, as the fit does) and writes the\n"
+            "positions at a regular uv grid, row 0 at v = 0, as a vertex-animation EXR in the layout of a\n"
+            "capture's truth/positions.exr, so the two compare vertex by vertex. Never reads truth/;\n"
+            "`flowvid eval cloth` does the comparison.\n\n"
+            "Examples:\n"
+            "  flowvid predict cloth --preset cotton.fabric.json --capture ../shared/captures/cloth-cotton-waving-2 \\\n"
+            "                        --grid 24x24 --out pred.exr");
+        app.add_option("--preset", options->preset, "fabric preset (*.fabric.json)")->required();
+        app.add_option("--capture", options->capture, "cloth capture folder")->required();
+        app.add_option("--out", options->vat, "vertex-animation EXR to write")->required();
+        app.add_option("--grid", options->grid, "uv grid RxC")->capture_default_str();
+        app.add_option("--frames", options->frames, "only the first N frames")->check(CLI::Range(1, 100000));
         add_cloth_run_options(app, options->run);
         app.add_flag("--json", options->json, "print the summary as JSON");
         return [options](const GlobalOptions& global) { return run_simulate(*options, global); };

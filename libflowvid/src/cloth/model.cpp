@@ -255,7 +255,8 @@ void ClothModel::evaluate_terms(const Eigen::VectorXd& x, const Eigen::VectorXd&
         terms & (ForceTerm::stretch | ForceTerm::shear | ForceTerm::stretch_damping | ForceTerm::shear_damping);
     const bool bending = terms & (ForceTerm::bending | ForceTerm::bending_damping);
     const bool drag = (terms & ForceTerm::drag) &&
-                      (m_material.drag_normal_kg_per_m3 != 0.0 || m_material.drag_tangential_kg_per_m2_s != 0.0);
+                      (m_material.drag_normal_kg_per_m3 != 0.0 || m_material.drag_tangential_kg_per_m2_s != 0.0 ||
+                       m_material.drag_linear_normal_kg_per_m2_s != 0.0);
     if (lin) {
         lin->has_membrane = membrane;
         lin->has_bending = bending && (m_material.bend_N_m != 0.0 || m_material.bend_damping_N_m_s != 0.0);
@@ -695,6 +696,7 @@ void ClothModel::add_drag(const Eigen::VectorXd& x, const Eigen::VectorXd& v, do
                           size_t begin, size_t end) const {
     const double kN = m_material.drag_normal_kg_per_m3, kf = m_material.drag_degradation_s2_per_m2;
     const double kT = m_material.drag_tangential_kg_per_m2_s;
+    const double kL = m_material.drag_linear_normal_kg_per_m2_s;
     const bool field = static_cast<bool>(m_environment.wind_field);
     const Matrix3d I = Matrix3d::Identity();
     for (size_t ti = begin; ti < end; ++ti) {
@@ -710,8 +712,8 @@ void ClothModel::add_drag(const Eigen::VectorXd& x, const Eigen::VectorXd& v, do
         const Vector3d vrel = (at(v, t.v[0]) + at(v, t.v[1]) + at(v, t.v[2])) / 3.0 - wind;
         const double s = vrel.dot(n);
         const double q = 1.0 + kf * s * s;
-        const double h = kN * s * std::abs(s) / q;          // signed normal drag magnitude
-        const double hp = 2.0 * kN * std::abs(s) / (q * q);  // dh/ds
+        const double h = kN * s * std::abs(s) / q + kL * s;       // signed normal drag magnitude
+        const double hp = 2.0 * kN * std::abs(s) / (q * q) + kL;  // dh/ds
         const Vector3d ftri = -a * ((h - kT * s) * n + kT * vrel);
         for (int k = 0; k < 3; ++k) f.segment<3>(3 * t.v[static_cast<size_t>(k)]) += ftri / 3.0;
         if (lin) {

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <random>
 #include <cmath>
 #include <string>
 
@@ -190,6 +191,14 @@ SwatchRun simulate_swatch(const SwatchExperiment& experiment, const ClothMateria
                                        run.equilibrium.reason;
         run.simulation.frames.push_back(x);
         return run;
+    }
+    if (options.initial_jitter_m > 0.0) {
+        // Gaussian offsets per coordinate, sigma = jitter / sqrt(3) so the RMS vertex offset is the jitter.
+        std::mt19937_64 random(options.jitter_seed);
+        std::normal_distribution<double> normal(0.0, options.initial_jitter_m / std::sqrt(3.0));
+        for (int i = 0; i < model.vertex_count(); ++i)
+            if (!run.swatch.pinned[static_cast<std::size_t>(i)])
+                for (int k = 0; k < 3; ++k) x(3 * i + k) += normal(random);
     }
     run.simulation = simulate(model, run.swatch.pins, x, Eigen::VectorXd::Zero(x.size()), 0.0, experiment.fps,
                               experiment.frame_count, options.simulation, progress);

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 
@@ -18,6 +19,7 @@ namespace {
 
 constexpr const char* kStretchTie = "stretch_stiffness_N_per_m";
 constexpr const char* kStretchDampingTie = "stretch_damping_N_s_per_m";
+constexpr const char* kLinearNormalDrag = "drag_linear_normal_kg_per_m2_s";
 
 const formats::FabricParameterInfo* preset_entry(const std::string& key) {
     for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table())
@@ -26,9 +28,10 @@ const formats::FabricParameterInfo* preset_entry(const std::string& key) {
 }
 
 void require_known(const std::string& key) {
-    if (key != kStretchTie && key != kStretchDampingTie && !preset_entry(key))
+    if (key != kStretchTie && key != kStretchDampingTie && key != kLinearNormalDrag && !preset_entry(key))
         throw std::invalid_argument("unknown cloth parameter '" + key +
-                                    "' (a fabric preset key, stretch_stiffness_N_per_m or stretch_damping_N_s_per_m)");
+                                    "' (a fabric preset key, stretch_stiffness_N_per_m, stretch_damping_N_s_per_m or "
+                                    "drag_linear_normal_kg_per_m2_s)");
 }
 
 }  // namespace
@@ -43,15 +46,22 @@ void set_material_parameter(cloth::ClothMaterial& material, const std::string& k
         material.stretch_warp_damping_N_s_per_m = material.stretch_weft_damping_N_s_per_m = value;
         return;
     }
+    if (key == kLinearNormalDrag) {
+        material.drag_linear_normal_kg_per_m2_s = value;
+        return;
+    }
+    const double linear_normal_drag = material.drag_linear_normal_kg_per_m2_s;  // not a preset key
     formats::FabricParameters parameters = cloth::fabric_from_material(material);
     (parameters.*(preset_entry(key)->member)).value = value;
     material = cloth::material_from_fabric(parameters);
+    material.drag_linear_normal_kg_per_m2_s = linear_normal_drag;
 }
 
 double material_parameter(const cloth::ClothMaterial& material, const std::string& key) {
     require_known(key);
     if (key == kStretchTie) return material.stretch_warp_N_per_m;
     if (key == kStretchDampingTie) return material.stretch_warp_damping_N_s_per_m;
+    if (key == kLinearNormalDrag) return material.drag_linear_normal_kg_per_m2_s;
     const formats::FabricParameters parameters = cloth::fabric_from_material(material);
     return (parameters.*(preset_entry(key)->member)).value;
 }
@@ -110,6 +120,89 @@ ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& 
     return trial;
 }
 
+int usable_frames(const cloth::SwatchRun& run) {
+    // After a failure only the frames before the failing one are good (an
+    // equilibrium that did not converge leaves none).
+    int usable = static_cast<int>(run.simulation.frames.size());
+    if (!run.simulation.report.ok()) usable = std::min(usable, std::max(0, run.simulation.report.frame - 1));
+    return usable;
+}
+
+std::vector<metrics::FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
+                                             const metrics::AngleMapMetricSettings& metric) {
+    const int usable = usable_frames(run);
+    StripeRenderer renderer(trial.camera, trial.projector);
+    AngleMapper mapper(trial.angle_map);
+    StripeImage rendered;
+    AngleMap angles;
+    std::vector<metrics::FrameError> errors;
+    for (const metrics::ReferenceFrame& reference : trial.frames) {
+        const int index = reference.number - 1;
+        metrics::FrameError fe;
+        if (index >= 0 && index < usable) {
+            renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
+                            run.swatch.mesh.triangles, rendered);
+            mapper.compute(rendered.image, rendered.silhouette, angles);
+            fe = metrics::angle_map_frame_error(reference, angles, rendered.silhouette, metric);
+        } else {
+            fe.total = missing_frame_error(reference, metric);
+        }
+        errors.push_back(fe);
+    }
+    return errors;
+}
+
+ClothTrial simulated_trial(const ClothTrial& trial, const cloth::SwatchRun& run, bool edge_distance) {
+    ClothTrial out = trial;
+    StripeRenderer renderer(trial.camera, trial.projector);
+    AngleMapper mapper(trial.angle_map);
+    StripeImage rendered;
+    const int usable = usable_frames(run);
+    for (metrics::ReferenceFrame& reference : out.frames) {
+        const int index = reference.number - 1;
+        if (index < 0 || index >= usable) throw std::invalid_argument("simulated_trial: the run has no frame " + std::to_string(reference.number));
+        renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
+                        run.swatch.mesh.triangles, rendered);
+        mapper.compute(rendered.image, rendered.silhouette, reference.angles);
+        reference.silhouette = rendered.silhouette;
+        reference.edge_distance = {};
+        if (edge_distance) metrics::prepare_reference(reference);
+    }
+    return out;
+}
+
+Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::ClothMaterial& material,
+                                     const ClothFitSettings& settings, double* chosen_bow) {
+    cloth::SwatchExperiment equilibrium_only = trial.experiment;
+    equilibrium_only.frame_count = 1;
+    for (cloth::PinTrajectory& pin : equilibrium_only.pins) pin.positions_m.resize(std::min<std::size_t>(pin.positions_m.size(), 1));
+    ClothTrial first_frame = trial;
+    first_frame.frames.erase(std::remove_if(first_frame.frames.begin(), first_frame.frames.end(),
+                                            [](const metrics::ReferenceFrame& f) { return f.number != 1; }),
+                             first_frame.frames.end());
+    std::vector<double> bows = settings.candidate_bows;
+    if (bows.empty()) bows.push_back(settings.swatch.initial_bow);
+    Eigen::VectorXd best;
+    double best_error = std::numeric_limits<double>::infinity();
+    for (const double bow : bows) {
+        cloth::SwatchOptions options = settings.swatch;
+        options.simulation.threads = 1;
+        options.initial_bow = bow;
+        options.initial_positions.resize(0);
+        const cloth::SwatchRun run = cloth::simulate_swatch(equilibrium_only, material, options);
+        if (!run.equilibrium.converged || run.simulation.frames.empty()) continue;
+        double error = 0.0;
+        for (const metrics::FrameError& e : compare_run(first_frame, run, settings.metric)) error += e.total;
+        if (first_frame.frames.empty() || bows.size() == 1) error = 0.0;  // nothing to choose by
+        if (error < best_error) {
+            best_error = error;
+            best = run.simulation.frames.front();
+            if (chosen_bow) *chosen_bow = bow;
+        }
+    }
+    return best;
+}
+
 double missing_frame_error(const metrics::ReferenceFrame& reference, const metrics::AngleMapMetricSettings& settings) {
     const double quarter_turn = 0.5 * std::numbers::pi;
     const double fold = static_cast<double>(reference.angles.mask_count()) * quarter_turn * quarter_turn;
@@ -134,15 +227,9 @@ ClothFitProblem::ClothFitProblem(std::vector<ClothTrial> trials, std::vector<Fit
     }
     m_space = optim::ParameterSpace(space);
     m_warm_starts.resize(m_trials.size());
-    if (m_settings.warm_start) {
-        for (std::size_t i = 0; i < m_trials.size(); ++i) {
-            cloth::SwatchExperiment equilibrium_only = m_trials[i].experiment;
-            equilibrium_only.frame_count = 1;
-            for (cloth::PinTrajectory& pin : equilibrium_only.pins) pin.positions_m.resize(std::min<std::size_t>(pin.positions_m.size(), 1));
-            const cloth::SwatchRun run = cloth::simulate_swatch(equilibrium_only, m_settings.base, m_settings.swatch);
-            if (run.equilibrium.converged && !run.simulation.frames.empty()) m_warm_starts[i] = run.simulation.frames.front();
-        }
-    }
+    if (m_settings.warm_start)
+        for (std::size_t i = 0; i < m_trials.size(); ++i)
+            m_warm_starts[i] = matching_equilibrium(m_trials[i], m_settings.base, m_settings);
 }
 
 cloth::ClothMaterial ClothFitProblem::material(const Eigen::VectorXd& values) const {
@@ -170,34 +257,13 @@ ClothEvaluation ClothFitProblem::evaluate(const cloth::ClothMaterial& material, 
     ClothEvaluation out;
     out.trials.resize(m_trials.size());
     auto one = [&](std::size_t t, int /*worker*/) {
-        const ClothTrial& trial = m_trials[t];
         TrialEvaluation& e = out.trials[t];
-        e.name = trial.name;
+        e.name = m_trials[t].name;
         const cloth::SwatchRun run = simulate(t, material);
         e.report = run.simulation.report;
-        // After a failure only the frames before the failing one are good
-        // (an equilibrium that did not converge leaves none).
-        int usable = static_cast<int>(run.simulation.frames.size());
-        if (!e.report.ok()) usable = std::min(usable, std::max(0, e.report.frame - 1));
-        e.simulated_frames = usable;
-        StripeRenderer renderer(trial.camera, trial.projector);
-        AngleMapper mapper(trial.angle_map);
-        StripeImage rendered;
-        AngleMap angles;
-        for (const metrics::ReferenceFrame& reference : trial.frames) {
-            const int index = reference.number - 1;
-            metrics::FrameError fe;
-            if (index >= 0 && index < e.simulated_frames) {
-                renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
-                                run.swatch.mesh.triangles, rendered);
-                mapper.compute(rendered.image, rendered.silhouette, angles);
-                fe = metrics::angle_map_frame_error(reference, angles, rendered.silhouette, m_settings.metric);
-            } else {
-                fe.total = missing_frame_error(reference, m_settings.metric);
-            }
-            e.error += reference.weight * fe.total;
-            e.frames.push_back(fe);
-        }
+        e.simulated_frames = usable_frames(run);
+        e.frames = compare_run(m_trials[t], run, m_settings.metric);
+        for (std::size_t k = 0; k < e.frames.size(); ++k) e.error += m_trials[t].frames[k].weight * e.frames[k].total;
     };
     const int workers = std::min<int>(std::max(threads, 1), static_cast<int>(m_trials.size()));
     if (workers <= 1) {
@@ -223,6 +289,9 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
     if (captures.size() != problem.trials().size())
         throw std::invalid_argument("fitted_preset: " + std::to_string(captures.size()) + " captures for " +
                                     std::to_string(problem.trials().size()) + " trials");
+    if (material.drag_linear_normal_kg_per_m2_s != 0.0)
+        throw std::invalid_argument("fitted_preset: a material with linear normal drag (the comparison model) has no "
+                                    "fabric preset form");
     formats::FabricPreset preset;
     preset.name = name;
     preset.description = "fitted by flowvid from " + std::to_string(captures.size()) + " capture(s)";

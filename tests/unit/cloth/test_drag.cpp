@@ -50,23 +50,25 @@ double fall_speed(const fc::ClothMaterial& m, fc::Integrator integrator, double 
 
 TEST(ClothDrag, FallingSwatchReachesTheAnalyticTerminalVelocity) {
     struct Case {
-        double kN, kf;
+        double kN, kf, kL;
     };
-    for (const Case c : {Case{1.0, 0.0}, Case{1.0, 0.1}, Case{0.4, 0.05}}) {
+    // The last case is the linear-drag comparison model: m g = A kL v.
+    for (const Case c : {Case{1.0, 0.0, 0.0}, Case{1.0, 0.1, 0.0}, Case{0.4, 0.05, 0.0}, Case{0.0, 0.0, 2.0}}) {
         fc::ClothMaterial m;
         m.areal_density_kg_per_m2 = 0.15;
         m.drag_normal_kg_per_m3 = c.kN;
         m.drag_degradation_s2_per_m2 = c.kf;
+        m.drag_linear_normal_kg_per_m2_s = c.kL;
         m.drag_tangential_kg_per_m2_s = 0.3;  // no tangential motion: must not matter
         m.stretch_warp_damping_N_s_per_m = 0.02;
         const double rho_g = 0.15 * 9.81;
-        const double expected = std::sqrt(rho_g / (c.kN - rho_g * c.kf));
+        const double expected = c.kL > 0.0 ? rho_g / c.kL : std::sqrt(rho_g / (c.kN - rho_g * c.kf));
         for (fc::Integrator integrator : {fc::Integrator::rk4_adaptive, fc::Integrator::implicit_euler}) {
             // Ten time constants v/g of the approach.
             const double seconds = std::ceil(10.0 * expected / 9.81 * 30.0) / 30.0;
             const double v = fall_speed(m, integrator, seconds);
             const double error = std::abs(v - expected) / expected;
-            std::printf("[ measured ] kN %.2f kf %.2f %s: terminal %.6f m/s, analytic %.6f m/s, error %.2e\n", c.kN, c.kf,
+            std::printf("[ measured ] kN %.2f kf %.2f kL %.1f %s: terminal %.6f m/s, analytic %.6f m/s, error %.2e\n", c.kN, c.kf, c.kL,
                         fc::integrator_name(integrator), v, expected, error);
             EXPECT_LT(error, 0.01);
         }

@@ -30,6 +30,7 @@ fc::ClothMaterial test_material() {
     m.drag_normal_kg_per_m3 = 0.8;
     m.drag_degradation_s2_per_m2 = 0.5;
     m.drag_tangential_kg_per_m2_s = 0.2;
+    m.drag_linear_normal_kg_per_m2_s = 0.3;  // the linear-drag comparison model's term
     return m;
 }
 

@@ -28,6 +28,12 @@ struct ClothMaterial {
     double drag_normal_kg_per_m3 = 0.0;
     double drag_degradation_s2_per_m2 = 0.0;
     double drag_tangential_kg_per_m2_s = 0.0;
+    // Linear normal drag kL, added to the normal term: -a kL vN. Not part of
+    // the thesis's model nor of the fabric preset format (always 0 from a
+    // preset): it is the "linear drag only" comparison model (kN = kf = 0,
+    // like Blender's air damping) that fits and the gap diagnosis measure
+    // the nonlinear drag against.
+    double drag_linear_normal_kg_per_m2_s = 0.0;
 };
 
 // The values of a preset's parameters (uncertainties and ranges are dropped).

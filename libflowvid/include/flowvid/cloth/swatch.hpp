@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -49,6 +50,11 @@ struct SwatchOptions {
     // equilibrium of the previous parameters in a fit: a few Newton steps
     // instead of a fresh fold search. Empty: hanging_start().
     Eigen::VectorXd initial_positions;
+    // Moves every free vertex of the solved equilibrium by a random offset of
+    // this RMS size (seeded): measurement noise on the starting shape, for
+    // predictability ensembles. 0: the equilibrium itself.
+    double initial_jitter_m = 0.0;
+    std::uint64_t jitter_seed = 1;
 };
 
 struct Swatch {

@@ -82,6 +82,11 @@ struct ClothFitSettings {
     metrics::AngleMapMetricSettings metric;
     cloth::ClothMaterial base;                // values of the parameters that are not fitted
     bool warm_start = true;                   // equilibria start from the base material's (computed once)
+    // Hung cloth has several equilibria (the slack between the pins bows to
+    // the front or the back, or folds): the base material's equilibrium is
+    // solved from each of these bows and the one whose first frame matches
+    // the footage best is the warm start. Empty: swatch.initial_bow only.
+    std::vector<double> candidate_bows = {1.0, -1.0, 0.0};
 };
 
 struct TrialEvaluation {
@@ -139,6 +144,26 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
                                     const std::vector<formats::Capture>& captures, const cloth::ClothMaterial& material,
                                     const ClothEvaluation& final, std::uint64_t seed,
                                     const optim::VariabilityReport* variability = nullptr);
+
+// Frames of a run that are good: all, or those before the frame it failed at.
+int usable_frames(const cloth::SwatchRun& run);
+
+// E_k of each of the trial's compared frames (in order) for one simulation
+// run of it; a frame the run did not reach costs missing_frame_error.
+std::vector<metrics::FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
+                                             const metrics::AngleMapMetricSettings& metric);
+
+// The trial with its reference frames replaced by a simulation's own renders
+// (same frames, weights, camera): a run as the "footage" another run is
+// compared with (predictability ensembles, synthetic footage). Throws
+// std::invalid_argument when the run lacks a compared frame.
+ClothTrial simulated_trial(const ClothTrial& trial, const cloth::SwatchRun& run, bool edge_distance);
+
+// The base material's equilibrium of a trial, from the candidate bow whose
+// first frame matches the trial's footage best (the thesis takes the initial
+// state from the footage, too). Empty when no candidate converged.
+Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::ClothMaterial& material,
+                                     const ClothFitSettings& settings, double* chosen_bow = nullptr);
 
 // E_k when a simulation produced no frame k (it blew up): every masked pixel
 // off by pi/2 and the silhouette term as if the swatch were missing.

@@ -1,0 +1,304 @@
+// flowvid eval cloth and flowvid recognize: how well fabric presets match
+// cloth captures -- the metric error per time window next to the
+// predictability floor, the vertex error where a capture has ground truth
+// (read for evaluation only), and the cross-error matrix of thesis fig. 2.21.
+
+#include "commands/cloth_options.hpp"
+#include "commands/fit.hpp"
+#include "output.hpp"
+
+#include "flowvid/cloth/material.hpp"
+#include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/video/cloth_eval.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+namespace flowvid::cli {
+namespace {
+
+struct TrialOptions {
+    int frames = 50;
+    int full_weight_frames = 10;
+    double half_life_frames = 10.0;
+    std::string metric = "xor";
+};
+
+void add_trial_options(CLI::App& app, TrialOptions& options) {
+    app.add_option("--frames", options.frames, "waving frames compared (from the first)")
+        ->check(CLI::Range(2, 100000))
+        ->capture_default_str();
+    app.add_option("--full-weight-frames", options.full_weight_frames, "frames with full weight in the weighted error")
+        ->check(CLI::Range(1, 100000))
+        ->capture_default_str();
+    app.add_option("--half-life-frames", options.half_life_frames, "later frames' weight halves every this many frames")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    app.add_option("--metric", options.metric, "silhouette term: xor or edge")
+        ->check(CLI::IsMember({"xor", "edge"}))
+        ->capture_default_str();
+}
+
+video::TrialLoadSettings load_settings(const TrialOptions& options) {
+    video::TrialLoadSettings load;
+    load.waving_frames = options.frames;
+    load.full_weight_frames = options.full_weight_frames;
+    load.half_life_frames = options.half_life_frames;
+    load.silhouette_term = options.metric == "edge" ? metrics::SilhouetteTerm::edge_distance : metrics::SilhouetteTerm::pixel_xor;
+    return load;
+}
+
+std::optional<video::ClothFitSettings> fit_settings(const ClothRunOptions& run, const TrialOptions& trial) {
+    const std::optional<cloth::SwatchOptions> swatch = swatch_options(run);
+    if (!swatch) return std::nullopt;
+    video::ClothFitSettings settings;
+    settings.swatch = *swatch;
+    settings.metric.silhouette_term = load_settings(trial).silhouette_term;
+    return settings;
+}
+
+nlohmann::json number_or_null(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
+
+// ---------------------------------------------------------------- eval cloth
+
+struct EvalClothOptions {
+    std::string preset;
+    std::vector<std::string> captures;
+    int floor_members = 6;
+    std::string report;
+    ClothRunOptions run;
+    TrialOptions trial;
+    bool json = false;
+};
+
+std::string svg_plot(const std::string& title, const std::string& unit, const std::vector<double>& error,
+                     const std::vector<double>& floor) {
+    const double width = 560, height = 220, left = 56, bottom = 30, top = 24;
+    double high = 0.0;
+    for (double v : error) if (std::isfinite(v)) high = std::max(high, v);
+    for (double v : floor) if (std::isfinite(v)) high = std::max(high, v);
+    if (!(high > 0.0)) high = 1.0;
+    const std::size_t n = std::max<std::size_t>(2, std::max(error.size(), floor.size()));
+    const auto x = [&](std::size_t i) { return left + (width - left - 10) * static_cast<double>(i) / static_cast<double>(n - 1); };
+    const auto y = [&](double v) { return top + (height - top - bottom) * (1.0 - v / high); };
+    const auto polyline = [&](const std::vector<double>& values, const char* colour) {
+        std::ostringstream s;
+        s << "<polyline fill='none' stroke='" << colour << "' stroke-width='2' points='";
+        for (std::size_t i = 0; i < values.size(); ++i)
+            if (std::isfinite(values[i])) s << x(i) << ',' << y(values[i]) << ' ';
+        s << "'/>";
+        return s.str();
+    };
+    std::ostringstream svg;
+    svg << "<svg xmlns='http://www.w3.org/2000/svg' width='" << width << "' height='" << height << "'>"
+        << "<text x='" << left << "' y='16' font-size='13'>" << title << "</text>"
+        << "<line x1='" << left << "' y1='" << y(0) << "' x2='" << width - 10 << "' y2='" << y(0) << "' stroke='#888'/>"
+        << "<line x1='" << left << "' y1='" << top << "' x2='" << left << "' y2='" << y(0) << "' stroke='#888'/>"
+        << "<text x='4' y='" << top + 10 << "' font-size='11'>" << high << "</text>"
+        << "<text x='4' y='" << y(0) << "' font-size='11'>0 " << unit << "</text>"
+        << "<text x='" << width - 80 << "' y='" << height - 8 << "' font-size='11'>frame " << n << "</text>"
+        << polyline(error, "#c0392b") << polyline(floor, "#2e86c1")
+        << "<text x='" << width - 200 << "' y='16' font-size='11' fill='#c0392b'>error</text>"
+        << "<text x='" << width - 150 << "' y='16' font-size='11' fill='#2e86c1'>predictability floor</text></svg>";
+    return svg.str();
+}
+
+int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global) {
+    const formats::FabricPreset preset = read_preset_for_simulation(options.preset);
+    const std::optional<video::ClothFitSettings> settings = fit_settings(options.run, options.trial);
+    if (!settings) return kExitUsage;
+    std::vector<formats::Capture> captures;
+    for (const std::string& path : options.captures)
+        captures.push_back(read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid eval cloth"));
+    if (!options.report.empty()) prepare_output_folder(options.report + "/eval.json");
+    const cloth::ClothMaterial material = cloth::material_from_fabric(preset.parameters);
+    video::FloorSettings floor;
+    floor.members = options.floor_members;
+    const int threads = thread_count(options.run.threads);
+
+    Progress progress(global, "eval cloth");
+    nlohmann::json results = nlohmann::json::array();
+    std::ostringstream html;
+    html << "<!doctype html><html><head><meta charset='utf-8'><title>flowvid eval cloth</title>"
+         << "<style>body{font-family:sans-serif;margin:2em}td,th{padding:2px 10px;text-align:right}</style></head><body>"
+         << "<h1>" << preset.name << "</h1><p>preset " << options.preset << "</p>";
+    for (std::size_t i = 0; i < captures.size(); ++i) {
+        progress.update(static_cast<double>(i) / captures.size(), captures[i].folder);
+        const video::ClothTrial trial = video::load_trial(captures[i], load_settings(options.trial));
+        const std::optional<formats::VertexAnimation> truth = formats::read_capture_truth_positions(captures[i]);
+        const video::TrialAssessment a =
+            video::assess_trial(trial, material, *settings, truth, floor.members > 0 ? &floor : nullptr, threads);
+        const std::vector<video::WindowSummary> windows =
+            video::summarize_windows(a, video::standard_windows(static_cast<int>(trial.frames.size())));
+        nlohmann::json window_json = nlohmann::json::array();
+        html << "<h2>" << captures[i].folder << "</h2><table><tr><th>frames</th><th>metric E_k (mean)</th><th>floor</th>"
+             << "<th>vertex RMS (mm)</th><th>floor (mm)</th></tr>";
+        for (const video::WindowSummary& w : windows) {
+            window_json.push_back({{"frames", video::window_name(w.window)},
+                                   {"metric_mean", number_or_null(w.metric_mean)},
+                                   {"metric_floor", number_or_null(w.metric_floor_mean)},
+                                   {"vertex_rms_mm", number_or_null(1e3 * w.vertex_rms_m)},
+                                   {"vertex_floor_mm", number_or_null(1e3 * w.vertex_floor_m)}});
+            char row[256];
+            std::snprintf(row, sizeof row, "<tr><td>%s</td><td>%.1f</td><td>%.1f</td><td>%.1f</td><td>%.1f</td></tr>",
+                          video::window_name(w.window).c_str(), w.metric_mean, w.metric_floor_mean, 1e3 * w.vertex_rms_m,
+                          1e3 * w.vertex_floor_m);
+            html << row;
+        }
+        html << "</table>";
+        std::vector<double> metric, metric_floor, vertex_mm, vertex_floor_mm;
+        for (const auto& e : a.frames) metric.push_back(e.total);
+        if (a.floor) metric_floor = a.floor->metric;
+        for (double v : a.vertex_rms_m) vertex_mm.push_back(1e3 * v);
+        if (a.floor) for (double v : a.floor->vertex_rms_m) vertex_floor_mm.push_back(1e3 * v);
+        html << svg_plot("metric E_k per frame", "", metric, metric_floor);
+        if (!vertex_mm.empty()) html << svg_plot("vertex RMS vs ground truth per frame (mm)", "mm", vertex_mm, vertex_floor_mm);
+        nlohmann::json entry = {{"capture", captures[i].folder},
+                                {"test", a.is_static ? "static" : "waving"},
+                                {"simulation", a.report.ok() ? std::string("ok") : std::string(cloth::status_name(a.report.status)) +
+                                                                                       " at frame " + std::to_string(a.report.frame)},
+                                {"weighted_error", a.weighted_error},
+                                {"windows", window_json}};
+        if (!a.vertex_rms_m.empty()) {
+            double sum = 0.0;
+            for (double v : a.vertex_rms_m) sum += v * v;
+            entry["vertex_rms_mm_all_frames"] = 1e3 * std::sqrt(sum / a.vertex_rms_m.size());
+        }
+        results.push_back(entry);
+    }
+    progress.done();
+    html << "<p>The predictability floor is the spread of " << floor.members
+         << " runs whose parameters differ by one part in a million and whose starting shape is jittered by 0.5 mm: "
+            "no model can be expected to match a chaotic trial better than that.</p></body></html>";
+    const nlohmann::json summary = {{"preset", options.preset}, {"floor_members", floor.members}, {"captures", results}};
+    if (!options.report.empty()) {
+        formats::write_file_atomically(options.report + "/eval.json", [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
+        formats::write_file_atomically(options.report + "/eval.html", [&](std::ostream& out) { out << html.str(); });
+    }
+    if (options.json) std::cout << summary.dump(2) << '\n';
+    else std::cout << human_readable(summary);
+    return kExitOk;
+}
+
+const RegisterEvalKind eval_registration{FitKind{
+    "cloth", "metric and vertex error of a fabric preset on cloth captures, next to the predictability floor",
+    [](CLI::App& app) -> CommandRunner {
+        auto options = std::make_shared<EvalClothOptions>();
+        app.footer(
+            "Simulates the preset in each capture's experiment and reports, per time window (frames 1-10,\n"
+            "11-25, 26-end), the angle-map metric E_k against the footage and -- when the capture has\n"
+            "ground truth (truth/positions.exr, read here for evaluation only, never by a fit) -- the RMS\n"
+            "vertex error. Next to each: the predictability floor, the spread of an ensemble of runs\n"
+            "whose parameters differ by one part in a million and whose start is jittered by 0.5 mm.\n"
+            "Waving cloth is chaotic, so an error near its floor is as good as any model can do.\n"
+            "--report DIR writes eval.json and eval.html (tables and plots).\n\n"
+            "Examples:\n"
+            "  flowvid eval cloth --preset cotton.fabric.json --capture ../shared/captures/cloth-cotton-waving-2\n"
+            "  flowvid eval cloth --preset silk.fabric.json --capture wave1/ --capture wave2/ --report eval/ --json");
+        app.add_option("--preset", options->preset, "fabric preset (*.fabric.json)")->required();
+        app.add_option("--capture", options->captures, "cloth capture folder (repeat for several)")->required();
+        app.add_option("--floor-members", options->floor_members, "ensemble size of the predictability floor (0 = none)")
+            ->check(CLI::Range(0, 64))
+            ->capture_default_str();
+        app.add_option("--report", options->report, "folder for eval.json and eval.html");
+        add_trial_options(app, options->trial);
+        add_cloth_run_options(app, options->run);
+        app.add_flag("--json", options->json, "print the summary as JSON");
+        return [options](const GlobalOptions& global) { return run_eval_cloth(*options, global); };
+    }}};
+
+// ---------------------------------------------------------------- recognize
+
+struct RecognizeOptions {
+    std::vector<std::string> presets;
+    std::vector<std::string> captures;
+    ClothRunOptions run;
+    TrialOptions trial;
+    bool json = false;
+};
+
+int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) {
+    const std::optional<video::ClothFitSettings> settings = fit_settings(options.run, options.trial);
+    if (!settings) return kExitUsage;
+    std::vector<formats::FabricPreset> presets;
+    for (const std::string& path : options.presets) presets.push_back(read_preset_for_simulation(path));
+    std::vector<video::ClothTrial> trials;
+    std::vector<std::optional<formats::VertexAnimation>> truths;
+    for (const std::string& path : options.captures) {
+        const formats::Capture capture = read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid recognize");
+        trials.push_back(video::load_trial(capture, load_settings(options.trial)));
+        truths.push_back(formats::read_capture_truth_positions(capture));
+    }
+    const std::size_t cells = presets.size() * trials.size();
+    std::vector<video::TrialAssessment> assessments(cells);
+    Progress progress(global, "recognize");
+    const InterruptWatch interrupt;
+    std::atomic<std::size_t> done{0};
+    optim::ThreadPool pool(thread_count(options.run.threads));
+    pool.run(cells, [&](std::size_t cell, int) {
+        if (interrupt.requested()) return;
+        const std::size_t p = cell / trials.size(), c = cell % trials.size();
+        assessments[cell] = video::assess_trial(trials[c], cloth::material_from_fabric(presets[p].parameters), *settings,
+                                                truths[c], nullptr, 1);
+        ++done;
+    });
+    progress.done();
+    if (interrupt.requested()) return kExitInterrupted;
+
+    nlohmann::json rows = nlohmann::json::array();
+    std::ostringstream table;
+    table << "weighted metric error (rows: captures, columns: presets; * = lowest)\n";
+    for (std::size_t c = 0; c < trials.size(); ++c) {
+        std::size_t best = 0;
+        for (std::size_t p = 1; p < presets.size(); ++p)
+            if (assessments[p * trials.size() + c].weighted_error < assessments[best * trials.size() + c].weighted_error) best = p;
+        nlohmann::json errors = nlohmann::json::object(), vertex = nlohmann::json::object();
+        table << std::filesystem::path(trials[c].name).filename().string() << ':';
+        for (std::size_t p = 0; p < presets.size(); ++p) {
+            const video::TrialAssessment& a = assessments[p * trials.size() + c];
+            errors[options.presets[p]] = a.weighted_error;
+            char cell[64];
+            std::snprintf(cell, sizeof cell, "  %12.1f%s", a.weighted_error, p == best ? "*" : " ");
+            table << cell;
+            if (!a.vertex_rms_m.empty()) {
+                double sum = 0.0;
+                for (double v : a.vertex_rms_m) sum += v * v;
+                vertex[options.presets[p]] = 1e3 * std::sqrt(sum / a.vertex_rms_m.size());
+            }
+        }
+        table << '\n';
+        nlohmann::json row = {{"capture", trials[c].name}, {"metric_error", errors}, {"recognized_as", options.presets[best]}};
+        if (!vertex.empty()) row["vertex_rms_mm_vs_truth"] = vertex;
+        rows.push_back(row);
+    }
+    const nlohmann::json summary = {{"presets", options.presets}, {"captures", rows}};
+    if (options.json) std::cout << summary.dump(2) << '\n';
+    else std::cout << table.str();
+    return kExitOk;
+}
+
+const RegisterCommand recognize_registration{Command{
+    "recognize", "which fabric preset matches each cloth capture best (thesis fig. 2.21)", [](CLI::App& app) -> CommandRunner {
+        auto options = std::make_shared<RecognizeOptions>();
+        app.footer(
+            "Simulates every preset in every capture's experiment and prints the matrix of weighted\n"
+            "angle-map errors; each capture is recognised as the preset with the lowest error. With\n"
+            "--json, also the RMS vertex error against captures' ground truth where it exists\n"
+            "(evaluation only).\n\n"
+            "Examples:\n"
+            "  flowvid recognize --preset cotton.fabric.json --preset silk.fabric.json \\\n"
+            "                    --capture ../shared/captures/cloth-cotton-waving-2 --capture ../shared/captures/cloth-silk-waving-2");
+        app.add_option("--preset", options->presets, "fabric presets to compare (repeat)")->required();
+        app.add_option("--capture", options->captures, "cloth capture folders (repeat)")->required();
+        add_trial_options(app, options->trial);
+        add_cloth_run_options(app, options->run);
+        app.add_flag("--json", options->json, "print the matrix as JSON");
+        return [options](const GlobalOptions& global) { return run_recognize(*options, global); };
+    }}};
+
+}  // namespace
+}  // namespace flowvid::cli

@@ -1,0 +1,79 @@
+#pragma once
+// How well a fabric reproduces a cloth trial, and how well it *could*: the
+// metric error per frame (and the vertex error when the capture has ground
+// truth, read only for evaluation), next to the predictability floor --
+// the spread of an ensemble of runs whose parameters differ by a tiny
+// relative amount and whose starting shape is jittered at the level of
+// measurement noise. Waving cloth is chaotic: an error at or below its floor
+// is as good as any model can do in that time window.
+
+#include "flowvid/cloth/swatch_output.hpp"
+#include "flowvid/formats/vertex_animation.hpp"
+#include "flowvid/video/cloth_fit.hpp"
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace flowvid::video {
+
+struct FrameWindow {
+    int first = 1;  // 1-based capture frames, inclusive
+    int last = 10;
+};
+// 1-10, 11-25, 26-end (those that exist for `frame_count` frames).
+std::vector<FrameWindow> standard_windows(int frame_count);
+std::string window_name(const FrameWindow& window);  // "1-10"
+
+struct FloorSettings {
+    int members = 6;
+    double relative_perturbation = 1e-6;  // every parameter times (1 + U(-p, p))
+    double jitter_m = 5e-4;               // RMS offset of the starting shape's free vertices
+    std::uint64_t seed = 1;
+};
+
+struct PredictabilityFloor {
+    int members = 0;
+    // Per simulated frame (index 0 = frame 1): RMS over members of the RMS
+    // vertex distance from the unperturbed run, metres (uv grid of the mesh).
+    std::vector<double> vertex_rms_m;
+    // Per compared frame of the trial: mean over members of E_k, each member
+    // compared with the unperturbed run's own renders.
+    std::vector<double> metric;
+};
+
+// The floor of `material` on `trial`. Members run in parallel on `threads`.
+PredictabilityFloor estimate_floor(const ClothTrial& trial, const cloth::ClothMaterial& material,
+                                   const ClothFitSettings& settings, const FloorSettings& floor, int threads = 1);
+
+struct TrialAssessment {
+    std::string name;
+    bool is_static = false;
+    cloth::SimulationReport report;
+    std::vector<int> frame_numbers;            // compared frames (1-based)
+    std::vector<metrics::FrameError> frames;   // E_k per compared frame
+    std::vector<double> weights;               // w_k used by the fit
+    double weighted_error = 0.0;               // sum w_k E_k
+    cloth::GridFrames predicted;               // the run at the truth's grid (or the mesh's), per simulated frame
+    std::vector<double> vertex_rms_m;          // per simulated frame vs truth; empty without truth
+    std::optional<PredictabilityFloor> floor;
+};
+
+// Simulates `material` in `trial`, compares every compared frame, and (with
+// `truth`) the vertices at the truth's grid. With `floor`, also estimates the
+// predictability floor.
+TrialAssessment assess_trial(const ClothTrial& trial, const cloth::ClothMaterial& material,
+                             const ClothFitSettings& settings, const std::optional<formats::VertexAnimation>& truth,
+                             const FloorSettings* floor, int threads = 1);
+
+struct WindowSummary {
+    FrameWindow window;
+    double metric_mean = 0.0;        // mean E_k over the window's compared frames
+    double metric_floor_mean = 0.0;  // the same for the floor (NaN without a floor)
+    double vertex_rms_m = 0.0;       // pooled over the window (NaN without truth)
+    double vertex_floor_m = 0.0;     // pooled over the window (NaN without a floor)
+};
+std::vector<WindowSummary> summarize_windows(const TrialAssessment& assessment, const std::vector<FrameWindow>& windows);
+
+}  // namespace flowvid::video

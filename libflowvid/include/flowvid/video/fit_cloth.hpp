@@ -1,0 +1,92 @@
+#pragma once
+// The whole cloth fit (thesis 2.4.5-2.5) as one call: load the trials of
+// several captures (static drapes and waving tests, fitted jointly), search
+// the fabric parameters (space-filling Halton design, then simulated
+// annealing from its best point), repeat from +-5 % perturbed starts for the
+// variability analysis, and produce the fabric preset. Used by `flowvid fit
+// cloth`, the fit benchmark and the tests.
+
+#include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/fabric_preset.hpp"
+#include "flowvid/optim/annealing.hpp"
+#include "flowvid/video/cloth_fit.hpp"
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace flowvid::video {
+
+// Which drag law the fit uses: the thesis's nonlinear one (kN, kf, kT), or
+// linear drag only (kL on the normal, kT on the tangential velocity, like
+// Blender's air damping) -- the comparison the thesis made for nonlinear drag.
+enum class DragModel { nonlinear, linear };
+const char* drag_model_name(DragModel model);
+
+// Static-test parameters (6) + kL and kT: the linear-drag comparison fit.
+std::vector<FittedParameter> linear_drag_test_parameters();
+
+// What is fitted for a set of trials: the 6 static-test parameters when all
+// trials are static drapes (drag cannot be seen at rest), else 9 (nonlinear)
+// or 8 (linear drag).
+std::vector<FittedParameter> parameters_for(const std::vector<ClothTrial>& trials, DragModel drag);
+
+// The start guess: `base` with every fitted parameter at the geometric middle
+// of its range (no hand tuning, the same for every fabric).
+cloth::ClothMaterial middle_of_ranges(const cloth::ClothMaterial& base, const std::vector<FittedParameter>& parameters);
+
+struct ClothFitProgress {
+    std::string phase;          // "loading", "design", "annealing", "variability", "final"
+    double fraction = 0.0;      // of the whole fit, in [0, 1]
+    long long evaluations = 0;  // objective evaluations so far (each simulates every trial)
+    double best_error = 0.0;
+    double temperature = 0.0;
+    double eta_s = 0.0;
+};
+
+struct ClothFitRequest {
+    std::string name = "fitted fabric";
+    std::vector<formats::Capture> captures;
+    TrialLoadSettings load;                // frames and their weights (predictability: decaying weights)
+    ClothFitSettings problem;              // mesh, integrator, metric, base material (unfitted values)
+    DragModel drag = DragModel::nonlinear;
+    long long evaluations = 400;           // main search: design + annealing
+    int design_points = 0;                 // 0: min(16 n, evaluations / 4)
+    int variability_runs = 4;              // thesis table 2.2; 0: none (no uncertainty in the preset)
+    long long variability_evaluations = 40;  // per run (a polish from the perturbed start)
+    double variability_perturbation = 0.05;
+    double budget_seconds = 0.0;           // wall-clock cap on the whole fit, 0 = none (then deterministic)
+    std::uint64_t seed = 1;
+    int threads = 0;                       // 0: all cores; results do not depend on it
+    std::function<bool(const ClothFitProgress&)> progress;  // return false to cancel
+    const std::atomic<bool>* cancel = nullptr;
+};
+
+struct ClothFitOutcome {
+    enum class Status { ok, cancelled };
+    Status status = Status::ok;
+    std::vector<FittedParameter> parameters;
+    std::vector<std::string> trial_names;
+    cloth::ClothMaterial start;            // middle_of_ranges
+    cloth::ClothMaterial fitted;
+    ClothEvaluation start_evaluation;
+    ClothEvaluation final_evaluation;
+    optim::MinimizeResult search;
+    std::optional<optim::VariabilityReport> variability;
+    std::optional<formats::FabricPreset> preset;  // nonlinear drag only (linear drag has no preset form)
+    long long evaluations = 0;             // objective evaluations in all phases
+    long long simulations = 0;             // evaluations x trials
+    double seconds = 0.0;
+};
+
+// Throws what load_trial throws for unusable captures, std::invalid_argument
+// for no captures.
+ClothFitOutcome fit_cloth(const ClothFitRequest& request);
+
+// The trials of captures with the request's load settings (in order).
+std::vector<ClothTrial> load_trials(const std::vector<formats::Capture>& captures, const TrialLoadSettings& load);
+
+}  // namespace flowvid::video

@@ -1,0 +1,162 @@
+#include "flowvid/video/cloth_eval.hpp"
+
+#include "flowvid/optim/thread_pool.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+
+namespace flowvid::video {
+
+std::vector<FrameWindow> standard_windows(int frame_count) {
+    std::vector<FrameWindow> windows;
+    for (const FrameWindow w : {FrameWindow{1, 10}, FrameWindow{11, 25}, FrameWindow{26, std::numeric_limits<int>::max()}})
+        if (w.first <= frame_count) windows.push_back({w.first, std::min(w.last, frame_count)});
+    return windows;
+}
+
+std::string window_name(const FrameWindow& window) {
+    return std::to_string(window.first) + "-" + std::to_string(window.last);
+}
+
+namespace {
+
+// The run starts from the equilibrium branch that matches the footage's first
+// frame (as the fit does), unless the caller gave a start.
+cloth::SwatchRun run_trial(const ClothTrial& trial, const cloth::ClothMaterial& material, const ClothFitSettings& settings,
+                           cloth::SwatchOptions options) {
+    options.simulation.threads = 1;
+    if (options.initial_positions.size() == 0 && settings.warm_start) {
+        const Eigen::VectorXd start = matching_equilibrium(trial, material, settings);
+        if (start.size() > 0) options.initial_positions = start;
+    }
+    return cloth::simulate_swatch(trial.experiment, material, options);
+}
+
+cloth::ClothMaterial perturbed(const cloth::ClothMaterial& material, double relative, std::mt19937_64& random) {
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    cloth::ClothMaterial m = material;
+    for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table()) {
+        const double value = material_parameter(m, info.key);
+        set_material_parameter(m, info.key, value * (1.0 + relative * u(random)));
+    }
+    return m;
+}
+
+}  // namespace
+
+PredictabilityFloor estimate_floor(const ClothTrial& trial, const cloth::ClothMaterial& material,
+                                   const ClothFitSettings& settings, const FloorSettings& floor, int threads) {
+    PredictabilityFloor out;
+    out.members = floor.members;
+    const cloth::SwatchRun nominal = run_trial(trial, material, settings, settings.swatch);
+    const int frames = usable_frames(nominal);
+    const cloth::GridFrames nominal_grid = cloth::sample_frames(nominal.swatch.mesh,
+        std::vector<Eigen::VectorXd>(nominal.simulation.frames.begin(), nominal.simulation.frames.begin() + frames),
+        nominal.swatch.rows, nominal.swatch.cols);
+    const ClothTrial as_footage =
+        simulated_trial(trial, nominal, settings.metric.silhouette_term == metrics::SilhouetteTerm::edge_distance);
+
+    // Materials and seeds are drawn up front so members do not depend on the thread count.
+    std::mt19937_64 random(floor.seed);
+    std::vector<cloth::ClothMaterial> materials;
+    std::vector<std::uint64_t> seeds;
+    for (int m = 0; m < floor.members; ++m) {
+        materials.push_back(perturbed(material, floor.relative_perturbation, random));
+        seeds.push_back(random());
+    }
+    std::vector<std::vector<double>> squared(static_cast<std::size_t>(floor.members));
+    std::vector<std::vector<metrics::FrameError>> errors(static_cast<std::size_t>(floor.members));
+    optim::ThreadPool pool(std::max(1, threads));
+    pool.run(static_cast<std::size_t>(floor.members), [&](std::size_t m, int) {
+        cloth::SwatchOptions options = settings.swatch;
+        options.initial_positions = nominal.simulation.frames.front();  // same branch, a few Newton steps
+        options.initial_jitter_m = floor.jitter_m;
+        options.jitter_seed = seeds[m];
+        const cloth::SwatchRun run = run_trial(trial, materials[m], settings, options);
+        const int good = std::min(frames, usable_frames(run));
+        const cloth::GridFrames grid = cloth::sample_frames(run.swatch.mesh,
+            std::vector<Eigen::VectorXd>(run.simulation.frames.begin(), run.simulation.frames.begin() + good),
+            run.swatch.rows, run.swatch.cols);
+        const std::vector<double> rms = cloth::rms_distance_per_frame_m(grid, nominal_grid);
+        squared[m].assign(static_cast<std::size_t>(frames), std::numeric_limits<double>::infinity());
+        for (std::size_t f = 0; f < rms.size(); ++f) squared[m][f] = rms[f] * rms[f];
+        errors[m] = compare_run(as_footage, run, settings.metric);
+    });
+    out.vertex_rms_m.assign(static_cast<std::size_t>(frames), 0.0);
+    for (int f = 0; f < frames; ++f) {
+        double sum = 0.0;
+        for (const auto& s : squared) sum += s[static_cast<std::size_t>(f)];
+        out.vertex_rms_m[static_cast<std::size_t>(f)] = std::sqrt(sum / std::max(1, floor.members));
+    }
+    out.metric.assign(trial.frames.size(), 0.0);
+    for (const auto& e : errors)
+        for (std::size_t k = 0; k < e.size(); ++k) out.metric[k] += e[k].total / std::max(1, floor.members);
+    return out;
+}
+
+TrialAssessment assess_trial(const ClothTrial& trial, const cloth::ClothMaterial& material,
+                             const ClothFitSettings& settings, const std::optional<formats::VertexAnimation>& truth,
+                             const FloorSettings* floor, int threads) {
+    TrialAssessment out;
+    out.name = trial.name;
+    out.is_static = trial.is_static;
+    const cloth::SwatchRun run = run_trial(trial, material, settings, settings.swatch);
+    out.report = run.simulation.report;
+    out.frames = compare_run(trial, run, settings.metric);
+    for (std::size_t k = 0; k < trial.frames.size(); ++k) {
+        out.frame_numbers.push_back(trial.frames[k].number);
+        out.weights.push_back(trial.frames[k].weight);
+        out.weighted_error += trial.frames[k].weight * out.frames[k].total;
+    }
+    const int good = usable_frames(run);
+    const std::vector<Eigen::VectorXd> frames(run.simulation.frames.begin(), run.simulation.frames.begin() + good);
+    int rows = run.swatch.rows, cols = run.swatch.cols;
+    if (truth && truth->grid_rows && truth->grid_cols) {
+        rows = *truth->grid_rows;
+        cols = *truth->grid_cols;
+    }
+    out.predicted = cloth::sample_frames(run.swatch.mesh, frames, rows, cols);
+    if (truth && truth->vertex_count == rows * cols) {
+        const cloth::GridFrames real = cloth::grid_frames_of(*truth);
+        out.vertex_rms_m = cloth::rms_distance_per_frame_m(out.predicted, real);
+    }
+    if (floor) out.floor = estimate_floor(trial, material, settings, *floor, threads);
+    return out;
+}
+
+std::vector<WindowSummary> summarize_windows(const TrialAssessment& a, const std::vector<FrameWindow>& windows) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    std::vector<WindowSummary> out;
+    for (const FrameWindow& w : windows) {
+        WindowSummary s{w, 0.0, a.floor ? 0.0 : nan, a.vertex_rms_m.empty() ? nan : 0.0, a.floor ? 0.0 : nan};
+        int metric_count = 0;
+        for (std::size_t k = 0; k < a.frame_numbers.size(); ++k) {
+            if (a.frame_numbers[k] < w.first || a.frame_numbers[k] > w.last) continue;
+            s.metric_mean += a.frames[k].total;
+            if (a.floor) s.metric_floor_mean += a.floor->metric[k];
+            ++metric_count;
+        }
+        if (metric_count) {
+            s.metric_mean /= metric_count;
+            if (a.floor) s.metric_floor_mean /= metric_count;
+        } else {
+            s.metric_mean = s.metric_floor_mean = nan;
+        }
+        // Pooled RMS: every frame has the same vertex count, so the mean of squares.
+        const auto pooled = [&](const std::vector<double>& per_frame) {
+            double sum = 0.0;
+            int n = 0;
+            for (int f = w.first; f <= w.last && f <= static_cast<int>(per_frame.size()); ++f, ++n)
+                sum += per_frame[static_cast<std::size_t>(f - 1)] * per_frame[static_cast<std::size_t>(f - 1)];
+            return n ? std::sqrt(sum / n) : nan;
+        };
+        if (!a.vertex_rms_m.empty()) s.vertex_rms_m = pooled(a.vertex_rms_m);
+        if (a.floor) s.vertex_floor_m = pooled(a.floor->vertex_rms_m);
+        out.push_back(s);
+    }
+    return out;
+}
+
+}  // namespace flowvid::video
