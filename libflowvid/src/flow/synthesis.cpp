@@ -909,10 +909,6 @@ struct RenderBuffers {
         float cx = 0.0f, cy = 0.0f;
         int row_lo = 0, row_hi = 0;       // image rows touched, [lo, hi)
     };
-    struct Cell {  // the groups of one pixel: ids by first arrival (-1 = none), weights (two, the rest)
-        int id[2];
-        float weight[3];
-    };
 
     std::vector<ParticleStreams::Visible> visible;
     std::vector<float> feather;
@@ -923,7 +919,10 @@ struct RenderBuffers {
     int width = 0;
     int ring_rows = 0;
     std::vector<float> rgbw;      // ring: 4 per pixel
-    std::vector<Cell> cells;      // ring, with groups
+    // Ring, with groups: per pixel the ids of the first two groups to arrive
+    // (-1 = none yet) and the weights of those two and of the rest.
+    std::vector<int> group0, group1;
+    std::vector<float> weight0, weight1, weight_rest;
     std::vector<float> row_sums;  // ring, with groups: horizontal box sums of rgbw
 
     std::size_t ring_pixel(int y, int x) const {
@@ -932,18 +931,24 @@ struct RenderBuffers {
 };
 
 using Splat = RenderBuffers::Splat;
-using Cell = RenderBuffers::Cell;
 
-inline void add_to_cell(Cell& cell, float wa, int group) {
-    if (cell.id[0] == group) cell.weight[0] += wa;
-    else if (cell.id[0] < 0) {
-        cell.id[0] = group;
-        cell.weight[0] = wa;
-    } else if (cell.id[1] == group) cell.weight[1] += wa;
-    else if (cell.id[1] < 0) {
-        cell.id[1] = group;
-        cell.weight[1] = wa;
-    } else cell.weight[2] += wa;
+// Accumulator::add_group on the ring's pixels [pixel, pixel + n), branch-free
+// (weights start at 0, so taking a free slot and adding to it are one case).
+inline void add_to_groups(RenderBuffers& s, std::size_t pixel, int n, const float* wa, int group) {
+    int* g0 = s.group0.data() + pixel;
+    int* g1 = s.group1.data() + pixel;
+    float* w0 = s.weight0.data() + pixel;
+    float* w1 = s.weight1.data() + pixel;
+    float* w2 = s.weight_rest.data() + pixel;
+    for (int j = 0; j < n; ++j) {
+        const bool first = g0[j] == group || g0[j] < 0;
+        const bool second = !first && (g1[j] == group || g1[j] < 0);
+        g0[j] = first ? group : g0[j];
+        g1[j] = second ? group : g1[j];
+        w0[j] += first ? wa[j] : 0.0f;
+        w1[j] += second ? wa[j] : 0.0f;
+        w2[j] += first || second ? 0.0f : wa[j];
+    }
 }
 
 // Rows [lo, hi) of an identity patch (as splat_patch).
@@ -971,7 +976,7 @@ void splat_patch_rows(RenderBuffers& s, bool groups, const Splat& p, int patch, 
             }
             continue;
         }
-        Cell* cells = s.cells.data() + row;
+        float wa[64];  // alpha weight per column, in chunks
         for (int j = 0; j < n; ++j) {
             const float w = fy * feather[j_lo + j];
             const float* t = src + static_cast<std::size_t>(j) * 4;
@@ -980,7 +985,11 @@ void splat_patch_rows(RenderBuffers& s, bool groups, const Splat& p, int patch, 
             d[1] += w * t[1];
             d[2] += w * t[2];
             d[3] += w * t[3];
-            (void)cells;
+        }
+        for (int j0 = 0; j0 < n; j0 += 64) {
+            const int m = std::min(64, n - j0);
+            for (int j = 0; j < m; ++j) wa[j] = fy * feather[j_lo + j0 + j] * src[static_cast<std::size_t>(j0 + j) * 4 + 3];
+            add_to_groups(s, row + static_cast<std::size_t>(j0), m, wa, p.input_frame);
         }
     }
 }
@@ -1012,7 +1021,10 @@ void splat_warped_rows(RenderBuffers& s, bool groups, const Splat& p, int patch,
             d[1] += w * c[1];
             d[2] += w * c[2];
             d[3] += w * alpha;
-            if (groups) add_to_cell(s.cells[pixel], w * alpha, p.input_frame);
+            if (groups) {
+                const float wa = w * alpha;
+                add_to_groups(s, pixel, 1, &wa, p.input_frame);
+            }
         }
     }
 }
@@ -1129,7 +1141,8 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
     const std::size_t ring_pixels = static_cast<std::size_t>(s.ring_rows) * w;
     s.rgbw.resize(ring_pixels * 4);
     if (groups) {
-        s.cells.resize(ring_pixels);
+        for (auto* v : {&s.group0, &s.group1}) v->resize(ring_pixels);
+        for (auto* v : {&s.weight0, &s.weight1, &s.weight_rest}) v->resize(ring_pixels);
         s.row_sums.resize(ring_pixels * 4);
     }
 
@@ -1140,7 +1153,11 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
         for (int y = lo; y < hi; ++y) {
             const std::size_t row = s.ring_pixel(y, 0);
             std::fill_n(s.rgbw.data() + row * 4, static_cast<std::size_t>(w) * 4, 0.0f);
-            if (groups) std::fill_n(s.cells.data() + row, static_cast<std::size_t>(w), Cell{{-1, -1}, {0.0f, 0.0f, 0.0f}});
+            if (groups) {
+                for (auto* v : {&s.group0, &s.group1}) std::fill_n(v->data() + row, static_cast<std::size_t>(w), -1);
+                for (auto* v : {&s.weight0, &s.weight1, &s.weight_rest})
+                    std::fill_n(v->data() + row, static_cast<std::size_t>(w), 0.0f);
+            }
         }
         for (int i = s.step_start[static_cast<std::size_t>(k)]; i < s.step_start[static_cast<std::size_t>(k) + 1]; ++i) {
             const Splat& p = s.splats[static_cast<std::size_t>(s.step_splats[static_cast<std::size_t>(i)])];
@@ -1156,7 +1173,10 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
         // Finish band k (as the whole-frame pass: see render_reference).
         for (int y = k * kBandRows; y < std::min(h, (k + 1) * kBandRows); ++y) {
             const float* arow = s.rgbw.data() + s.ring_pixel(y, 0) * 4;
-            const Cell* crow = groups ? s.cells.data() + s.ring_pixel(y, 0) : nullptr;
+            const std::size_t ring_row = s.ring_pixel(y, 0);
+            const float* w0 = groups ? s.weight0.data() + ring_row : nullptr;
+            const float* w1 = groups ? s.weight1.data() + ring_row : nullptr;
+            const float* w2 = groups ? s.weight_rest.data() + ring_row : nullptr;
             float* orow = out.rgb.data() + static_cast<std::size_t>(y) * w * 3;
             float* cov = coverage ? coverage->data() + static_cast<std::size_t>(y) * w : nullptr;
             // The row sums the local mean adds, in row order.
@@ -1171,8 +1191,8 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
                 const float c = static_cast<float>(smoothstep01(a[3] / full));
                 const float inv = 1.0f / a[3];
                 float tex[3] = {a[0] * inv, a[1] * inv, a[2] * inv};
-                if (crow && crow[x].weight[1] > 0.0f) {
-                    const float* gw = crow[x].weight;
+                if (groups && w1[x] > 0.0f) {
+                    const float gw[3] = {w0[x], w1[x], w2[x]};
                     const float squares = gw[0] * gw[0] + gw[1] * gw[1] + gw[2] * gw[2];
                     const float total = gw[0] + gw[1] + gw[2];
                     const float gain = squares > 0.0f ? std::clamp(total / std::sqrt(squares), 1.0f, kMaxDetailGain) : 1.0f;
