@@ -26,6 +26,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <string>
 
 namespace fv = flowvid::video;
@@ -52,12 +53,12 @@ fv::ClothFitRequest request_for(const std::string& name, const std::vector<std::
     request.problem.swatch.simulation.integrator = flowvid::cloth::Integrator::implicit_euler;
     request.seed = 1;
     request.threads = 2;
-    long long last_print = -1000;
-    request.progress = [&last_print, name](const fv::ClothFitProgress& p) {
-        if (p.evaluations - last_print >= 50 || p.phase != "annealing") {
+    auto last_print = std::make_shared<long long>(-1000);
+    request.progress = [last_print, name](const fv::ClothFitProgress& p) {
+        if (p.evaluations - *last_print >= 50 || p.phase != "annealing") {
             std::fprintf(stderr, "  [%s] %s %.0f%%, %lld evaluations, best %.1f\n", name.c_str(), p.phase.c_str(),
                          100 * p.fraction, p.evaluations, p.best_error);
-            last_print = p.evaluations;
+            *last_print = p.evaluations;
         }
         return true;
     };

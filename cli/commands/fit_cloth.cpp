@@ -25,6 +25,7 @@ struct FitClothOptions {
     std::uint64_t seed = 1;
     long long evaluations = 400;
     int variability_runs = 4;
+    long long variability_evaluations = 40;
     double budget_seconds = 0.0;
     int frames = 50;
     int full_weight_frames = 10;
@@ -67,6 +68,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     request.drag = options.drag == "linear" ? video::DragModel::linear : video::DragModel::nonlinear;
     request.evaluations = options.evaluations;
     request.variability_runs = options.variability_runs;
+    request.variability_evaluations = options.variability_evaluations;
     request.budget_seconds = options.budget_seconds;
     request.seed = options.seed;
     request.threads = thread_count(options.run.threads);
@@ -145,6 +147,9 @@ const RegisterFitKind registration{FitKind{
         app.add_option("--variability-runs", options->variability_runs,
                        "restarts from +-5 % perturbed starts (the preset's uncertainty); 0 = none")
             ->check(CLI::Range(0, 64))
+            ->capture_default_str();
+        app.add_option("--variability-evaluations", options->variability_evaluations, "evaluations per variability restart")
+            ->check(CLI::Range(4LL, 1000000LL))
             ->capture_default_str();
         app.add_option("--budget-seconds", options->budget_seconds, "stop the search after this wall time (0 = no limit)")
             ->check(CLI::NonNegativeNumber)

@@ -89,17 +89,15 @@ DesignResult evaluate_design(Evaluator& evaluator, DesignKind kind, std::vector<
     result.kind = kind;
     result.points = std::move(points);
     result.values.assign(result.points.size(), std::numeric_limits<double>::infinity());
-    const std::size_t batch = static_cast<std::size_t>(4 * evaluator.threads());
-    for (std::size_t begin = 0; begin < result.points.size(); begin += batch) {
-        if (cancel && cancel->load()) {
-            result.cancelled = true;
-            break;
-        }
-        const std::size_t end = std::min(result.points.size(), begin + batch);
-        const std::vector<Eigen::VectorXd> chunk(result.points.begin() + static_cast<std::ptrdiff_t>(begin),
-                                                 result.points.begin() + static_cast<std::ptrdiff_t>(end));
-        const std::vector<double> values = evaluator.evaluate(chunk);
-        std::copy(values.begin(), values.end(), result.values.begin() + static_cast<std::ptrdiff_t>(begin));
+    // One batch for the whole design: evaluation costs vary a lot (a stiff
+    // fabric's simulation takes several times a soft one's), and smaller
+    // batches leave threads idle at every batch end. A cancel skips the rest.
+    if (cancel && cancel->load()) {
+        result.cancelled = true;
+    } else {
+        const std::vector<double> values = evaluator.evaluate(result.points, cancel);
+        std::copy(values.begin(), values.end(), result.values.begin());
+        result.cancelled = cancel && cancel->load();
     }
     for (std::size_t i = 0; i < result.values.size(); ++i)
         if (result.values[i] < result.values[result.best]) result.best = i;

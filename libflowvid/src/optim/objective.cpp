@@ -20,14 +20,17 @@ double Evaluator::evaluate(const Eigen::VectorXd& unit) {
     return call(unit, {0, threads()});
 }
 
-std::vector<double> Evaluator::evaluate(const std::vector<Eigen::VectorXd>& unit_points) {
-    std::vector<double> values(unit_points.size());
+std::vector<double> Evaluator::evaluate(const std::vector<Eigen::VectorXd>& unit_points, const std::atomic<bool>* cancel) {
+    std::vector<double> values(unit_points.size(), std::numeric_limits<double>::infinity());
+    const auto skipped = [cancel] { return cancel && cancel->load(); };
     if (m_inline_worker >= 0 || !m_pool) {
         const EvaluationContext context{m_inline_worker >= 0 ? m_inline_worker : 0, 1};
-        for (std::size_t i = 0; i < unit_points.size(); ++i) values[i] = call(unit_points[i], context);
+        for (std::size_t i = 0; i < unit_points.size() && !skipped(); ++i) values[i] = call(unit_points[i], context);
         return values;
     }
-    m_pool->run(unit_points.size(), [&](std::size_t i, int worker) { values[i] = call(unit_points[i], {worker, 1}); });
+    m_pool->run(unit_points.size(), [&](std::size_t i, int worker) {
+        if (!skipped()) values[i] = call(unit_points[i], {worker, 1});
+    });
     return values;
 }
 

@@ -246,9 +246,9 @@ Eigen::VectorXd ClothFitProblem::values_of(const cloth::ClothMaterial& material)
     return values;
 }
 
-cloth::SwatchRun ClothFitProblem::simulate(std::size_t trial, const cloth::ClothMaterial& material) const {
+cloth::SwatchRun ClothFitProblem::simulate(std::size_t trial, const cloth::ClothMaterial& material, int threads) const {
     cloth::SwatchOptions options = m_settings.swatch;
-    options.simulation.threads = 1;
+    options.simulation.threads = std::max(1, threads);
     if (m_warm_starts[trial].size() > 0) options.initial_positions = m_warm_starts[trial];
     return cloth::simulate_swatch(m_trials[trial].experiment, material, options);
 }
@@ -256,21 +256,28 @@ cloth::SwatchRun ClothFitProblem::simulate(std::size_t trial, const cloth::Cloth
 ClothEvaluation ClothFitProblem::evaluate(const cloth::ClothMaterial& material, int threads) const {
     ClothEvaluation out;
     out.trials.resize(m_trials.size());
-    auto one = [&](std::size_t t, int /*worker*/) {
+    auto one = [&](std::size_t t, int simulation_threads) {
         TrialEvaluation& e = out.trials[t];
         e.name = m_trials[t].name;
-        const cloth::SwatchRun run = simulate(t, material);
+        const cloth::SwatchRun run = simulate(t, material, simulation_threads);
         e.report = run.simulation.report;
         e.simulated_frames = usable_frames(run);
         e.frames = compare_run(m_trials[t], run, m_settings.metric);
         for (std::size_t k = 0; k < e.frames.size(); ++k) e.error += m_trials[t].frames[k].weight * e.frames[k].total;
     };
-    const int workers = std::min<int>(std::max(threads, 1), static_cast<int>(m_trials.size()));
+    // Static drapes cost a fraction of a waving test: run side by side they
+    // leave a thread idle, so then the trials run one after the other, each
+    // simulation with every thread (results do not depend on the count).
+    const bool mixed = std::any_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return t.is_static; }) &&
+                       std::any_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return !t.is_static; });
+    const int available = std::max(threads, 1);
+    const int workers = mixed ? 1 : std::min<int>(available, static_cast<int>(m_trials.size()));
+    const int per_simulation = std::max(1, available / workers);
     if (workers <= 1) {
-        for (std::size_t t = 0; t < m_trials.size(); ++t) one(t, 0);
+        for (std::size_t t = 0; t < m_trials.size(); ++t) one(t, per_simulation);
     } else {
         optim::ThreadPool pool(workers);
-        pool.run(m_trials.size(), one);
+        pool.run(m_trials.size(), [&](std::size_t t, int) { one(t, per_simulation); });
     }
     for (const TrialEvaluation& e : out.trials) out.total += e.error;  // in trial order: thread-independent
     return out;

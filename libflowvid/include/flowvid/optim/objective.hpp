@@ -44,7 +44,9 @@ public:
     // One unit-cube point (on the calling thread, with all spare threads).
     double evaluate(const Eigen::VectorXd& unit);
     // A batch in parallel; values[i] belongs to points[i] whatever the thread count.
-    std::vector<double> evaluate(const std::vector<Eigen::VectorXd>& unit_points);
+    // Points not started when `cancel` is set are skipped (value +inf).
+    std::vector<double> evaluate(const std::vector<Eigen::VectorXd>& unit_points,
+                                 const std::atomic<bool>* cancel = nullptr);
 
     // Points actually evaluated (points outside the cube are not counted).
     long long evaluations() const { return m_evaluations.load(); }

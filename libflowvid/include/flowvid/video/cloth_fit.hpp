@@ -119,7 +119,7 @@ public:
     // `threads` threads (results do not depend on it).
     ClothEvaluation evaluate(const cloth::ClothMaterial& material, int threads = 1) const;
     // The simulated vertex positions of one trial (3*#V per frame, frame 1 first) and its mesh.
-    cloth::SwatchRun simulate(std::size_t trial, const cloth::ClothMaterial& material) const;
+    cloth::SwatchRun simulate(std::size_t trial, const cloth::ClothMaterial& material, int threads = 1) const;
 
     // E(values) for the optimizers; uses the spare threads it is given for
     // trials. Keeps a pointer to this problem, which must outlive it.

@@ -1,0 +1,126 @@
+// flowvid fit cloth / predict cloth / eval cloth / recognize as a user runs
+// them, kept small (static drape, coarse mesh, few evaluations) so that the
+// numbers are checked against independent references rather than waited for.
+
+#include "cli_runner.hpp"
+#include "test_support.hpp"
+
+#include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/fabric_preset.hpp"
+#include "flowvid/formats/vertex_animation.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <unistd.h>
+
+using namespace flowvid::testing;
+
+namespace {
+
+std::string own_dir(const std::string& name) { return scratch_dir(name + "_" + std::to_string(::getpid())); }
+const std::string kStatic = "captures/cloth-cotton-static-1";
+
+TEST(CliClothFit, StaticFitIsDeterministicImprovesOnItsStartAndRecordsItsSources) {
+    const std::string dir = own_dir("cli_fit_cloth");
+    const auto fit = [&](const std::string& out, const std::string& threads) {
+        return run_flowvid({"fit", "cloth", "--capture", shared_path(kStatic), "--out", out, "--evaluations", "10",
+                            "--variability-runs", "2", "--variability-evaluations", "6", "--resolution", "8x8", "--seed", "3", "--threads", threads,
+                            "--json"});
+    };
+    const CliResult one = fit(dir + "/one.fabric.json", "1");
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    const CliResult two = fit(dir + "/two.fabric.json", "2");
+    ASSERT_EQ(two.exit_code, 0) << two.err;
+    const nlohmann::json summary = nlohmann::json::parse(one.out);
+    EXPECT_LT(summary["final_error"].get<double>(), summary["start_error"].get<double>());
+    EXPECT_EQ(summary["parameters"].size(), 6u);  // static drape: stiffness and damping only
+
+    const flowvid::formats::FabricPreset a = flowvid::formats::read_fabric_preset(dir + "/one.fabric.json");
+    const flowvid::formats::FabricPreset b = flowvid::formats::read_fabric_preset(dir + "/two.fabric.json");
+    EXPECT_TRUE(a.parameters == b.parameters) << "the thread count changed the fit";
+    ASSERT_EQ(a.provenance.captures.size(), 1u);
+    const flowvid::formats::Capture capture = flowvid::formats::read_capture(shared_path(kStatic));
+    EXPECT_EQ(a.provenance.captures[0].capture_json_sha256, capture.capture_json_sha256);
+    EXPECT_EQ(a.provenance.captures[0].test, "static");
+    EXPECT_TRUE(a.parameters.bend_stiffness_N_m.uncertainty.has_value());
+    EXPECT_EQ(run_flowvid({"validate", dir + "/one.fabric.json"}).exit_code, 0);
+}
+
+TEST(CliClothFit, EvalAgreesWithAnIndependentComparisonOfPredictAndTruth) {
+    const std::string dir = own_dir("cli_eval_cloth");
+    const std::string preset = source_path("formats/examples/cotton.fabric.json");
+    const CliResult predicted = run_flowvid({"predict", "cloth", "--preset", preset, "--capture", shared_path(kStatic),
+                                             "--out", dir + "/pred.exr", "--grid", "24x24", "--resolution", "12x12",
+                                             "--frames", "1"});
+    ASSERT_EQ(predicted.exit_code, 0) << predicted.err;
+    const CliResult eval = run_flowvid({"eval", "cloth", "--preset", preset, "--capture", shared_path(kStatic),
+                                        "--resolution", "12x12", "--floor-members", "2", "--report", dir + "/report",
+                                        "--json"});
+    ASSERT_EQ(eval.exit_code, 0) << eval.err;
+    const nlohmann::json summary = nlohmann::json::parse(eval.out);
+    const nlohmann::json& window = summary["captures"][0]["windows"][0];
+    EXPECT_EQ(window["frames"], "1-1");
+    ASSERT_TRUE(window["vertex_rms_mm"].is_number());
+    ASSERT_TRUE(window["vertex_floor_mm"].is_number());
+    EXPECT_GT(window["vertex_floor_mm"].get<double>(), 0.0);
+
+    // Reference: RMS of predict's file against the capture's truth, computed here.
+    const flowvid::formats::VertexAnimation p = flowvid::formats::read_vertex_animation(dir + "/pred.exr");
+    const flowvid::formats::VertexAnimation t =
+        *flowvid::formats::read_capture_truth_positions(flowvid::formats::read_capture(shared_path(kStatic)));
+    ASSERT_EQ(p.vertex_count, t.vertex_count);
+    double sum = 0.0;
+    for (int v = 0; v < p.vertex_count; ++v) sum += (p.position(0, v) - t.position(0, v)).cast<double>().squaredNorm();
+    const double rms_mm = 1e3 * std::sqrt(sum / p.vertex_count);
+    std::printf("[measured] eval %.4f mm, independent %.4f mm\n", window["vertex_rms_mm"].get<double>(), rms_mm);
+    EXPECT_NEAR(window["vertex_rms_mm"].get<double>(), rms_mm, 1e-3);  // float32 files
+    EXPECT_TRUE(std::filesystem::exists(dir + "/report/eval.html"));
+    EXPECT_NE(read_text(dir + "/report/eval.html").find("<svg"), std::string::npos);
+}
+
+TEST(CliClothFit, RecognizeRanksPresetsByTheErrorsEvalReports) {
+    const std::string dir = own_dir("cli_recognize");
+    const std::string cotton = source_path("formats/examples/cotton.fabric.json");
+    // A second fabric: the same with 300x the bending stiffness (a stiff card).
+    std::string text = read_text(cotton);
+    const std::size_t at = text.find("\"bend_stiffness_N_m\"");
+    const std::size_t value = text.find("\"value\":", at);
+    const std::size_t end = text.find(',', value);
+    const double bend = std::stod(text.substr(value + 8, end - value - 8));
+    text.replace(value, end - value, "\"value\": " + std::to_string(300 * bend));
+    const std::size_t range = text.find("\"range\": [", at);
+    const std::size_t range_end = text.find(']', range);
+    text.replace(range, range_end + 1 - range, "\"range\": [0.0, 1.0]");
+    write_text(dir + "/card.fabric.json", text);
+
+    const CliResult r = run_flowvid({"recognize", "--preset", cotton, "--preset", dir + "/card.fabric.json", "--capture",
+                                     shared_path(kStatic), "--resolution", "12x12", "--json"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const nlohmann::json matrix = nlohmann::json::parse(r.out);
+    const nlohmann::json& row = matrix["captures"][0];
+    const double e_cotton = row["metric_error"][cotton].get<double>();
+    const double e_card = row["metric_error"][dir + "/card.fabric.json"].get<double>();
+    EXPECT_EQ(row["recognized_as"], e_cotton < e_card ? cotton : dir + "/card.fabric.json");
+    for (const auto& [preset, expected] : {std::pair{cotton, e_cotton}, std::pair{dir + "/card.fabric.json", e_card}}) {
+        const CliResult eval = run_flowvid({"eval", "cloth", "--preset", preset, "--capture", shared_path(kStatic),
+                                            "--resolution", "12x12", "--floor-members", "0", "--json"});
+        ASSERT_EQ(eval.exit_code, 0) << eval.err;
+        EXPECT_NEAR(nlohmann::json::parse(eval.out)["captures"][0]["weighted_error"].get<double>(), expected, 1e-9 * expected);
+    }
+    EXPECT_NE(e_cotton, e_card);
+}
+
+TEST(CliClothFit, BadRequestsNameTheProblem) {
+    const CliResult rigid = run_flowvid({"fit", "cloth", "--capture", shared_path("captures/rigid-toss-major"), "--out",
+                                         own_dir("cli_fit_bad") + "/x.fabric.json"});
+    EXPECT_EQ(rigid.exit_code, 3);
+    EXPECT_NE(rigid.err.find("/kind"), std::string::npos) << rigid.err;
+    const CliResult resolution = run_flowvid({"eval", "cloth", "--preset", source_path("formats/examples/cotton.fabric.json"),
+                                              "--capture", shared_path(kStatic), "--resolution", "1x1"});
+    EXPECT_EQ(resolution.exit_code, 2);
+    EXPECT_NE(resolution.err.find("--resolution 1x1"), std::string::npos) << resolution.err;
+}
+
+}  // namespace
