@@ -11,7 +11,11 @@
 // Fits never read truth/ (the assessment does, for evaluation only).
 // Environment: FLOWVID_FIT_EVALUATIONS (default 300), FLOWVID_FIT_BUDGET_S
 // (wall cap per fit, default 600), FLOWVID_FIT_OUT (presets and JSON, default
-// ./cloth_fit_study), FLOWVID_FIT_SKIP_SPEED=1 skips part 3.
+// ./cloth_fit_study), FLOWVID_FIT_SKIP_SPEED=1 skips part 3,
+// FLOWVID_FIT_HALF_LIFE (frames; default 0 = every frame weighs the same, 10
+// = the predictability-aware weighting `flowvid fit cloth` uses by default),
+// FLOWVID_FIT_NONLINEAR_ONLY=1 skips the linear-drag fits and recognition
+// (to compare weightings).
 
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/formats/capture.hpp"
@@ -46,6 +50,7 @@ fv::ClothFitRequest request_for(const std::string& name, const std::vector<std::
     request.name = name;
     for (const std::string& c : captures) request.captures.push_back(flowvid::formats::read_capture(capture_path(c)));
     request.drag = drag;
+    request.load.half_life_frames = env_number("FLOWVID_FIT_HALF_LIFE", 0.0);
     request.evaluations = static_cast<long long>(env_number("FLOWVID_FIT_EVALUATIONS", 300));
     request.variability_runs = 2;
     request.variability_evaluations = 24;
@@ -111,19 +116,22 @@ int main() {
         const std::string held_out = "cloth-" + fabric + "-waving-2";
         std::fprintf(stderr, "fitting %s (nonlinear drag)\n", fabric.c_str());
         const fv::ClothFitOutcome nonlinear = fv::fit_cloth(request_for(fabric, training, fv::DragModel::nonlinear));
+        const bool nonlinear_only = std::getenv("FLOWVID_FIT_NONLINEAR_ONLY") != nullptr;
         std::fprintf(stderr, "fitting %s (linear drag only)\n", fabric.c_str());
-        const fv::ClothFitOutcome linear = fv::fit_cloth(request_for(fabric + "-linear", training, fv::DragModel::linear));
+        const fv::ClothFitOutcome linear =
+            nonlinear_only ? nonlinear : fv::fit_cloth(request_for(fabric + "-linear", training, fv::DragModel::linear));
         fitted[fabric] = nonlinear.fitted;
         if (nonlinear.preset) flowvid::formats::write_fabric_preset((out / (fabric + ".fabric.json")).string(), *nonlinear.preset);
 
         const Assessed start = assess(held_out, nonlinear.start, false);
         const Assessed lin = assess(held_out, linear.fitted, false);
         const Assessed ours = assess(held_out, nonlinear.fitted, true);
-        std::printf("\n### %s: fit %s + %s, predict held-out %s (RMS vertex error vs truth, mm)\n\n", fabric.c_str(),
-                    training[0].c_str(), training[1].c_str(), held_out.c_str());
+        std::printf("\n### %s: fit %s + %s (frame weight half-life %g frames), predict held-out %s (RMS vertex error vs truth, mm)\n\n",
+                    fabric.c_str(), training[0].c_str(), training[1].c_str(), env_number("FLOWVID_FIT_HALF_LIFE", 0.0),
+                    held_out.c_str());
         std::printf("| model | frames 1-10 | 11-25 | 26-50 | all | floor (1-10, 11-25, 26-50) |\n|---|---|---|---|---|---|\n");
         print_row("starting guess", start, false);
-        print_row("linear drag only, fitted", lin, false);
+        if (!nonlinear_only) print_row("linear drag only, fitted", lin, false);
         print_row("nonlinear drag, fitted", ours, true);
         std::printf("\nfit: %lld evaluations (%lld simulations), %.0f s; training error %.1f -> %.1f (linear: %.1f)\n",
                     nonlinear.evaluations, nonlinear.simulations, nonlinear.seconds, nonlinear.start_evaluation.total,
@@ -137,6 +145,10 @@ int main() {
         std::fflush(stdout);
     }
 
+    if (std::getenv("FLOWVID_FIT_NONLINEAR_ONLY") != nullptr) {
+        std::ofstream((out / "study.json").string()) << record.dump(2) << '\n';
+        return 0;
+    }
     std::printf("\n### Recognition: weighted metric error of each fitted preset on held-out captures (* = lowest)\n\n");
     std::printf("| capture | cotton preset | silk preset |\n|---|---|---|\n");
     int correct = 0, total = 0;

@@ -159,6 +159,7 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
         if (!vertex_mm.empty()) html << svg_plot("vertex RMS vs ground truth per frame (mm)", "mm", vertex_mm, vertex_floor_mm);
         nlohmann::json entry = {{"capture", captures[i].folder},
                                 {"test", a.is_static ? "static" : "waving"},
+                                {"weighted_floor", a.floor ? nlohmann::json(video::weighted_floor(trial, *a.floor)) : nlohmann::json()},
                                 {"simulation", a.report.ok() ? std::string("ok") : std::string(cloth::status_name(a.report.status)) +
                                                                                        " at frame " + std::to_string(a.report.frame)},
                                 {"weighted_error", a.weighted_error},
@@ -251,7 +252,8 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
 
     nlohmann::json rows = nlohmann::json::array();
     std::ostringstream table;
-    table << "weighted metric error (rows: captures, columns: presets; * = lowest)\n";
+    table << "weighted metric error (rows: captures, columns: presets; * = lowest; the floor is the spread of\n"
+             "runs of the lowest preset changed by one part in a million)\n";
     for (std::size_t c = 0; c < trials.size(); ++c) {
         std::size_t best = 0;
         for (std::size_t p = 1; p < presets.size(); ++p)
@@ -270,8 +272,18 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
                 vertex[options.presets[p]] = 1e3 * std::sqrt(sum / a.vertex_rms_m.size());
             }
         }
-        table << '\n';
-        nlohmann::json row = {{"capture", trials[c].name}, {"metric_error", errors}, {"recognized_as", options.presets[best]}};
+        // The floor of the recognised preset on this capture: differences
+        // between presets below it mean nothing.
+        video::FloorSettings floor;
+        floor.members = 4;
+        const double floor_error = video::weighted_floor(
+            trials[c], video::estimate_floor(trials[c], cloth::material_from_fabric(presets[best].parameters), *settings, floor,
+                                             thread_count(options.run.threads)));
+        char floor_text[48];
+        std::snprintf(floor_text, sizeof floor_text, "  (floor %.1f)", floor_error);
+        table << floor_text << '\n';
+        nlohmann::json row = {{"capture", trials[c].name}, {"metric_error", errors}, {"recognized_as", options.presets[best]},
+                              {"floor", floor_error}};
         if (!vertex.empty()) row["vertex_rms_mm_vs_truth"] = vertex;
         rows.push_back(row);
     }

@@ -6,6 +6,7 @@
 #include "output.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/video/cloth_eval.hpp"
 #include "flowvid/video/fit_cloth.hpp"
 
 #include <filesystem>
@@ -90,16 +91,30 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     }
 
     const optim::VariabilityReport* variability = outcome.variability ? &*outcome.variability : nullptr;
+    // Each trial's error next to its predictability floor (a small ensemble
+    // at the fitted fabric): an error near the floor is as good as it gets.
     nlohmann::json trials = nlohmann::json::array();
-    for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i)
+    video::FloorSettings floor;
+    floor.members = 4;
+    const std::vector<video::ClothTrial> loaded = video::load_trials(request.captures, request.load);
+    video::ClothFitSettings floor_settings = request.problem;
+    double total_floor = 0.0;
+    for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i) {
+        const video::PredictabilityFloor f =
+            video::estimate_floor(loaded[i], outcome.fitted, floor_settings, floor, request.threads);
+        const double trial_floor = video::weighted_floor(loaded[i], f);
+        total_floor += trial_floor;
         trials.push_back({{"capture", outcome.trial_names[i]},
                           {"start_error", outcome.start_evaluation.trials[i].error},
-                          {"final_error", outcome.final_evaluation.trials[i].error}});
+                          {"final_error", outcome.final_evaluation.trials[i].error},
+                          {"floor", trial_floor}});
+    }
     nlohmann::json summary = {{"out", options.out},
                               {"drag", video::drag_model_name(request.drag)},
                               {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
                               {"start_error", outcome.start_evaluation.total},
                               {"final_error", outcome.final_evaluation.total},
+                              {"final_error_floor", total_floor},
                               {"trials", trials},
                               {"evaluations", outcome.evaluations},
                               {"simulations", outcome.simulations},

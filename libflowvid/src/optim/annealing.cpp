@@ -3,11 +3,13 @@
 #include "random.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <mutex>
 #include <optional>
+#include <thread>
 #include <stdexcept>
 
 namespace flowvid::optim {
@@ -335,7 +337,28 @@ MinimizeResult minimize(const Objective& objective, const ParameterSpace& space,
             : halton_design(n, settings.design_points > 0 ? settings.design_points : 16 * n,
                             detail::derive_seed(settings.annealing.seed, 0x4a17));
     MinimizeResult result;
-    result.design = evaluate_design(evaluator, settings.design, std::move(points), settings.annealing.cancel);
+    // The design stops at an external cancel or, when it has one, its time budget.
+    std::atomic<bool> design_stop{false};
+    std::atomic<bool> design_done{false};
+    std::thread watcher;
+    if (settings.design_budget_seconds > 0.0 || settings.annealing.cancel) {
+        watcher = std::thread([&] {
+            const auto start = std::chrono::steady_clock::now();
+            while (!design_done.load()) {
+                const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+                if ((settings.annealing.cancel && settings.annealing.cancel->load()) ||
+                    (settings.design_budget_seconds > 0.0 && elapsed > settings.design_budget_seconds))
+                    design_stop = true;
+                std::this_thread::sleep_for(std::chrono::milliseconds(20));
+            }
+        });
+    }
+    result.design = evaluate_design(evaluator, settings.design, std::move(points), &design_stop);
+    design_done = true;
+    if (watcher.joinable()) watcher.join();
+    // Only an external cancel cancels; a design cut short by its budget goes on.
+    result.design.cancelled = settings.annealing.cancel && settings.annealing.cancel->load();
+    if (!std::isfinite(result.design.best_value())) result.design.cancelled = true;
     if (result.design.cancelled) {
         result.annealing.status = AnnealingResult::Status::cancelled;
         result.annealing.reason = "cancelled during the design";

@@ -96,6 +96,12 @@ PredictabilityFloor estimate_floor(const ClothTrial& trial, const cloth::ClothMa
     return out;
 }
 
+double weighted_floor(const ClothTrial& trial, const PredictabilityFloor& floor) {
+    double sum = 0.0;
+    for (std::size_t k = 0; k < trial.frames.size() && k < floor.metric.size(); ++k) sum += trial.frames[k].weight * floor.metric[k];
+    return sum;
+}
+
 TrialAssessment assess_trial(const ClothTrial& trial, const cloth::ClothMaterial& material,
                              const ClothFitSettings& settings, const std::optional<formats::VertexAnimation>& truth,
                              const FloorSettings* floor, int threads) {

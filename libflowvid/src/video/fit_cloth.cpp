@@ -84,7 +84,11 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     annealing.fit_schedule_to_budget = true;
     annealing.evaluations_per_stage = static_cast<int>(std::max<long long>(n + 1, (request.evaluations - search.design_points) / 16));
     annealing.cancel = &cancelled;
-    if (budget > 0.0) annealing.budget_seconds = std::max(1.0, (1.0 - variability_share) * budget - seconds_since(started));
+    if (budget > 0.0) {
+        // A third of the search's time at most for the design, the rest for annealing.
+        search.design_budget_seconds = std::max(1.0, (1.0 - variability_share) * budget / 3.0);
+        annealing.budget_seconds = std::max(1.0, (1.0 - variability_share) * budget - seconds_since(started));
+    }
     const double main_share = 1.0 - variability_share;
     annealing.progress = [&](const optim::AnnealingProgress& p) {
         return report({"annealing", main_share * p.fraction_done, p.evaluations, p.best_value, p.temperature, p.eta_s});

@@ -122,6 +122,10 @@ struct MinimizeSettings {
     int design_points = 0;        // halton: 0 = 16 n
     AnnealingSettings annealing;  // its seed also scrambles the Halton design
     int threads = 0;              // 0: all cores
+    // Wall-clock limit of the design (0 = none): points not started by then
+    // are skipped (+inf) and the annealing starts from the best evaluated one.
+    // Makes the result depend on the machine's speed, like budget_seconds.
+    double design_budget_seconds = 0.0;
 };
 struct MinimizeResult {
     DesignResult design;

@@ -47,6 +47,9 @@ struct PredictabilityFloor {
 PredictabilityFloor estimate_floor(const ClothTrial& trial, const cloth::ClothMaterial& material,
                                    const ClothFitSettings& settings, const FloorSettings& floor, int threads = 1);
 
+// sum over compared frames of w_k * floor E_k: the floor of a trial's weighted error.
+double weighted_floor(const ClothTrial& trial, const PredictabilityFloor& floor);
+
 struct TrialAssessment {
     std::string name;
     bool is_static = false;
