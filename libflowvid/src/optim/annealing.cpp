@@ -353,7 +353,9 @@ MinimizeResult minimize(const Objective& objective, const ParameterSpace& space,
             }
         });
     }
+    const auto design_start = std::chrono::steady_clock::now();
     result.design = evaluate_design(evaluator, settings.design, std::move(points), &design_stop);
+    const double design_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - design_start).count();
     design_done = true;
     if (watcher.joinable()) watcher.join();
     // Only an external cancel cancels; a design cut short by its budget goes on.
@@ -369,8 +371,21 @@ MinimizeResult minimize(const Objective& objective, const ParameterSpace& space,
         return result;
     }
     AnnealingSettings annealing = settings.annealing;
+    const long long design_evaluated = evaluator.evaluations();
+    if (settings.total_budget_seconds > 0.0)
+        annealing.budget_seconds = std::max(1.0, settings.total_budget_seconds - design_seconds);
     if (annealing.max_evaluations > 0)
-        annealing.max_evaluations = std::max<long long>(1, annealing.max_evaluations - static_cast<long long>(result.design.points.size()));
+        annealing.max_evaluations = std::max<long long>(1, annealing.max_evaluations - design_evaluated);
+    // A time budget with a budget-fitted schedule: plan the cooling for the
+    // evaluations that fit in the time left, so that the search ends cooled
+    // rather than cut off hot. A simplex step is one evaluation at a time
+    // (its objective may use the spare threads), so it is taken as 1.5x the
+    // design's wall time per point.
+    if (annealing.budget_seconds > 0.0 && annealing.fit_schedule_to_budget && design_evaluated > 0) {
+        const double per_evaluation = 1.5 * design_seconds / static_cast<double>(design_evaluated);
+        const long long affordable = static_cast<long long>(annealing.budget_seconds / std::max(per_evaluation, 1e-9));
+        annealing.max_evaluations = std::clamp<long long>(affordable, 4LL * (space.size() + 1), std::max<long long>(annealing.max_evaluations, 4LL * (space.size() + 1)));
+    }
     result.annealing = anneal(evaluator, result.design.points[result.design.best], annealing, result.design.best_value(),
                               result.design.spread());
     result.evaluations = evaluator.evaluations();

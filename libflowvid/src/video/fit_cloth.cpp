@@ -87,7 +87,8 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     if (budget > 0.0) {
         // A third of the search's time at most for the design, the rest for annealing.
         search.design_budget_seconds = std::max(1.0, (1.0 - variability_share) * budget / 3.0);
-        annealing.budget_seconds = std::max(1.0, (1.0 - variability_share) * budget - seconds_since(started));
+        // minimize measures the design, then plans the cooling for what is left.
+        search.total_budget_seconds = std::max(2.0, (1.0 - variability_share) * budget - seconds_since(started));
     }
     const double main_share = 1.0 - variability_share;
     annealing.progress = [&](const optim::AnnealingProgress& p) {

@@ -126,6 +126,9 @@ struct MinimizeSettings {
     // are skipped (+inf) and the annealing starts from the best evaluated one.
     // Makes the result depend on the machine's speed, like budget_seconds.
     double design_budget_seconds = 0.0;
+    // Wall-clock limit of design + annealing (0 = none): the annealing gets
+    // what the design left (overrides annealing.budget_seconds).
+    double total_budget_seconds = 0.0;
 };
 struct MinimizeResult {
     DesignResult design;
