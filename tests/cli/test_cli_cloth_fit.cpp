@@ -23,9 +23,11 @@ std::string own_dir(const std::string& name) { return scratch_dir(name + "_" + s
 const std::string kStatic = "captures/cloth-cotton-static-1";
 
 TEST(CliClothFit, StaticFitIsDeterministicImprovesOnItsStartAndRecordsItsSources) {
+    // Silk: its swatch mass (80 g/m^2) differs from the library's default density.
+    const std::string kSilkStatic = "captures/cloth-silk-static-1";
     const std::string dir = own_dir("cli_fit_cloth");
     const auto fit = [&](const std::string& out, const std::string& threads) {
-        return run_flowvid({"fit", "cloth", "--capture", shared_path(kStatic), "--out", out, "--evaluations", "10",
+        return run_flowvid({"fit", "cloth", "--capture", shared_path(kSilkStatic), "--out", out, "--evaluations", "10",
                             "--variability-runs", "2", "--variability-evaluations", "6", "--resolution", "8x8", "--seed", "3", "--threads", threads,
                             "--json"});
     };
@@ -41,9 +43,13 @@ TEST(CliClothFit, StaticFitIsDeterministicImprovesOnItsStartAndRecordsItsSources
     const flowvid::formats::FabricPreset b = flowvid::formats::read_fabric_preset(dir + "/two.fabric.json");
     EXPECT_TRUE(a.parameters == b.parameters) << "the thread count changed the fit";
     ASSERT_EQ(a.provenance.captures.size(), 1u);
-    const flowvid::formats::Capture capture = flowvid::formats::read_capture(shared_path(kStatic));
+    const flowvid::formats::Capture capture = flowvid::formats::read_capture(shared_path(kSilkStatic));
     EXPECT_EQ(a.provenance.captures[0].capture_json_sha256, capture.capture_json_sha256);
     EXPECT_EQ(a.provenance.captures[0].test, "static");
+    // The density the fit simulated: the capture's swatch mass over its area.
+    ASSERT_TRUE(capture.swatch.has_value());
+    EXPECT_NEAR(a.parameters.areal_density_kg_per_m2.value,
+                capture.swatch->mass_kg / (capture.swatch->width_m * capture.swatch->height_m), 1e-12);
     EXPECT_TRUE(a.parameters.bend_stiffness_N_m.uncertainty.has_value());
     EXPECT_EQ(run_flowvid({"validate", dir + "/one.fabric.json"}).exit_code, 0);
 }

@@ -302,7 +302,8 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
     formats::FabricPreset preset;
     preset.name = name;
     preset.description = "fitted by flowvid from " + std::to_string(captures.size()) + " capture(s)";
-    preset.parameters = cloth::fabric_from_material(material);
+    // The trials' swatch mass sets the density the fit saw (experiment_material).
+    preset.parameters = cloth::fabric_from_material(cloth::experiment_material(problem.trials().front().experiment, material));
     const optim::ParameterSpace& space = problem.space();
     for (int i = 0; i < space.size(); ++i) {
         const std::string& key = space[i].name;
