@@ -158,7 +158,7 @@ def test_calibrate_lowers_error():
             bpy.context.scene.render.fps = 30
             obj = grid_object("Garment", 12, 12, 0.30 / 11)
             path = copy_preset(name, folder)
-            result = api.calibrate_fabric_preset(obj, path, max_evaluations=10)
+            result = api.calibrate_fabric_preset(obj, path, max_evaluations=16)
             formula = result["formula_rms_vertex_error_m"]
             best = result["rms_vertex_error_m"]
             print("%s calibration: formula %.2f mm -> calibrated %.2f mm in %d Blender runs (quality %d; by "
