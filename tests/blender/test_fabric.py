@@ -17,12 +17,15 @@ REPO = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(REPO, "blender_addon"))
 
 
-def preset_path(name):
-    """tests/data/cloth/<name>.fabric.json (fitted from ../shared/captures) when it exists, else the
-    stand-ins: the cotton example of the format, a hand-made silk."""
-    fitted = os.path.join(REPO, "tests", "data", "cloth", "%s.fabric.json" % name)
-    if os.path.isfile(fitted):
-        return fitted
+def preset_path(name, fitted=True):
+    """tests/data/cloth/<name>.fabric.json (fitted from ../shared/captures) when it exists and
+    `fitted`, else the reference fabrics: the cotton example of the format, a hand-made silk.
+    The formula checks (sag, cantilever) use the reference fabrics: the fitted ones sit where the
+    fit's ranges end (near-zero bending, heavy damping), where Blender's clamps and its numerical
+    damping take over -- which is what calibration is for, and the calibration test uses them."""
+    fitted_path = os.path.join(REPO, "tests", "data", "cloth", "%s.fabric.json" % name)
+    if fitted and os.path.isfile(fitted_path):
+        return fitted_path
     return {"cotton": os.path.join(REPO, "formats", "examples", "cotton.fabric.json"),
             "silk": os.path.join(HERE, "data", "silk.fabric.json")}[name]
 
@@ -105,7 +108,7 @@ def _swatch_sag(name):
     width = 0.30
     static, waving = cal.swatch_experiments(width_m=width, height_m=width, separation_m=0.24, fps=30.0,
                                             static_frames=2, waving_frames=2)
-    preset = api.read_preset(preset_path(name))
+    preset = api.read_preset(preset_path(name, fitted=False))
     library = api.get_backend().simulate_swatch(dict(static, frame_count=1, pins=[
         dict(p, positions_m=p["positions_m"][:1]) for p in static["pins"]]), preset["parameters"], rows=rows,
         cols=cols)["frames"][0]
@@ -248,7 +251,7 @@ def _cantilever(name, bending_factor=1.0):
     rows = cols = 12
     width = 0.06
     experiment, start = cal.cantilever_experiment(width_m=width, rows=rows, cols=cols, frames=2)
-    preset = api.read_preset(preset_path(name))
+    preset = api.read_preset(preset_path(name, fitted=False))
     single = dict(experiment, frame_count=1, pins=[dict(p, positions_m=p["positions_m"][:1])
                                                   for p in experiment["pins"]])
     library = api.get_backend().simulate_swatch(single, preset["parameters"], rows=rows, cols=cols,
