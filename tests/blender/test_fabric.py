@@ -20,9 +20,10 @@ sys.path.insert(0, os.path.join(REPO, "blender_addon"))
 def preset_path(name, fitted=True):
     """tests/data/cloth/<name>.fabric.json (fitted from ../shared/captures) when it exists and
     `fitted`, else the reference fabrics: the cotton example of the format, a hand-made silk.
-    The formula checks (sag, cantilever) use the reference fabrics: the fitted ones sit where the
-    fit's ranges end (near-zero bending, heavy damping), where Blender's clamps and its numerical
-    damping take over -- which is what calibration is for, and the calibration test uses them."""
+    The formula checks (sag, cantilever) use the reference fabrics: the fitted ones sit at the ends
+    of the fit's ranges (cotton's bending near its lower bound, silk's stretch of 11 N/m at it),
+    where the formula alone misses Blender by ~20 mm -- which is what calibration is for, and the
+    calibration test uses them."""
     fitted_path = os.path.join(REPO, "tests", "data", "cloth", "%s.fabric.json" % name)
     if fitted and os.path.isfile(fitted_path):
         return fitted_path
