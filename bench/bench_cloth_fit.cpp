@@ -86,9 +86,7 @@ Assessed assess(const std::string& capture_name, const flowvid::cloth::ClothMate
                                                    floor ? &floor_settings : nullptr, 2);
     Assessed out;
     out.windows = fv::summarize_windows(a, fv::standard_windows(static_cast<int>(trial.frames.size())));
-    double sum = 0.0;
-    for (double v : a.vertex_rms_m) sum += v * v;
-    out.all_frames_mm = a.vertex_rms_m.empty() ? NAN : 1e3 * std::sqrt(sum / a.vertex_rms_m.size());
+    out.all_frames_mm = 1e3 * fv::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
     out.weighted_error = a.weighted_error;
     return out;
 }

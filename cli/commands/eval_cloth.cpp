@@ -164,11 +164,8 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
                                                                                        " at frame " + std::to_string(a.report.frame)},
                                 {"weighted_error", a.weighted_error},
                                 {"windows", window_json}};
-        if (!a.vertex_rms_m.empty()) {
-            double sum = 0.0;
-            for (double v : a.vertex_rms_m) sum += v * v;
-            entry["vertex_rms_mm_all_frames"] = 1e3 * std::sqrt(sum / a.vertex_rms_m.size());
-        }
+        if (!a.vertex_rms_m.empty())
+            entry["vertex_rms_mm_all_frames"] = 1e3 * video::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
         results.push_back(entry);
     }
     progress.done();
@@ -266,11 +263,8 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
             char cell[64];
             std::snprintf(cell, sizeof cell, "  %12.1f%s", a.weighted_error, p == best ? "*" : " ");
             table << cell;
-            if (!a.vertex_rms_m.empty()) {
-                double sum = 0.0;
-                for (double v : a.vertex_rms_m) sum += v * v;
-                vertex[options.presets[p]] = 1e3 * std::sqrt(sum / a.vertex_rms_m.size());
-            }
+            if (!a.vertex_rms_m.empty())
+                vertex[options.presets[p]] = 1e3 * video::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
         }
         // The floor of the recognised preset on this capture: differences
         // between presets below it mean nothing.

@@ -96,7 +96,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     nlohmann::json trials = nlohmann::json::array();
     video::FloorSettings floor;
     floor.members = 4;
-    const std::vector<video::ClothTrial> loaded = video::load_trials(request.captures, request.load);
+    const std::vector<video::ClothTrial>& loaded = outcome.trials;
     video::ClothFitSettings floor_settings = request.problem;
     double total_floor = 0.0;
     for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i) {

@@ -14,8 +14,6 @@
 #include "flowvid/formats/particle_bank.hpp"
 
 #include <algorithm>
-#include <atomic>
-#include <csignal>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -23,9 +21,6 @@
 
 namespace flowvid::cli {
 namespace {
-
-std::atomic<bool> g_interrupted{false};
-void on_render_interrupt(int) { g_interrupted = true; }
 
 struct RenderOptions {
     std::string bank;
@@ -182,15 +177,15 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
 
     flow::FrameWriter writer(options.out, synthesizer.width(), synthesizer.height(), bank->fps);
     Progress progress(global, edit ? "edit" : "synth");
-    g_interrupted = false;
-    const auto previous = std::signal(SIGINT, on_render_interrupt);
+    std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs
+    interrupt.emplace();
     const int total = last - first + 1;
     const int written = synthesizer.render_frames(first, last, options.threads, [&](int frame, const flow::RgbImage& image) {
         writer.write(frame, image);
         progress.update(static_cast<double>(frame - first + 1) / total, "frame " + std::to_string(frame));
-        return !g_interrupted.load();
+        return !interrupt->requested();
     });
-    std::signal(SIGINT, previous);
+    interrupt.reset();
     writer.close();
     progress.done();
 

@@ -11,17 +11,13 @@
 #include "flowvid/formats/flowlines.hpp"
 #include "flowvid/formats/particle_bank.hpp"
 
-#include <atomic>
-#include <csignal>
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 namespace flowvid::cli {
 namespace {
-
-std::atomic<bool> g_interrupted{false};
-void on_interrupt(int) { g_interrupted = true; }
 
 struct TrackOptions {
     std::string capture;
@@ -85,14 +81,14 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
     const std::vector<formats::FlowLine> lines = flow::densify_input_lines(drawing, options.densify_px, max_gap);
 
     Progress progress(global, "track");
-    g_interrupted = false;
-    const auto previous = std::signal(SIGINT, on_interrupt);
+    std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs
+    interrupt.emplace();
     const flow::TrackingResult result = flow::track_particles(frames, lines, settings, [&](const flow::TrackingProgress& p) {
         progress.update(static_cast<double>(p.frame) / std::max(1, p.frame_count),
                         "frame " + std::to_string(p.frame) + "/" + std::to_string(p.frame_count));
-        return !g_interrupted.load();
+        return !interrupt->requested();
     });
-    std::signal(SIGINT, previous);
+    interrupt.reset();
     progress.done();
     if (result.report.status == flow::TrackingReport::Status::cancelled) {
         log_message("interrupted: no bank written");

@@ -44,13 +44,12 @@ cloth::ClothMaterial perturbed(const cloth::ClothMaterial& material, double rela
     return m;
 }
 
-}  // namespace
-
-PredictabilityFloor estimate_floor(const ClothTrial& trial, const cloth::ClothMaterial& material,
-                                   const ClothFitSettings& settings, const FloorSettings& floor, int threads) {
+// The floor around an unperturbed run that the caller already has.
+PredictabilityFloor floor_around(const ClothTrial& trial, const cloth::ClothMaterial& material,
+                                 const ClothFitSettings& settings, const FloorSettings& floor, int threads,
+                                 const cloth::SwatchRun& nominal) {
     PredictabilityFloor out;
     out.members = floor.members;
-    const cloth::SwatchRun nominal = run_trial(trial, material, settings, settings.swatch);
     const int frames = usable_frames(nominal);
     const cloth::GridFrames nominal_grid = cloth::sample_frames(nominal.swatch.mesh,
         std::vector<Eigen::VectorXd>(nominal.simulation.frames.begin(), nominal.simulation.frames.begin() + frames),
@@ -96,6 +95,13 @@ PredictabilityFloor estimate_floor(const ClothTrial& trial, const cloth::ClothMa
     return out;
 }
 
+}  // namespace
+
+PredictabilityFloor estimate_floor(const ClothTrial& trial, const cloth::ClothMaterial& material,
+                                   const ClothFitSettings& settings, const FloorSettings& floor, int threads) {
+    return floor_around(trial, material, settings, floor, threads, run_trial(trial, material, settings, settings.swatch));
+}
+
 double weighted_floor(const ClothTrial& trial, const PredictabilityFloor& floor) {
     double sum = 0.0;
     for (std::size_t k = 0; k < trial.frames.size() && k < floor.metric.size(); ++k) sum += trial.frames[k].weight * floor.metric[k];
@@ -128,8 +134,17 @@ TrialAssessment assess_trial(const ClothTrial& trial, const cloth::ClothMaterial
         const cloth::GridFrames real = cloth::grid_frames_of(*truth);
         out.vertex_rms_m = cloth::rms_distance_per_frame_m(out.predicted, real);
     }
-    if (floor) out.floor = estimate_floor(trial, material, settings, *floor, threads);
+    if (floor) out.floor = floor_around(trial, material, settings, *floor, threads, run);
     return out;
+}
+
+double pooled_rms(const std::vector<double>& per_frame_rms, const FrameWindow& window) {
+    // Every frame has the same vertex count, so the pooled RMS is the root of the mean of squares.
+    double sum = 0.0;
+    int n = 0;
+    for (int f = std::max(window.first, 1); f <= window.last && f <= static_cast<int>(per_frame_rms.size()); ++f, ++n)
+        sum += per_frame_rms[static_cast<std::size_t>(f - 1)] * per_frame_rms[static_cast<std::size_t>(f - 1)];
+    return n ? std::sqrt(sum / n) : std::numeric_limits<double>::quiet_NaN();
 }
 
 std::vector<WindowSummary> summarize_windows(const TrialAssessment& a, const std::vector<FrameWindow>& windows) {
@@ -150,16 +165,8 @@ std::vector<WindowSummary> summarize_windows(const TrialAssessment& a, const std
         } else {
             s.metric_mean = s.metric_floor_mean = nan;
         }
-        // Pooled RMS: every frame has the same vertex count, so the mean of squares.
-        const auto pooled = [&](const std::vector<double>& per_frame) {
-            double sum = 0.0;
-            int n = 0;
-            for (int f = w.first; f <= w.last && f <= static_cast<int>(per_frame.size()); ++f, ++n)
-                sum += per_frame[static_cast<std::size_t>(f - 1)] * per_frame[static_cast<std::size_t>(f - 1)];
-            return n ? std::sqrt(sum / n) : nan;
-        };
-        if (!a.vertex_rms_m.empty()) s.vertex_rms_m = pooled(a.vertex_rms_m);
-        if (a.floor) s.vertex_floor_m = pooled(a.floor->vertex_rms_m);
+        if (!a.vertex_rms_m.empty()) s.vertex_rms_m = pooled_rms(a.vertex_rms_m, w);
+        if (a.floor) s.vertex_floor_m = pooled_rms(a.floor->vertex_rms_m, w);
         out.push_back(s);
     }
     return out;

@@ -65,6 +65,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     settings.base = middle_of_ranges(request.problem.base, outcome.parameters);
     outcome.start = settings.base;
     const ClothFitProblem problem(std::move(trials), outcome.parameters, settings);
+    outcome.trials = problem.trials();
     const int threads = request.threads > 0 ? request.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     const Clock::time_point start_evaluation_began = Clock::now();
     outcome.start_evaluation = problem.evaluate(outcome.start, threads);

@@ -70,6 +70,10 @@ TrialAssessment assess_trial(const ClothTrial& trial, const cloth::ClothMaterial
                              const ClothFitSettings& settings, const std::optional<formats::VertexAnimation>& truth,
                              const FloorSettings* floor, int threads = 1);
 
+// RMS over every vertex of the window's frames, from per-frame RMS values
+// (index 0 = frame 1; frames past the end are left out). NaN when none.
+double pooled_rms(const std::vector<double>& per_frame_rms, const FrameWindow& window);
+
 struct WindowSummary {
     FrameWindow window;
     double metric_mean = 0.0;        // mean E_k over the window's compared frames

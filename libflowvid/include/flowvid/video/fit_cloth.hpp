@@ -70,6 +70,7 @@ struct ClothFitOutcome {
     Status status = Status::ok;
     std::vector<FittedParameter> parameters;
     std::vector<std::string> trial_names;
+    std::vector<ClothTrial> trials;        // as loaded and fitted (footage angle maps, weights)
     cloth::ClothMaterial start;            // middle_of_ranges
     cloth::ClothMaterial fitted;
     ClothEvaluation start_evaluation;
