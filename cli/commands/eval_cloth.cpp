@@ -6,6 +6,7 @@
 #include "commands/cloth_options.hpp"
 #include "commands/fit.hpp"
 #include "output.hpp"
+#include "report_html.hpp"
 
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/formats/atomic_file.hpp"
@@ -75,36 +76,30 @@ struct EvalClothOptions {
     bool json = false;
 };
 
-std::string svg_plot(const std::string& title, const std::string& unit, const std::vector<double>& error,
-                     const std::vector<double>& floor) {
-    const double width = 560, height = 220, left = 56, bottom = 30, top = 24;
-    double high = 0.0;
-    for (double v : error) if (std::isfinite(v)) high = std::max(high, v);
-    for (double v : floor) if (std::isfinite(v)) high = std::max(high, v);
-    if (!(high > 0.0)) high = 1.0;
-    const std::size_t n = std::max<std::size_t>(2, std::max(error.size(), floor.size()));
-    const auto x = [&](std::size_t i) { return left + (width - left - 10) * static_cast<double>(i) / static_cast<double>(n - 1); };
-    const auto y = [&](double v) { return top + (height - top - bottom) * (1.0 - v / high); };
-    const auto polyline = [&](const std::vector<double>& values, const char* colour) {
-        std::ostringstream s;
-        s << "<polyline fill='none' stroke='" << colour << "' stroke-width='2' points='";
-        for (std::size_t i = 0; i < values.size(); ++i)
-            if (std::isfinite(values[i])) s << x(i) << ',' << y(values[i]) << ' ';
-        s << "'/>";
-        return s.str();
+// Per-frame error next to its floor (frames are 1-based); no floor, no floor line.
+std::string frame_plot(const std::string& title, const std::string& y_label, const std::vector<double>& error,
+                       const std::vector<double>& floor) {
+    const auto frame_numbers = [](std::size_t count) {
+        std::vector<double> x(count);
+        for (std::size_t i = 0; i < count; ++i) x[i] = static_cast<double>(i + 1);
+        return x;
     };
-    std::ostringstream svg;
-    svg << "<svg xmlns='http://www.w3.org/2000/svg' width='" << width << "' height='" << height << "'>"
-        << "<text x='" << left << "' y='16' font-size='13'>" << title << "</text>"
-        << "<line x1='" << left << "' y1='" << y(0) << "' x2='" << width - 10 << "' y2='" << y(0) << "' stroke='#888'/>"
-        << "<line x1='" << left << "' y1='" << top << "' x2='" << left << "' y2='" << y(0) << "' stroke='#888'/>"
-        << "<text x='4' y='" << top + 10 << "' font-size='11'>" << high << "</text>"
-        << "<text x='4' y='" << y(0) << "' font-size='11'>0 " << unit << "</text>"
-        << "<text x='" << width - 80 << "' y='" << height - 8 << "' font-size='11'>frame " << n << "</text>"
-        << polyline(error, "#c0392b") << polyline(floor, "#2e86c1")
-        << "<text x='" << width - 200 << "' y='16' font-size='11' fill='#c0392b'>error</text>"
-        << "<text x='" << width - 150 << "' y='16' font-size='11' fill='#2e86c1'>predictability floor</text></svg>";
-    return svg.str();
+    html::LinePlot plot;
+    plot.title = title;
+    plot.x_label = "frame";
+    plot.y_label = y_label;
+    plot.width_px = 640;
+    plot.height_px = 250;
+    plot.series.push_back({"error", "#c0392b", frame_numbers(error.size()), error});
+    if (!floor.empty()) plot.series.push_back({"predictability floor", "#2e86c1", frame_numbers(floor.size()), floor});
+    return html::line_plot_svg(plot);
+}
+
+std::string one_decimal(double value) {
+    if (!std::isfinite(value)) return html::format_number(value);
+    char text[48];
+    std::snprintf(text, sizeof text, "%.1f", value);
+    return text;
 }
 
 int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global) {
@@ -122,10 +117,8 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
 
     Progress progress(global, "eval cloth");
     nlohmann::json results = nlohmann::json::array();
-    std::ostringstream html;
-    html << "<!doctype html><html><head><meta charset='utf-8'><title>flowvid eval cloth</title>"
-         << "<style>body{font-family:sans-serif;margin:2em}td,th{padding:2px 10px;text-align:right}</style></head><body>"
-         << "<h1>" << preset.name << "</h1><p>preset " << options.preset << "</p>";
+    std::ostringstream body;
+    body << html::element("h1", preset.name) << html::element("p", "preset " + options.preset);
     for (std::size_t i = 0; i < captures.size(); ++i) {
         progress.update(static_cast<double>(i) / captures.size(), captures[i].folder);
         const video::ClothTrial trial = video::load_trial(captures[i], load_settings(options.trial));
@@ -135,28 +128,26 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
         const std::vector<video::WindowSummary> windows =
             video::summarize_windows(a, video::standard_windows(static_cast<int>(trial.frames.size())));
         nlohmann::json window_json = nlohmann::json::array();
-        html << "<h2>" << captures[i].folder << "</h2><table><tr><th>frames</th><th>metric E_k (mean)</th><th>floor</th>"
-             << "<th>vertex RMS (mm)</th><th>floor (mm)</th></tr>";
+        html::Table table;
+        table.header = {"frames", "metric E_k (mean)", "floor", "vertex RMS (mm)", "floor (mm)"};
         for (const video::WindowSummary& w : windows) {
             window_json.push_back({{"frames", video::window_name(w.window)},
                                    {"metric_mean", number_or_null(w.metric_mean)},
                                    {"metric_floor", number_or_null(w.metric_floor_mean)},
                                    {"vertex_rms_mm", number_or_null(1e3 * w.vertex_rms_m)},
                                    {"vertex_floor_mm", number_or_null(1e3 * w.vertex_floor_m)}});
-            char row[256];
-            std::snprintf(row, sizeof row, "<tr><td>%s</td><td>%.1f</td><td>%.1f</td><td>%.1f</td><td>%.1f</td></tr>",
-                          video::window_name(w.window).c_str(), w.metric_mean, w.metric_floor_mean, 1e3 * w.vertex_rms_m,
-                          1e3 * w.vertex_floor_m);
-            html << row;
+            table.rows.push_back({video::window_name(w.window), one_decimal(w.metric_mean), one_decimal(w.metric_floor_mean),
+                                  one_decimal(1e3 * w.vertex_rms_m), one_decimal(1e3 * w.vertex_floor_m)});
         }
-        html << "</table>";
+        body << html::element("h2", captures[i].folder) << html::table(table);
         std::vector<double> metric, metric_floor, vertex_mm, vertex_floor_mm;
         for (const auto& e : a.frames) metric.push_back(e.total);
         if (a.floor) metric_floor = a.floor->metric;
         for (double v : a.vertex_rms_m) vertex_mm.push_back(1e3 * v);
         if (a.floor) for (double v : a.floor->vertex_rms_m) vertex_floor_mm.push_back(1e3 * v);
-        html << svg_plot("metric E_k per frame", "", metric, metric_floor);
-        if (!vertex_mm.empty()) html << svg_plot("vertex RMS vs ground truth per frame (mm)", "mm", vertex_mm, vertex_floor_mm);
+        body << frame_plot("metric E_k per frame", "metric E_k", metric, metric_floor);
+        if (!vertex_mm.empty())
+            body << frame_plot("vertex RMS vs ground truth per frame (mm)", "vertex RMS (mm)", vertex_mm, vertex_floor_mm);
         nlohmann::json entry = {{"capture", captures[i].folder},
                                 {"test", a.is_static ? "static" : "waving"},
                                 {"weighted_floor", a.floor ? nlohmann::json(video::weighted_floor(trial, *a.floor)) : nlohmann::json()},
@@ -169,13 +160,15 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
         results.push_back(entry);
     }
     progress.done();
-    html << "<p>The predictability floor is the spread of " << floor.members
-         << " runs whose parameters differ by one part in a million and whose starting shape is jittered by 0.5 mm: "
-            "no model can be expected to match a chaotic trial better than that.</p></body></html>";
+    body << html::element("p", "The predictability floor is the spread of " + std::to_string(floor.members) +
+                                   " runs whose parameters differ by one part in a million and whose starting shape is jittered "
+                                   "by 0.5 mm: no model can be expected to match a chaotic trial better than that.");
     const nlohmann::json summary = {{"preset", options.preset}, {"floor_members", floor.members}, {"captures", results}};
     if (!options.report.empty()) {
         formats::write_file_atomically(options.report + "/eval.json", [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
-        formats::write_file_atomically(options.report + "/eval.html", [&](std::ostream& out) { out << html.str(); });
+        formats::write_file_atomically(options.report + "/eval.html", [&](std::ostream& out) {
+            out << html::page("flowvid eval cloth", body.str());
+        });
     }
     if (options.json) std::cout << summary.dump(2) << '\n';
     else std::cout << human_readable(summary);

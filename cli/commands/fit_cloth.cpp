@@ -3,19 +3,31 @@
 
 #include "commands/cloth_options.hpp"
 #include "commands/fit.hpp"
+#include "commands/merge.hpp"
 #include "output.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/fit_shard.hpp"
+#include "flowvid/version.hpp"
 #include "flowvid/video/cloth_eval.hpp"
 #include "flowvid/video/fit_cloth.hpp"
 
+#include <chrono>
 #include <filesystem>
 #include <cmath>
+#include <cstdlib>
+#include <ctime>
+#include <initializer_list>
 #include <iostream>
+#include <limits>
 #include <memory>
+#include <stdexcept>
 
 namespace flowvid::cli {
 namespace {
+
+// Members of the floor ensemble reported beside each trial's error.
+constexpr int kFloorMembers = 4;
 
 struct FitClothOptions {
     std::vector<std::string> captures;
@@ -33,6 +45,10 @@ struct FitClothOptions {
     double half_life_frames = 10.0;
     ClothRunOptions run;
     bool json = false;
+    // Farm and cluster splitting (docs/farm.md).
+    std::string shard;                    // "i/n": run only shard i of n and write its partial result to --out
+    int shards = 0;                       // n > 0: run all n shards here, then merge them (as `flowvid merge`)
+    bool variability_runs_given = false;  // --shards: restarts in the merge only when asked for
 };
 
 nlohmann::json material_summary(const cloth::ClothMaterial& material, const std::vector<video::FittedParameter>& parameters,
@@ -49,20 +65,16 @@ nlohmann::json material_summary(const cloth::ClothMaterial& material, const std:
     return out;
 }
 
-int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
-    std::optional<cloth::SwatchOptions> swatch = swatch_options(options.run);
-    if (!swatch) return kExitUsage;
-    if (options.drag == "linear" && !options.out.empty() && !global.quiet)
-        log_message("note: a linear-drag fit has no fabric preset form; --out gets the fit summary (JSON) instead");
+// The fit's request from the options (every path: whole, shard, merge).
+video::ClothFitRequest make_request(const FitClothOptions& options, const cloth::SwatchOptions& swatch,
+                                    std::vector<formats::Capture> captures, const std::string& out) {
     video::ClothFitRequest request;
-    for (const std::string& path : options.captures)
-        request.captures.push_back(read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid fit cloth"));
-    prepare_output_folder(options.out);
-    request.name = options.name.empty() ? std::filesystem::path(options.out).stem().stem().string() : options.name;
+    request.captures = std::move(captures);
+    request.name = options.name.empty() ? std::filesystem::path(out).stem().stem().string() : options.name;
     request.load.waving_frames = options.frames;
     request.load.full_weight_frames = options.full_weight_frames;
     request.load.half_life_frames = options.half_life_frames;
-    request.problem.swatch = *swatch;
+    request.problem.swatch = swatch;
     request.problem.metric.silhouette_term =
         options.metric == "edge" ? metrics::SilhouetteTerm::edge_distance : metrics::SilhouetteTerm::pixel_xor;
     request.load.silhouette_term = request.problem.metric.silhouette_term;
@@ -73,6 +85,30 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     request.budget_seconds = options.budget_seconds;
     request.seed = options.seed;
     request.threads = thread_count(options.run.threads);
+    return request;
+}
+
+int run_shards(const FitClothOptions& options, const GlobalOptions& global, video::ClothFitRequest request);
+
+int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
+    const auto command_started = std::chrono::steady_clock::now();
+    const auto seconds_since = [](std::chrono::steady_clock::time_point t) {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+    };
+    std::optional<cloth::SwatchOptions> swatch = swatch_options(options.run);
+    if (!swatch) return kExitUsage;
+    const bool sharded = !options.shard.empty() || options.shards > 0;
+    if (options.drag == "linear" && !options.out.empty() && !global.quiet && options.shard.empty())
+        log_message("note: a linear-drag fit has no fabric preset form; --out gets the fit summary (JSON) instead");
+    std::vector<formats::Capture> captures;
+    for (const std::string& path : options.captures)
+        captures.push_back(read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid fit cloth"));
+    prepare_output_folder(options.out);
+    video::ClothFitRequest request = make_request(options, *swatch, std::move(captures), options.out);
+    if (sharded) return run_shards(options, global, std::move(request));
+    // The floor ensembles below run inside the same budget: one simulation of
+    // each trial per member, about one evaluation each.
+    request.evaluations_after_fit = kFloorMembers + 2;  // + the members' equilibrium searches
 
     Progress progress(global, "fit cloth");
     const InterruptWatch interrupt;
@@ -90,12 +126,16 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
         return kExitInterrupted;
     }
 
+    if (outcome.variability_runs_planned < request.variability_runs)
+        log_message("the time budget paid for " + std::to_string(outcome.variability_runs_planned) + " of " +
+                    std::to_string(request.variability_runs) + " variability restarts" +
+                    (outcome.variability_runs_planned == 0 ? ": the preset has no uncertainty (raise --budget-seconds)" : ""));
     const optim::VariabilityReport* variability = outcome.variability ? &*outcome.variability : nullptr;
     // Each trial's error next to its predictability floor (a small ensemble
     // at the fitted fabric): an error near the floor is as good as it gets.
     nlohmann::json trials = nlohmann::json::array();
     video::FloorSettings floor;
-    floor.members = 4;
+    floor.members = kFloorMembers;
     const std::vector<video::ClothTrial>& loaded = outcome.trials;
     video::ClothFitSettings floor_settings = request.problem;
     double total_floor = 0.0;
@@ -118,13 +158,277 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
                               {"trials", trials},
                               {"evaluations", outcome.evaluations},
                               {"simulations", outcome.simulations},
+                              {"variability_runs", outcome.variability_runs_planned},
                               {"seconds", outcome.seconds},
+                              {"total_seconds", seconds_since(command_started)},
                               {"annealing_status", optim::status_name(outcome.search.annealing.status)}};
     if (outcome.preset) formats::write_fabric_preset(options.out, *outcome.preset);
     else formats::write_file_atomically(options.out, [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
     if (options.json) std::cout << summary.dump(2) << '\n';
     else std::cout << human_readable(summary);
     return kExitOk;
+}
+
+// ---- Farm and cluster splitting: --shard i/n, --shards n, and the cloth merge.
+
+// "i/n" with 1 <= i <= n <= 10000; nullopt (logged) otherwise.
+std::optional<video::ClothFitShard> parse_shard(const std::string& text) {
+    int index = 0, count = 0;
+    char slash = 0, extra = 0;
+    if (std::sscanf(text.c_str(), "%d%c%d%c", &index, &slash, &count, &extra) == 3 && slash == '/' && index >= 1 &&
+        count >= 1 && index <= count && count <= 10000)
+        return video::ClothFitShard{index, count};
+    log_message("error: --shard " + text + ": expected i/n with 1 <= i <= n, e.g. 2/8 (the second of 8 shards)");
+    return std::nullopt;
+}
+
+// The options that change a fit's result, named as on the command line:
+// the shards of one fit must agree on every one (threads, names and the
+// variability restarts, which the merge runs, are not among them).
+nlohmann::json result_options(const FitClothOptions& o) {
+    return {{"drag", o.drag},
+            {"metric", o.metric},
+            {"seed", o.seed},
+            {"evaluations", o.evaluations},
+            {"budget-seconds", o.budget_seconds},
+            {"frames", o.frames},
+            {"full-weight-frames", o.full_weight_frames},
+            {"half-life-frames", o.half_life_frames},
+            {"resolution", o.run.resolution},
+            {"integrator", o.run.integrator},
+            {"initial-bow", o.run.initial_bow}};
+}
+
+// The options back from a shard's request; every malformed one is reported
+// with the shard's file and field.
+FitClothOptions options_from_shard(const formats::FitShardFile& file) {
+    Diagnostics diagnostics(file.path);
+    const formats::JsonView view(file.shard.options, "/request/options", diagnostics);
+    FitClothOptions o;
+    const auto one_of = [&](const char* key, std::initializer_list<const char*> allowed, std::string& into) {
+        const std::optional<std::string> value = view.string(key);
+        if (!value) return;
+        for (const char* a : allowed)
+            if (*value == a) {
+                into = *value;
+                return;
+            }
+        diagnostics.error(std::string("/request/options/") + key, "\"" + *value + "\" is not a choice of this flowvid",
+                          "run the shard with this flowvid's options");
+    };
+    one_of("drag", {"nonlinear", "linear"}, o.drag);
+    one_of("metric", {"xor", "edge"}, o.metric);
+    one_of("integrator", {"rk4", "dopri54", "bs32", "implicit", "bdf2"}, o.run.integrator);
+    if (view.has("seed") && view.json().at("seed").is_number_unsigned()) o.seed = view.json().at("seed").get<std::uint64_t>();
+    else o.seed = static_cast<std::uint64_t>(view.integer("seed", 0, std::numeric_limits<std::int64_t>::max()).value_or(1));
+    o.evaluations = view.integer("evaluations", 10, 1000000).value_or(o.evaluations);
+    o.budget_seconds = view.number("budget-seconds", formats::NumberRange::non_negative("s")).value_or(0.0);
+    o.frames = static_cast<int>(view.integer("frames", 2, 100000).value_or(o.frames));
+    o.full_weight_frames = static_cast<int>(view.integer("full-weight-frames", 1, 100000).value_or(o.full_weight_frames));
+    o.half_life_frames = view.number("half-life-frames", formats::NumberRange::non_negative("frames")).value_or(0.0);
+    o.run.resolution = view.string("resolution").value_or(o.run.resolution);
+    o.run.initial_bow = view.number("initial-bow", formats::NumberRange::closed(-2.0, 2.0)).value_or(o.run.initial_bow);
+    view.check_known_keys({"drag", "metric", "seed", "evaluations", "budget-seconds", "frames", "full-weight-frames",
+                           "half-life-frames", "resolution", "integrator", "initial-bow"});
+    diagnostics.throw_if_errors();
+    return o;
+}
+
+// A finished shard's partial result.
+formats::FitShard shard_result(const FitClothOptions& options, const video::ClothFitRequest& request,
+                               const video::ClothFitOutcome& outcome) {
+    formats::FitShard shard;
+    shard.kind = "cloth";
+    shard.software = "flowvid " + flowvid::version();
+    for (const formats::Capture& c : request.captures) shard.captures.push_back({c.folder, c.capture_json_sha256});
+    shard.options = result_options(options);
+    shard.index = request.shard->index;
+    shard.count = request.shard->count;
+    const Eigen::VectorXd& best = outcome.search.annealing.best_values;
+    for (std::size_t i = 0; i < outcome.parameters.size() && static_cast<Eigen::Index>(i) < best.size(); ++i)
+        shard.best.push_back({outcome.parameters[i].key, best(static_cast<Eigen::Index>(i))});
+    shard.best_error = outcome.search.annealing.best_value;
+    shard.evaluations = outcome.evaluations;
+    shard.status = optim::status_name(outcome.search.annealing.status);
+    return shard;
+}
+
+// The reproducible-builds convention: SOURCE_DATE_EPOCH (seconds since
+// 1970, UTC) replaces the preset's creation time, so that a fit run twice,
+// or split and merged, gives the same bytes.
+void apply_source_date_epoch(formats::FabricPreset& preset) {
+    const char* text = std::getenv("SOURCE_DATE_EPOCH");
+    if (!text || !*text) return;
+    char* end = nullptr;
+    const long long seconds = std::strtoll(text, &end, 10);
+    if (*end != '\0' || seconds < 0) {
+        log_message(std::string("warning: SOURCE_DATE_EPOCH=") + text + " is not whole seconds since 1970; the preset gets the current time");
+        return;
+    }
+    const std::time_t t = static_cast<std::time_t>(seconds);
+    std::tm utc{};
+    gmtime_r(&t, &utc);
+    char stamp[32];
+    std::strftime(stamp, sizeof stamp, "%Y-%m-%dT%H:%M:%SZ", &utc);
+    preset.provenance.created_utc = stamp;
+}
+
+// The last step of a split cloth fit: the winner simulated once more (and
+// the variability restarts when asked for), written exactly as fit cloth
+// writes. Used by `flowvid merge` and by `fit cloth --shards n`.
+int merge_cloth(const MergeRequest& merge, const GlobalOptions& global) {
+    const formats::FitShardFile& winner = merge.shards.at(merge.winner);
+    FitClothOptions options = options_from_shard(winner);
+    options.name = merge.name;
+    options.variability_runs = merge.variability_runs;
+    options.variability_evaluations = merge.variability_evaluations;
+    options.run.threads = merge.threads;
+    std::optional<cloth::SwatchOptions> swatch = swatch_options(options.run);
+    if (!swatch) throw ValidationError({Problem{Problem::Severity::error, winner.path, "/request/options/resolution",
+                                                "\"" + options.run.resolution + "\" is not ROWSxCOLS", "run the shard again"}});
+    // The captures again, from the paths the shards recorded: they must be
+    // the very experiments the shards fitted.
+    std::vector<formats::Capture> captures;
+    std::vector<Problem> changed;
+    for (std::size_t i = 0; i < winner.shard.captures.size(); ++i) {
+        const formats::FitShardCapture& recorded = winner.shard.captures[i];
+        captures.push_back(read_capture_of_kind(recorded.path, {"cloth.static", "cloth.waving"}, "flowvid merge"));
+        if (captures.back().capture_json_sha256 != recorded.capture_json_sha256)
+            changed.push_back({Problem::Severity::error, winner.path, "/request/captures/" + std::to_string(i) + "/capture_json_sha256",
+                               captures.back().json_path + " has changed since the shard ran (its SHA-256 is now " +
+                                   captures.back().capture_json_sha256 + ")",
+                               "restore that capture.json, or run the shards again on the capture as it is"});
+    }
+    if (!changed.empty()) throw ValidationError(changed);
+    video::ClothFitRequest request = make_request(options, *swatch, std::move(captures), merge.out);
+
+    std::vector<std::string> names;
+    Eigen::VectorXd values(static_cast<Eigen::Index>(winner.shard.best.size()));
+    for (std::size_t i = 0; i < winner.shard.best.size(); ++i) {
+        names.push_back(winner.shard.best[i].name);
+        values(static_cast<Eigen::Index>(i)) = winner.shard.best[i].value;
+    }
+    Progress progress(global, "merge cloth");
+    const InterruptWatch interrupt;
+    request.progress = [&](const video::ClothFitProgress& p) {
+        progress.update(p.fraction, p.phase);
+        return !interrupt.requested();
+    };
+    video::ClothFitOutcome outcome;
+    try {
+        outcome = video::finish_cloth_fit(request, names, values, winner.shard.best_error);
+    } catch (const std::invalid_argument& error) {
+        throw ValidationError({Problem{Problem::Severity::error, winner.path, "/result/parameters", error.what(),
+                                       "run the shard again with this flowvid"}});
+    }
+    progress.done();
+    if (outcome.status == video::ClothFitOutcome::Status::cancelled) {
+        log_message("interrupted: nothing written");
+        return kExitInterrupted;
+    }
+
+    long long evaluations = outcome.evaluations;
+    nlohmann::json shard_errors = nlohmann::json::array();
+    std::vector<const formats::FitShardFile*> by_index(merge.shards.size());
+    for (const formats::FitShardFile& file : merge.shards) by_index.at(static_cast<std::size_t>(file.shard.index - 1)) = &file;
+    for (const formats::FitShardFile* file : by_index) {
+        evaluations += file->shard.evaluations;
+        shard_errors.push_back(file->shard.best_error);
+    }
+    const optim::VariabilityReport* variability = outcome.variability ? &*outcome.variability : nullptr;
+    nlohmann::json trials = nlohmann::json::array();
+    for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i)
+        trials.push_back({{"capture", outcome.trial_names[i]}, {"final_error", outcome.final_evaluation.trials[i].error}});
+    const std::string split = std::to_string(winner.shard.index) + "/" + std::to_string(winner.shard.count);
+    const nlohmann::json summary = {{"out", merge.out},
+                                    {"drag", video::drag_model_name(request.drag)},
+                                    {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
+                                    {"winner", {{"shard", split}, {"file", winner.path}, {"error", winner.shard.best_error}}},
+                                    {"shard_errors", shard_errors},
+                                    {"final_error", outcome.final_evaluation.total},
+                                    {"trials", trials},
+                                    {"evaluations", evaluations},
+                                    {"variability_runs", outcome.variability_runs_planned},
+                                    {"seconds", outcome.seconds}};
+    if (outcome.preset) {
+        formats::FabricPreset preset = *outcome.preset;
+        preset.provenance.notes = "main search split into " + std::to_string(winner.shard.count) + " shards (flowvid merge); shard " +
+                                  split + " had the lowest error";
+        apply_source_date_epoch(preset);
+        formats::write_fabric_preset(merge.out, preset);
+    } else {
+        formats::write_file_atomically(merge.out, [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
+    }
+    if (merge.json) std::cout << summary.dump(2) << '\n';
+    else std::cout << human_readable(summary);
+    return kExitOk;
+}
+
+const RegisterMergeKind merge_registration{MergeKind{"cloth", merge_cloth}};
+
+// --shard i/n: one shard, its partial result to --out. --shards n: every
+// shard here, one after the other (each with every thread; the result does
+// not depend on the order or the threads), then the same merge as
+// `flowvid merge`.
+int run_shards(const FitClothOptions& options, const GlobalOptions& global, video::ClothFitRequest request) {
+    std::vector<video::ClothFitShard> todo;
+    if (!options.shard.empty()) {
+        const std::optional<video::ClothFitShard> shard = parse_shard(options.shard);
+        if (!shard) return kExitUsage;
+        todo.push_back(*shard);
+    } else {
+        for (int i = 1; i <= options.shards; ++i) todo.push_back({i, options.shards});
+    }
+    std::vector<formats::FitShardFile> results;
+    {
+        const InterruptWatch interrupt;
+        for (const video::ClothFitShard& shard : todo) {
+            const std::string split = std::to_string(shard.index) + "/" + std::to_string(shard.count);
+            Progress progress(global, "fit cloth shard " + split);
+            request.shard = shard;
+            request.progress = [&](const video::ClothFitProgress& p) {
+                progress.update(p.fraction, p.phase + ", " + std::to_string(p.evaluations) + " evaluations");
+                return !interrupt.requested();
+            };
+            video::ClothFitOutcome outcome;
+            try {
+                outcome = video::fit_cloth(request);
+            } catch (const std::invalid_argument& error) {
+                log_message("error: --shard " + split + ": " + error.what() +
+                            " (use fewer shards, or more --evaluations: the design has about a quarter of them)");
+                return kExitUsage;
+            }
+            progress.done();
+            if (outcome.status == video::ClothFitOutcome::Status::cancelled) {
+                log_message("interrupted: nothing written");
+                return kExitInterrupted;
+            }
+            results.push_back({"shard " + split + " (this run)", shard_result(options, request, outcome)});
+            if (!global.quiet && options.shards > 0)
+                log_message("shard " + split + ": error " + std::to_string(outcome.search.annealing.best_value) + " after " +
+                            std::to_string(outcome.evaluations) + " evaluations");
+            if (!options.shard.empty()) {
+                formats::write_fit_shard(options.out, results.back().shard);
+                nlohmann::json summary = formats::summarize_fit_shard(results.back().shard);
+                summary["out"] = options.out;
+                summary["design_points"] = outcome.search.design.points.size();
+                summary["seconds"] = outcome.seconds;
+                if (options.json) std::cout << summary.dump(2) << '\n';
+                else std::cout << human_readable(summary);
+                return kExitOk;
+            }
+        }
+    }
+    MergeRequest merge;
+    merge.shards = std::move(results);
+    merge.winner = formats::check_fit_shard_set(merge.shards);
+    merge.out = options.out;
+    merge.name = options.name;
+    merge.variability_runs = options.variability_runs_given ? options.variability_runs : 0;
+    merge.variability_evaluations = options.variability_evaluations;
+    merge.threads = options.run.threads;
+    merge.json = options.json;
+    return merge_cloth(merge, global);
 }
 
 const RegisterFitKind registration{FitKind{
@@ -143,11 +447,18 @@ const RegisterFitKind registration{FitKind{
             "less (halving every --half-life-frames), so the fit does not chase unpredictable folds.\n"
             "Never reads truth/. Same seed and options give the same preset whatever --threads, unless\n"
             "--budget-seconds stops the search early. See docs/cloth_fitting.md.\n\n"
+            "Farms and clusters (docs/farm.md): --shard i/n runs one of n independent tasks (its share of the\n"
+            "design, then one annealing of its own) and writes a partial result; `flowvid merge` picks the\n"
+            "best shard and writes the preset. --shards n does all of it here and writes the same bytes\n"
+            "(set SOURCE_DATE_EPOCH to fix created_utc). Deterministic only without --budget-seconds (which\n"
+            "then limits each shard).\n\n"
             "Examples:\n"
             "  flowvid fit cloth --capture ../shared/captures/cloth-cotton-static-1 \\\n"
             "                    --capture ../shared/captures/cloth-cotton-waving-1 --out cotton.fabric.json\n"
             "  flowvid fit cloth --capture drape/ --capture wave1/ --capture wave2/ --out silk.fabric.json \\\n"
-            "                    --budget-seconds 600 --seed 7\n\n"
+            "                    --budget-seconds 600 --seed 7\n"
+            "  flowvid fit cloth --capture drape/ --capture wave1/ --out shards/3.json --shard 3/8   # task 3 of 8\n"
+            "  flowvid merge --out silk.fabric.json shards/*.json\n\n"
             "Exit codes: 0 ok, 2 bad option, 3 invalid capture (each problem names its file and field),\n"
             "4 unreadable or unwritable file, 130 interrupted (nothing written).");
         app.add_option("--capture", options->captures, "cloth capture folder (repeat: static and waving tests of one fabric)")
@@ -186,8 +497,22 @@ const RegisterFitKind registration{FitKind{
             ->check(CLI::IsMember({"nonlinear", "linear"}))
             ->capture_default_str();
         add_cloth_run_options(app, options->run);
+        CLI::Option* shard = app.add_option(
+            "--shard", options->shard,
+            "i/n: run only shard i of n (a farm or cluster task): design points i-1, i-1+n, ... and one annealing; "
+            "--out gets its partial result (JSON) for `flowvid merge`; no variability restarts");
+        CLI::Option* shards =
+            app.add_option("--shards", options->shards,
+                           "n: run all n shards here, then merge them: the same preset as n --shard runs + `flowvid merge` "
+                           "(variability restarts only with an explicit --variability-runs)")
+                ->check(CLI::Range(1, 10000));
+        shard->excludes(shards);
         app.add_flag("--json", options->json, "print the summary as JSON");
-        return [options](const GlobalOptions& global) { return run_fit_cloth(*options, global); };
+        CLI::Option* variability_runs = app.get_option("--variability-runs");
+        return [options, variability_runs](const GlobalOptions& global) {
+            options->variability_runs_given = variability_runs->count() > 0;
+            return run_fit_cloth(*options, global);
+        };
     }}};
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
+#include "flowvid/formats/fit_shard.hpp"
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/flowlines.hpp"
 #include "flowvid/formats/motion_gltf.hpp"
@@ -32,6 +33,7 @@ FileKind kind_from_json_format(const std::string& format) {
     if (format == "flowvid.fabric") return FileKind::fabric_preset;
     if (format == "flowvid.flowlines") return FileKind::flowline_set;
     if (format == "flowvid.capture") return FileKind::capture_folder;
+    if (format == "flowvid.fit_shard") return FileKind::fit_shard;
     return FileKind::unknown;
 }
 
@@ -46,6 +48,7 @@ const char* file_kind_name(FileKind kind) {
         case FileKind::vertex_animation: return "vertex-animation EXR";
         case FileKind::motion_gltf: return "motion (glTF binary)";
         case FileKind::capture_folder: return "capture folder";
+        case FileKind::fit_shard: return "fit shard";
         case FileKind::unknown: break;
     }
     return "unknown";
@@ -91,6 +94,7 @@ std::vector<Problem> validate_any_file(const std::string& path, Strictness stric
     }
     switch (kind) {
         case FileKind::fabric_preset: return validate_fabric_preset_file(path, strictness);
+        case FileKind::fit_shard: return validate_fit_shard_file(path, strictness);
         case FileKind::flowline_set:
         case FileKind::flowline_svg: return validate_flowline_set_file(path, strictness);
         case FileKind::particle_bank: return validate_particle_bank_file(path, strictness);
@@ -115,6 +119,7 @@ nlohmann::json summarize_any_file(const std::string& path) {
         case FileKind::vertex_animation: summary = summarize_vertex_animation(read_vertex_animation(path)); break;
         case FileKind::motion_gltf: summary = summarize_motion_gltf(read_motion_gltf(path)); break;
         case FileKind::capture_folder: summary = summarize_capture(read_capture(path)); break;
+        case FileKind::fit_shard: summary = summarize_fit_shard(read_fit_shard(path)); break;
         case FileKind::unknown:
             throw ValidationError({Problem{Problem::Severity::error, path, "", "not a flowvid file (unrecognised content)",
                                            "run 'flowvid validate' on it for details"}});

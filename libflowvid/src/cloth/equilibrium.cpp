@@ -41,6 +41,8 @@ Residual residual(const ClothModel& model, const std::vector<bool>& fixed, const
 EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<bool>& fixed, Eigen::VectorXd& x,
                                            const EquilibriumOptions& options) {
     EquilibriumReport report;
+    // Bending memory acts only during a dynamic run: the rest state before it is flat.
+    model.reset_rest_fold_angles();
     const int n = model.vertex_count();
     std::vector<int> dof(static_cast<size_t>(n), -1);
     int free_dofs = 0;

@@ -1,6 +1,7 @@
 #include "flowvid/cloth/material.hpp"
 
 #include <cmath>
+#include <utility>
 
 namespace flowvid::cloth {
 
@@ -63,6 +64,20 @@ std::vector<Problem> check_material(const ClothMaterial& material) {
     }
     if (std::isfinite(material.areal_density_kg_per_m2) && !(material.areal_density_kg_per_m2 > 0.0))
         add(kBindings[0], "must be positive (the cloth needs mass)", "give the fabric's areal density in kg/m^2");
+    // The optional terms are not preset keys: named by their members.
+    const std::pair<const char*, double> optional_terms[] = {
+        {"bias_angle_rad", material.bias_angle_rad},
+        {"bend_memory_rate_per_s", material.bend_memory_rate_per_s},
+    };
+    for (const auto& [name, value] : optional_terms)
+        if (!std::isfinite(value)) {
+            Problem p;
+            p.file = "<material>";
+            p.field = name;
+            p.message = "is not a finite number";
+            p.fix = "give a finite SI value (0 switches the term off)";
+            problems.push_back(std::move(p));
+        }
     return problems;
 }
 

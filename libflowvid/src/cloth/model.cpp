@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <stdexcept>
 #include <variant>
 #include <string>
 
@@ -100,6 +101,39 @@ std::int64_t cell_key(std::int64_t ix, std::int64_t iy, std::int64_t iz) {
     return ((ix + offset) & mask) | (((iy + offset) & mask) << 21) | (((iz + offset) & mask) << 42);
 }
 
+// Coefficients of the warp and weft tangents w_u = sum alpha_a x_a,
+// w_v = sum beta_a x_a of a triangle with material coordinates u0, u1, u2,
+// from [w_u w_v] = [x1-x0, x2-x0] * inverse([[du1, du2], [dv1, dv2]]). A bias
+// angle b turns the warp to (cos b, sin b) in uv: w_warp = cos b w_u + sin b
+// w_v, w_weft = -sin b w_u + cos b w_v (the uv frame rotated by -b). At b = 0
+// exactly the rotation is skipped, so the neutral value changes no bit.
+void frame_coefficients(const Eigen::Vector2d& u0, const Eigen::Vector2d& u1, const Eigen::Vector2d& u2,
+                        double bias_rad, std::array<double, 3>& alpha, std::array<double, 3>& beta) {
+    const double du1 = u1.x() - u0.x(), dv1 = u1.y() - u0.y();
+    const double du2 = u2.x() - u0.x(), dv2 = u2.y() - u0.y();
+    const double det = du1 * dv2 - du2 * dv1;
+    alpha = {(dv1 - dv2) / det, dv2 / det, -dv1 / det};
+    beta = {(du2 - du1) / det, -du2 / det, du1 / det};
+    if (bias_rad == 0.0) return;
+    const double c = std::cos(bias_rad), s = std::sin(bias_rad);
+    for (size_t a = 0; a < 3; ++a) {
+        const double al = alpha[a], be = beta[a];
+        alpha[a] = c * al + s * be;
+        beta[a] = -s * al + c * be;
+    }
+}
+
+// theta - theta0 in (-pi, pi]: a fold that passes through +-pi stays continuous
+// against a rest fold.
+inline double fold_difference(double theta, double theta0) {
+    double d = theta - theta0;
+    if (d > M_PI)
+        d -= 2.0 * M_PI;
+    else if (d <= -M_PI)
+        d += 2.0 * M_PI;
+    return d;
+}
+
 double max_displacement(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
     double m = 0.0;
     for (Eigen::Index i = 0; i < a.size(); i += 3) m = std::max(m, (a.segment<3>(i) - b.segment<3>(i)).squaredNorm());
@@ -121,6 +155,7 @@ void ClothModel::set_material(const ClothMaterial& material) {
     std::vector<Problem> problems = check_material(material);
     if (!problems.empty()) throw ValidationError(std::move(problems));
     m_material = material;
+    if (m_material.bias_angle_rad != m_frame_bias_rad) compute_material_frames();
     m_total_mass = 0.0;
     for (int i = 0; i < vertex_count(); ++i) {
         m_mass(i) = m_material.areal_density_kg_per_m2 * m_vertex_area(i);
@@ -166,9 +201,7 @@ void ClothModel::validate_and_precompute() {
         }
         TriangleData d;
         d.v = tri;
-        // [w_u w_v] = [x1-x0, x2-x0] * inverse([[du1, du2], [dv1, dv2]])
-        d.alpha = {(dv1 - dv2) / det, dv2 / det, -dv1 / det};
-        d.beta = {(du2 - du1) / det, -du2 / det, du1 / det};
+        frame_coefficients(u0, u1, u2, m_material.bias_angle_rad, d.alpha, d.beta);
         d.rest_area_m2 = 0.5 * std::abs(det);
         d.slots.fill(-1);
         m_total_area += d.rest_area_m2;
@@ -184,6 +217,8 @@ void ClothModel::validate_and_precompute() {
                               "remove unused vertices");
     diagnostics.throw_if_errors();
 
+    m_frame_bias_rad = m_material.bias_angle_rad;
+    m_rest_fold_rad.clear();
     m_mass.resize(n);
     set_material(m_material);
 
@@ -219,6 +254,53 @@ void ClothModel::validate_and_precompute() {
         for (int a = 0; a < 4; ++a)
             for (int b = 0; b < 4; ++b)
                 e.slots[static_cast<size_t>(4 * a + b)] = pattern.slot(e.v[static_cast<size_t>(a)], e.v[static_cast<size_t>(b)]);
+}
+
+void ClothModel::compute_material_frames() {
+    for (TriangleData& t : m_triangles)
+        frame_coefficients(m_mesh.material_uv_m[static_cast<size_t>(t.v[0])],
+                           m_mesh.material_uv_m[static_cast<size_t>(t.v[1])],
+                           m_mesh.material_uv_m[static_cast<size_t>(t.v[2])], m_material.bias_angle_rad, t.alpha, t.beta);
+    m_frame_bias_rad = m_material.bias_angle_rad;
+}
+
+Eigen::VectorXd ClothModel::rest_fold_angles_rad() const {
+    if (m_rest_fold_rad.empty()) return Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m_edges.size()));
+    return Eigen::Map<const Eigen::VectorXd>(m_rest_fold_rad.data(), static_cast<Eigen::Index>(m_rest_fold_rad.size()));
+}
+
+void ClothModel::set_rest_fold_angles_rad(const Eigen::VectorXd& angles_rad) {
+    if (angles_rad.size() != static_cast<Eigen::Index>(m_edges.size()))
+        throw std::invalid_argument("set_rest_fold_angles_rad: " + std::to_string(angles_rad.size()) +
+                                    " angles for " + std::to_string(m_edges.size()) + " interior edges");
+    if (!angles_rad.allFinite()) throw std::invalid_argument("set_rest_fold_angles_rad: non-finite angle");
+    m_rest_fold_rad.assign(angles_rad.data(), angles_rad.data() + angles_rad.size());
+}
+
+void ClothModel::reset_rest_fold_angles() { m_rest_fold_rad.clear(); }
+
+void ClothModel::update_rest_fold_angles(const Eigen::VectorXd& x, double dt_s, Eigen::VectorXd* bending_force_change) {
+    const double rate = m_material.bend_memory_rate_per_s;
+    if (!(rate > 0.0) || !(dt_s > 0.0)) return;
+    if (m_rest_fold_rad.empty()) m_rest_fold_rad.assign(m_edges.size(), 0.0);
+    // Exact for a held fold over any sequence of steps: the factors e^{-r dt} multiply.
+    const double fraction = -std::expm1(-rate * dt_s);
+    const double kb = m_material.bend_N_m;
+    const bool correct = bending_force_change != nullptr && kb != 0.0;
+    Vector12d g;
+    for (size_t ei = 0; ei < m_edges.size(); ++ei) {
+        const EdgeData& e = m_edges[ei];
+        double theta = 0.0;
+        // Degenerate hinges exert no bending force and keep their memory.
+        if (!dihedral_angle_gradient(at(x, e.v[0]), at(x, e.v[1]), at(x, e.v[2]), at(x, e.v[3]), theta, g)) continue;
+        double& theta0 = m_rest_fold_rad[ei];
+        const double step = fraction * fold_difference(theta, theta0);
+        theta0 = std::remainder(theta0 + step, 2.0 * M_PI);
+        // f = -k w (theta - theta0) g: raising theta0 by `step` adds k w step g.
+        if (correct)
+            for (int a = 0; a < 4; ++a)
+                bending_force_change->segment<3>(3 * e.v[static_cast<size_t>(a)]) += (kb * e.weight * step) * g.segment<3>(3 * a);
+    }
 }
 
 BlockSparseMatrix ClothModel::make_jacobian_matrix() const { return BlockSparseMatrix(vertex_count(), m_pattern_pairs); }
@@ -624,6 +706,8 @@ void ClothModel::add_bending(const Eigen::VectorXd& x, const Eigen::VectorXd& v,
     if (kb == 0.0 && cb == 0.0) return;
     // The definite Jacobian keeps only the Gauss-Newton term g g^T: no Hessian.
     const bool need_hessian = dfdx != nullptr && exact;
+    // Bending memory: the elastic part acts on theta - theta0 (null: flat rest).
+    const double* rest = m_rest_fold_rad.empty() ? nullptr : m_rest_fold_rad.data();
     Vector12d g;
     Matrix12d H;
     for (size_t ei = begin; ei < end; ++ei) {
@@ -638,7 +722,7 @@ void ClothModel::add_bending(const Eigen::VectorXd& x, const Eigen::VectorXd& v,
         }
         if (ok && !dfdx && !dfdv && !lin) {
             // Forces only (explicit integration).
-            double coef = kb * theta;
+            double coef = kb * (rest ? fold_difference(theta, rest[ei]) : theta);
             if (cb != 0.0)
                 for (int a = 0; a < 4; ++a) coef += cb * g.segment<3>(3 * a).dot(at(v, e.v[static_cast<size_t>(a)]));
             coef *= e.weight;
@@ -653,7 +737,8 @@ void ClothModel::add_bending(const Eigen::VectorXd& x, const Eigen::VectorXd& v,
             theta_dot = g.dot(vl);
         }
         const double w = e.weight;
-        const double coef = w * (kb * theta + cb * theta_dot);
+        const double bend = rest ? fold_difference(theta, rest[ei]) : theta;
+        const double coef = w * (kb * bend + cb * theta_dot);
         for (int a = 0; a < 4; ++a) f.segment<3>(3 * e.v[static_cast<size_t>(a)]) -= coef * g.segment<3>(3 * a);
         if (lin) {
             lin->hinge_gradient[ei] = g;
@@ -675,7 +760,7 @@ void ClothModel::add_bending(const Eigen::VectorXd& x, const Eigen::VectorXd& v,
         } else if (dfdx) {
             Matrix12d K = -(w * kb) * (g * g.transpose());
             {
-                K -= (w * kb * theta) * H;
+                K -= (w * kb * bend) * H;
                 if (cb != 0.0) K -= (w * cb) * (theta_dot * H + g * (H * vl).transpose());
             }
             for (int a = 0; a < 4; ++a)
@@ -1004,8 +1089,10 @@ double ClothModel::potential_energy(const Eigen::VectorXd& x, unsigned terms) {
         energy += 0.5 * t.rest_area_m2 * (ku * cu * cu + kv * cv * cv + ks * cs * cs);
     }
     if ((terms & ForceTerm::bending) && m_material.bend_N_m != 0.0)
-        for (const EdgeData& e : m_edges) {
-            const double theta = dihedral_angle(at(x, e.v[0]), at(x, e.v[1]), at(x, e.v[2]), at(x, e.v[3]));
+        for (size_t ei = 0; ei < m_edges.size(); ++ei) {
+            const EdgeData& e = m_edges[ei];
+            double theta = dihedral_angle(at(x, e.v[0]), at(x, e.v[1]), at(x, e.v[2]), at(x, e.v[3]));
+            if (!m_rest_fold_rad.empty()) theta = fold_difference(theta, m_rest_fold_rad[ei]);
             energy += 0.5 * m_material.bend_N_m * e.weight * theta * theta;
         }
     if (terms & ForceTerm::gravity)

@@ -95,6 +95,7 @@ struct ClothSimulator::Workspace {
     // Explicit stages: velocity and acceleration of each stage state.
     Eigen::VectorXd kx[7], kv[7];
     Eigen::VectorXd xs, vs, x_new, v_new, force;
+    Eigen::VectorXd bending_force_change;  // bending memory: the FSAL stage's correction
     bool have_first = false;  // kx[0], kv[0] valid for the current state (FSAL)
     // Implicit.
     Linearization lin;
@@ -134,6 +135,7 @@ void ClothSimulator::set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& 
     apply_pins(m_x, m_v, time_s);
     m_work->have_first = false;
     m_have_previous = false;
+    m_model.reset_rest_fold_angles();  // a new run starts without bending memory
 }
 
 void ClothSimulator::forces(const Eigen::VectorXd& x, const Eigen::VectorXd& v, double time_s, Eigen::VectorXd& force,
@@ -235,6 +237,8 @@ SimulationReport ClothSimulator::advance_explicit(double end_time_s) {
     const double beta = 0.2 / tab.error_order;
     const double alpha = 0.4 / tab.error_order;
     bool after_reject = false;
+    const bool memory = m_model.material().bend_memory_rate_per_s > 0.0;
+    const Eigen::VectorXd& mass = m_model.vertex_masses_kg();
 
     if (!w.have_first) {
         w.kx[0] = m_v;
@@ -311,10 +315,23 @@ SimulationReport ClothSimulator::advance_explicit(double end_time_s) {
             std::swap(m_x, w.x_new);
             std::swap(m_v, w.v_new);
             apply_pins(m_x, m_v, m_time);
+            // Bending memory creeps once per accepted step (operator
+            // splitting: theta0 is held during the step). The FSAL stage was
+            // evaluated with the old rest angles: corrected by the change of
+            // the bending force instead of a fresh evaluation.
+            const bool correct_fsal = memory && tab.fsal && (m_settings.force_terms & ForceTerm::bending);
+            if (memory) {
+                if (correct_fsal) w.bending_force_change.setZero(3 * n);
+                m_model.update_rest_fold_angles(m_x, h, correct_fsal ? &w.bending_force_change : nullptr);
+            }
             if (tab.fsal) {
                 std::swap(w.kx[0], w.kx[tab.stages - 1]);
                 std::swap(w.kv[0], w.kv[tab.stages - 1]);
                 w.kx[0] = m_v;  // pinned velocities from the path
+                if (correct_fsal)
+                    for (int i = 0; i < n; ++i)
+                        if (!m_pinned[static_cast<size_t>(i)])
+                            w.kv[0].segment<3>(3 * i) += w.bending_force_change.segment<3>(3 * i) / mass(i);
             } else {
                 w.kx[0] = m_v;
                 derivative(m_x, m_v, m_time, w.kv[0]);
@@ -370,6 +387,7 @@ SimulationReport ClothSimulator::advance_implicit(double end_time_s) {
     SimulationReport report;
     if (w.delta.size() != 3 * n) w.delta = Eigen::VectorXd::Zero(3 * n);
     const Eigen::VectorXd& mass = m_model.vertex_masses_kg();
+    const bool memory = m_model.material().bend_memory_rate_per_s > 0.0;
     // Fixed substeps: each call (a frame) is split into equal steps.
     const int substeps = std::max(1, m_settings.implicit_substeps_per_frame);
     const double h_nominal = (end_time_s - m_time) / substeps;
@@ -514,6 +532,7 @@ SimulationReport ClothSimulator::advance_implicit(double end_time_s) {
         m_v = w.v1;
         m_time = t_new;
         apply_pins(m_x, m_v, m_time);
+        if (memory) m_model.update_rest_fold_angles(m_x, h);  // bending memory, once per step
         ++m_stats.steps;
         m_stats.min_step_s = std::min(m_stats.min_step_s, h);
         m_stats.max_step_s = std::max(m_stats.max_step_s, h);

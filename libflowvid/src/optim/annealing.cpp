@@ -58,9 +58,19 @@ public:
         if (start_unit.size() != m_n) throw std::invalid_argument("anneal: start has the wrong dimension");
         const long long before = m_ev.evaluations();
         m_best = start_unit;
-        m_best_value = std::isnan(start_value) ? evaluate(start_unit) : start_value;
+        AnnealingResult::Status status = AnnealingResult::Status::converged;
+        bool done = false;
+        // The start and the first simplex are one indivisible step: a budget
+        // that cannot pay for it ends the run before it starts.
+        if (!affordable(m_n + (std::isnan(start_value) ? 1 : 0))) {
+            status = AnnealingResult::Status::time_budget;
+            done = true;
+            m_best_value = start_value;
+        } else {
+            m_best_value = std::isnan(start_value) ? evaluate(start_unit) : start_value;
+            build_simplex(m_best, m_best_value, m_s.initial_step);
+        }
         r.start_value = m_best_value;
-        build_simplex(m_best, m_best_value, m_s.initial_step);
 
         // Temperature scale: the design's spread, else the initial simplex's.
         double spread = start_spread;
@@ -71,8 +81,6 @@ public:
         m_t_reset = m_t0;
         r.initial_temperature = m_t0;
 
-        AnnealingResult::Status status = AnnealingResult::Status::converged;
-        bool done = false;
         while (!done) {
             const long long stage_start = used();
             while (used() - stage_start < m_per_stage) {
@@ -100,10 +108,16 @@ public:
                 if (m_t < m_t0 * m_s.final_temperature_ratio) {
                     // Polish: plain simplex from the best point with a small simplex.
                     m_t = 0.0;
-                    rebuild_at_best(std::max(m_s.min_step, m_s.initial_step * std::sqrt(m_s.final_temperature_ratio)));
+                    if (!rebuild_at_best(std::max(m_s.min_step, m_s.initial_step * std::sqrt(m_s.final_temperature_ratio)))) {
+                        status = AnnealingResult::Status::time_budget;
+                        break;
+                    }
                 } else if (m_t <= m_t_reset / m_s.reset_factor) {
                     m_t_reset = m_t;
-                    rebuild_at_best(std::max(m_s.min_step, m_s.initial_step * std::pow(m_t / m_t0, m_s.step_exponent)));
+                    if (!rebuild_at_best(std::max(m_s.min_step, m_s.initial_step * std::pow(m_t / m_t0, m_s.step_exponent)))) {
+                        status = AnnealingResult::Status::time_budget;
+                        break;
+                    }
                 }
             }
         }
@@ -177,10 +191,22 @@ private:
         }
     }
 
-    void rebuild_at_best(double step) {
+    // False (and nothing evaluated) when the budget cannot pay for a new simplex.
+    bool rebuild_at_best(double step) {
+        if (!affordable(m_n)) return false;
         ++m_resets;
         const Eigen::VectorXd centre = m_best;
         build_simplex(centre, m_best_value, step);
+        return true;
+    }
+
+    // Whether `evaluations` more evaluations fit in the time budget, at the
+    // run's measured pace (the hint before it has one).
+    bool affordable(long long evaluations) const {
+        if (!(m_s.budget_seconds > 0.0)) return true;
+        const double elapsed = seconds_since(m_start);
+        const double per_evaluation = used() > 0 ? elapsed / static_cast<double>(used()) : m_s.evaluation_seconds_hint;
+        return elapsed + per_evaluation * static_cast<double>(evaluations) <= m_s.budget_seconds;
     }
 
     // One amebsa-style move: reflect the (fluctuated) worst vertex through the
@@ -229,6 +255,7 @@ private:
     }
 
     void shrink(std::size_t lo) {
+        if (!affordable(m_n)) return;  // out of time: the next limit check ends the run
         std::vector<Eigen::VectorXd> batch;
         std::vector<std::size_t> which;
         for (std::size_t i = 0; i < m_p.size(); ++i) {
@@ -269,8 +296,8 @@ private:
     std::optional<AnnealingResult::Status> limit_reached() const {
         if (m_s.cancel && m_s.cancel->load()) return AnnealingResult::Status::cancelled;
         if (m_s.max_evaluations > 0 && used() >= m_s.max_evaluations) return AnnealingResult::Status::max_evaluations;
-        if (m_s.budget_seconds > 0.0 && seconds_since(m_start) >= m_s.budget_seconds)
-            return AnnealingResult::Status::time_budget;
+        // A move costs one to three evaluations, two as a rule.
+        if (!affordable(2)) return AnnealingResult::Status::time_budget;
         return std::nullopt;
     }
 
@@ -337,6 +364,24 @@ MinimizeResult minimize(const Objective& objective, const ParameterSpace& space,
             : halton_design(n, settings.design_points > 0 ? settings.design_points : 16 * n,
                             detail::derive_seed(settings.annealing.seed, 0x4a17));
     MinimizeResult result;
+    result.design_points_total = static_cast<int>(points.size());
+    // A shard keeps every shard_count-th point of the whole design: the
+    // shards together evaluate exactly the design an unsharded search does.
+    const bool sharded = settings.shard_count > 0;
+    if (sharded) {
+        if (settings.shard_index < 1 || settings.shard_index > settings.shard_count)
+            throw std::invalid_argument("minimize: shard " + std::to_string(settings.shard_index) + " of " +
+                                        std::to_string(settings.shard_count) + " is out of 1.." +
+                                        std::to_string(settings.shard_count));
+        if (static_cast<std::size_t>(settings.shard_count) > points.size())
+            throw std::invalid_argument("minimize: " + std::to_string(settings.shard_count) + " shards of a design of " +
+                                        std::to_string(points.size()) + " points");
+        std::vector<Eigen::VectorXd> own;
+        for (std::size_t k = static_cast<std::size_t>(settings.shard_index - 1); k < points.size();
+             k += static_cast<std::size_t>(settings.shard_count))
+            own.push_back(std::move(points[k]));
+        points = std::move(own);
+    }
     // The design stops at an external cancel or, when it has one, its time budget.
     std::atomic<bool> design_stop{false};
     std::atomic<bool> design_done{false};
@@ -372,10 +417,17 @@ MinimizeResult minimize(const Objective& objective, const ParameterSpace& space,
     }
     AnnealingSettings annealing = settings.annealing;
     const long long design_evaluated = evaluator.evaluations();
+    // A shard's annealing is charged the whole design, as the unsharded
+    // search's is: the other shards evaluate the rest of it.
+    const long long design_charged =
+        design_evaluated + (result.design_points_total - static_cast<long long>(result.design.points.size()));
+    if (sharded) annealing.seed = detail::derive_seed(settings.annealing.seed, 0x5a4d0000ULL + settings.shard_index);
     if (settings.total_budget_seconds > 0.0)
         annealing.budget_seconds = std::max(1.0, settings.total_budget_seconds - design_seconds);
     if (annealing.max_evaluations > 0)
-        annealing.max_evaluations = std::max<long long>(1, annealing.max_evaluations - design_evaluated);
+        annealing.max_evaluations = std::max<long long>(1, annealing.max_evaluations - design_charged);
+    if (annealing.evaluation_seconds_hint <= 0.0 && design_evaluated > 0)
+        annealing.evaluation_seconds_hint = design_seconds / static_cast<double>(design_evaluated);
     // A time budget with a budget-fitted schedule: plan the cooling for the
     // evaluations that fit in the time left, so that the search ends cooled
     // rather than cut off hot. A simplex step is one evaluation at a time

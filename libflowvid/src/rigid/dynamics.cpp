@@ -30,8 +30,14 @@ struct Dynamics {
     Eigen::Matrix3d I_inv;
     Eigen::Vector3d g;
     Eigen::Matrix<double, 3, 2> dg_dangles;  // d gravity / d (tilt, roll)
+    // Optional terms (FlightEffects); when off, the code below is the plain
+    // free flight, untouched, so neutral effects reproduce it bit for bit.
+    bool damped = false;
+    double drag_per_m = 0.0;
+    double damping_per_s = 0.0;
 
     State derivative(const State& y) const {
+        if (damped) return damped_derivative(y);
         State dy;
         const double w = y[3];
         const Eigen::Vector3d u = y.segment<3>(4);
@@ -41,6 +47,20 @@ struct Dynamics {
         dy.segment<3>(4) = 0.5 * (w * omega + u.cross(omega));
         dy.segment<3>(7) = g;
         dy.segment<3>(10) = I_inv * (I * omega).cross(omega);
+        return dy;
+    }
+
+    State damped_derivative(const State& y) const {
+        State dy;
+        const double w = y[3];
+        const Eigen::Vector3d u = y.segment<3>(4);
+        const Eigen::Vector3d v = y.segment<3>(7);
+        const Eigen::Vector3d omega = y.segment<3>(10);
+        dy.segment<3>(0) = v;
+        dy[3] = -0.5 * u.dot(omega);
+        dy.segment<3>(4) = 0.5 * (w * omega + u.cross(omega));
+        dy.segment<3>(7) = g - drag_per_m * v.norm() * v;
+        dy.segment<3>(10) = I_inv * (I * omega).cross(omega) - damping_per_s * omega;
         return dy;
     }
 
@@ -57,14 +77,24 @@ struct Dynamics {
         Eigen::Matrix<double, 4, 3> dq_domega;
         dq_domega.row(0) = -0.5 * u.transpose();
         dq_domega.block<3, 3>(1, 0) = 0.5 * (w * Eigen::Matrix3d::Identity() + skew(u));
-        const Eigen::Matrix3d domega_domega = I_inv * (skew(I * omega) - skew(omega) * I);
+        Eigen::Matrix3d domega_domega = I_inv * (skew(I * omega) - skew(omega) * I);
+        if (damped) domega_domega.diagonal().array() -= damping_per_s;
 
         StateJacobian dS;
         dS.block<3, kParameterCount>(0, 0) = S.block<3, kParameterCount>(7, 0);
         dS.block<4, kParameterCount>(3, 0) =
             dq_dq * S.block<4, kParameterCount>(3, 0) + dq_domega * S.block<3, kParameterCount>(10, 0);
         dS.block<3, kParameterCount>(7, 0).setZero();
-        dS.block<3, 2>(7, 12) = dg_dangles;
+        const double speed = damped ? y.segment<3>(7).norm() : 0.0;
+        if (drag_per_m != 0.0 && speed > 0.0) {
+            // d(-c |v| v)/dv = -c (|v| 1 + v v^T / |v|)
+            const Eigen::Vector3d v = y.segment<3>(7);
+            const Eigen::Matrix3d dv_dv = -drag_per_m * (speed * Eigen::Matrix3d::Identity() + v * v.transpose() / speed);
+            dS.block<3, kParameterCount>(7, 0) = dv_dv * S.block<3, kParameterCount>(7, 0);
+            dS.block<3, 2>(7, 12) += dg_dangles;
+        } else {
+            dS.block<3, 2>(7, 12) = dg_dangles;
+        }
         dS.block<3, kParameterCount>(10, 0) = domega_domega * S.block<3, kParameterCount>(10, 0);
         return dS;
     }
@@ -97,16 +127,30 @@ struct Dynamics {
     }
 };
 
-Dynamics make_dynamics(const RigidBody& body, const FlightParameters& p) {
+Dynamics make_dynamics(const RigidBody& body, const FlightParameters& p, const FlightEffects& effects = {}) {
     Dynamics d;
     d.I = 0.5 * (body.inertia_kg_m2 + body.inertia_kg_m2.transpose());
+    if (!effects.log_inertia_scale_xy.isZero(0.0)) d.I = effects.scaled_inertia(d.I);
     d.I_inv = d.I.inverse();
     d.g = p.gravity_m_per_s2();
     d.dg_dangles = p.gravity_magnitude_m_per_s2 * p.gravity.direction_derivative();
+    d.damped = effects.quadratic_drag_per_m != 0.0 || effects.angular_damping_per_s != 0.0;
+    d.drag_per_m = effects.quadratic_drag_per_m;
+    d.damping_per_s = effects.angular_damping_per_s;
     return d;
 }
 
 }  // namespace
+
+// ---- Effects ------------------------------------------------------------------
+
+Eigen::Matrix3d FlightEffects::scaled_inertia(const Eigen::Matrix3d& inertia) const {
+    if (log_inertia_scale_xy.isZero(0.0)) return inertia;
+    // D I D keeps the matrix symmetric positive definite and scales the
+    // diagonal (the moments about body x and y) by exp(a), exp(b).
+    const Eigen::Vector3d d(std::exp(0.5 * log_inertia_scale_xy.x()), std::exp(0.5 * log_inertia_scale_xy.y()), 1.0);
+    return d.asDiagonal() * inertia * d.asDiagonal();
+}
 
 // ---- Gravity ------------------------------------------------------------------
 
@@ -244,6 +288,13 @@ Eigen::Matrix<double, kStateSize, 1> state_derivative(const RigidBody& body, con
     return d.derivative(y);
 }
 
+Eigen::Matrix<double, kStateSize, 1> state_derivative(const RigidBody& body, const Eigen::Matrix<double, kStateSize, 1>& y,
+                                                      const Eigen::Vector3d& gravity, const FlightEffects& effects) {
+    Dynamics d = make_dynamics(body, FlightParameters{}, effects);
+    d.g = gravity;
+    return d.derivative(y);
+}
+
 // ---- Parameters ----------------------------------------------------------------------
 
 RigidState FlightParameters::initial_state() const {
@@ -297,7 +348,7 @@ PoseJacobian Trajectory::pose_jacobian(std::size_t i) const {
 
 Trajectory simulate(const RigidBody& body, const FlightParameters& parameters, const std::vector<double>& times,
                     const SimulationSettings& settings) {
-    const Dynamics dynamics = make_dynamics(body, parameters);
+    const Dynamics dynamics = make_dynamics(body, parameters, settings.effects);
     const RigidState start = parameters.initial_state();
     const State y0 = pack_state(start);
 

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 #include <thread>
 
@@ -44,6 +45,53 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
+using Reporter = std::function<bool(const ClothFitProgress&)>;
+
+// How every fit ends, whole or merged from shards: variability restarts from
+// `best` (when `runs` > 0; a restart that finds a lower error improves the
+// fit itself), the final evaluation and the preset. `restart_budget_seconds`
+// (0: none) limits each restart. False when cancelled.
+bool end_fit(const ClothFitRequest& request, const ClothFitProblem& problem, int threads, int runs,
+             double restart_budget_seconds, double restart_evaluation_hint_seconds, double main_share,
+             std::atomic<bool>& cancelled, const std::function<bool()>& stop_requested, const Reporter& report,
+             Eigen::VectorXd best, ClothFitOutcome& outcome) {
+    // Variability analysis: polish from +-5 % perturbed starts (each run on one thread).
+    if (runs > 0) {
+        optim::VariabilitySettings variability;
+        variability.runs = runs;
+        variability.perturbation = request.variability_perturbation;
+        variability.threads = threads;
+        variability.annealing.seed = request.seed ^ 0x5eedULL;
+        variability.annealing.initial_temperature = 0.0;  // a polish: how well the data pins each parameter
+        variability.annealing.initial_step = 0.05;
+        variability.annealing.max_evaluations = request.variability_evaluations;
+        variability.annealing.cancel = &cancelled;
+        if (restart_budget_seconds > 0.0) {
+            variability.annealing.budget_seconds = restart_budget_seconds;
+            variability.annealing.evaluation_seconds_hint = restart_evaluation_hint_seconds;
+        }
+        report({"variability", main_share, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
+        outcome.variability = optim::variability_analysis(problem.objective(), problem.space(), best, variability);
+        for (const optim::AnnealingResult& run : outcome.variability->runs) {
+            outcome.evaluations += run.evaluations;
+            // A restart that found a lower error improves the fit itself.
+            if (run.best_value < outcome.search.annealing.best_value && run.best_values.size() == best.size()) {
+                outcome.search.annealing.best_value = run.best_value;
+                best = run.best_values;
+            }
+        }
+        if (stop_requested()) return false;
+    }
+
+    report({"final", 0.99, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
+    outcome.fitted = problem.material(best);
+    outcome.final_evaluation = problem.evaluate(outcome.fitted, threads);
+    if (request.drag == DragModel::nonlinear)
+        outcome.preset = fitted_preset(request.name, problem, request.captures, outcome.fitted, outcome.final_evaluation,
+                                       request.seed, outcome.variability ? &*outcome.variability : nullptr);
+    return true;
+}
+
 }  // namespace
 
 ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
@@ -51,8 +99,8 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     const Clock::time_point started = Clock::now();
     ClothFitOutcome outcome;
     std::atomic<bool> cancelled{false};
-    const auto stop_requested = [&] { return cancelled.load() || (request.cancel && request.cancel->load()); };
-    const auto report = [&](const ClothFitProgress& p) {
+    const std::function<bool()> stop_requested = [&] { return cancelled.load() || (request.cancel && request.cancel->load()); };
+    const Reporter report = [&](const ClothFitProgress& p) {
         if (request.progress && !request.progress(p)) cancelled = true;
         return !stop_requested();
     };
@@ -67,8 +115,11 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     const ClothFitProblem problem(std::move(trials), outcome.parameters, settings);
     outcome.trials = problem.trials();
     const int threads = request.threads > 0 ? request.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    // A shard without a time budget needs no start evaluation (it only
+    // times the budget and is reported beside a whole fit's final error).
+    const bool evaluate_start = !request.shard || request.budget_seconds > 0.0;
     const Clock::time_point start_evaluation_began = Clock::now();
-    outcome.start_evaluation = problem.evaluate(outcome.start, threads);
+    if (evaluate_start) outcome.start_evaluation = problem.evaluate(outcome.start, threads);
     const double evaluation_seconds = seconds_since(start_evaluation_began);
 
     // Main search: design, then annealing on the rest of the evaluations.
@@ -76,15 +127,38 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     // The final evaluation comes after the search: keep time for it (it
     // costs about what the start's did) so the whole fit stays in budget.
     const double budget = request.budget_seconds > 0.0
-                              ? std::max(1.0, request.budget_seconds - 1.5 * evaluation_seconds)
+                              ? std::max(1.0, request.budget_seconds - (1.5 + request.evaluations_after_fit) * evaluation_seconds)
                               : 0.0;
-    const double variability_share = request.variability_runs > 0 ? 0.2 : 0.0;
+    // Variability restarts run one per thread, each evaluating its trials on
+    // one thread; a restart costs at least its start, its simplex and a few
+    // moves. Reserve that time up front (a budget too small for it keeps
+    // fewer restarts, then none), instead of letting restarts overrun.
+    const double single_thread_evaluation_seconds =
+        evaluation_seconds * static_cast<double>(std::min<std::size_t>(threads, problem.trials().size()));
+    int variability_runs = request.shard ? 0 : request.variability_runs;  // shards skip the restarts
+    double variability_seconds = 0.0;
+    const auto restart_rounds = [&](int runs) { return std::ceil(double(runs) / std::max(1, threads)); };
+    const auto restart_seconds = [&](int runs) {
+        const double evaluations = std::min<double>(request.variability_evaluations, n + 1 + 6);
+        return 1.15 * restart_rounds(runs) * evaluations * single_thread_evaluation_seconds;
+    };
+    if (budget > 0.0 && variability_runs > 0) {
+        if (restart_seconds(variability_runs) > 0.4 * budget) variability_runs = std::min(variability_runs, std::max(2, threads));
+        if (restart_seconds(variability_runs) > 0.4 * budget) variability_runs = 0;
+        if (variability_runs > 0) variability_seconds = std::max(restart_seconds(variability_runs), 0.2 * budget);
+    }
+    outcome.variability_runs_planned = variability_runs;
+    const double variability_share = budget > 0.0 ? variability_seconds / budget : (variability_runs > 0 ? 0.2 : 0.0);
     optim::MinimizeSettings search;
     search.design = optim::DesignKind::halton;
     search.design_points = request.design_points > 0
                                ? request.design_points
                                : static_cast<int>(std::clamp<long long>(request.evaluations / 4, n + 1, 16LL * n));
     search.threads = threads;
+    if (request.shard) {
+        search.shard_index = request.shard->index;
+        search.shard_count = request.shard->count;
+    }
     optim::AnnealingSettings& annealing = search.annealing;
     annealing.seed = request.seed;
     annealing.max_evaluations = request.evaluations;
@@ -111,46 +185,92 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
         outcome.seconds = seconds_since(started);
         return outcome;
     }
-    Eigen::VectorXd best = outcome.search.annealing.best_values;
-
-    // Variability analysis: polish from +-5 % perturbed starts (each run on one thread).
-    if (request.variability_runs > 0) {
-        optim::VariabilitySettings variability;
-        variability.runs = request.variability_runs;
-        variability.perturbation = request.variability_perturbation;
-        variability.threads = threads;
-        variability.annealing.seed = request.seed ^ 0x5eedULL;
-        variability.annealing.initial_temperature = 0.0;  // a polish: how well the data pins each parameter
-        variability.annealing.initial_step = 0.05;
-        variability.annealing.max_evaluations = request.variability_evaluations;
-        variability.annealing.cancel = &cancelled;
-        if (budget > 0.0) variability.annealing.budget_seconds = std::max(1.0, budget - seconds_since(started)) /
-                                                                 std::max(1.0, std::ceil(double(request.variability_runs) / threads));
-        report({"variability", main_share, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
-        outcome.variability = optim::variability_analysis(problem.objective(), problem.space(), best, variability);
-        for (const optim::AnnealingResult& run : outcome.variability->runs) {
-            outcome.evaluations += run.evaluations;
-            // A restart that found a lower error improves the fit itself.
-            if (run.best_value < outcome.search.annealing.best_value && run.best_values.size() == best.size()) {
-                outcome.search.annealing.best_value = run.best_value;
-                best = run.best_values;
-            }
-        }
-        if (stop_requested()) {
-            outcome.status = ClothFitOutcome::Status::cancelled;
-            outcome.seconds = seconds_since(started);
-            return outcome;
-        }
+    if (request.shard) {
+        // A shard ends with its search: the merge evaluates the winner.
+        if (evaluate_start) outcome.evaluations += 1;
+        outcome.fitted = problem.material(outcome.search.annealing.best_values);
+        outcome.simulations = outcome.evaluations * static_cast<long long>(problem.trials().size());
+        outcome.seconds = seconds_since(started);
+        report({"final", 1.0, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
+        return outcome;
     }
 
-    report({"final", 0.99, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
-    outcome.fitted = problem.material(best);
-    outcome.final_evaluation = problem.evaluate(outcome.fitted, threads);
+    // Re-plan the restarts at the pace the search just measured: when the
+    // machine got busier than at the start, keep fewer (or none) rather than
+    // overrun. The final evaluation and the caller's work after the fit keep
+    // their share at that pace too.
+    double restart_hint = single_thread_evaluation_seconds;
+    double restart_budget = 0.0;
+    if (budget > 0.0) {
+        const optim::AnnealingResult& a = outcome.search.annealing;
+        const double pace = a.evaluations > 0 ? a.elapsed_s / static_cast<double>(a.evaluations) : evaluation_seconds;
+        const double latest = std::max(evaluation_seconds, pace);
+        restart_hint = std::max(restart_hint, latest * static_cast<double>(std::min<std::size_t>(threads, problem.trials().size())));
+        const double left = request.budget_seconds - seconds_since(started) - (1.5 + request.evaluations_after_fit) * latest;
+        const auto cost = [&](int runs) {
+            return 1.15 * restart_rounds(runs) * std::min<double>(request.variability_evaluations, n + 1 + 6) * restart_hint;
+        };
+        if (variability_runs > 0 && cost(variability_runs) > left) variability_runs = std::min(variability_runs, std::max(2, threads));
+        if (variability_runs > 0 && cost(variability_runs) > left) variability_runs = 0;
+        outcome.variability_runs_planned = variability_runs;
+        restart_budget = std::max(1.0, left) / std::max(1.0, restart_rounds(variability_runs));
+    }
+    if (!end_fit(request, problem, threads, variability_runs, restart_budget, restart_hint, main_share,
+                 cancelled, stop_requested, report, outcome.search.annealing.best_values, outcome)) {
+        outcome.status = ClothFitOutcome::Status::cancelled;
+        outcome.seconds = seconds_since(started);
+        return outcome;
+    }
     outcome.evaluations += 2;  // start and final evaluations
     outcome.simulations = outcome.evaluations * static_cast<long long>(problem.trials().size());
-    if (request.drag == DragModel::nonlinear)
-        outcome.preset = fitted_preset(request.name, problem, request.captures, outcome.fitted, outcome.final_evaluation,
-                                       request.seed, outcome.variability ? &*outcome.variability : nullptr);
+    outcome.seconds = seconds_since(started);
+    report({"final", 1.0, outcome.evaluations, outcome.final_evaluation.total, 0.0, 0.0});
+    return outcome;
+}
+
+ClothFitOutcome finish_cloth_fit(const ClothFitRequest& request, const std::vector<std::string>& names,
+                                 const Eigen::VectorXd& values, double error) {
+    if (request.captures.empty()) throw std::invalid_argument("finish_cloth_fit: no captures");
+    const Clock::time_point started = Clock::now();
+    ClothFitOutcome outcome;
+    std::atomic<bool> cancelled{false};
+    const std::function<bool()> stop_requested = [&] { return cancelled.load() || (request.cancel && request.cancel->load()); };
+    const Reporter report = [&](const ClothFitProgress& p) {
+        if (request.progress && !request.progress(p)) cancelled = true;
+        return !stop_requested();
+    };
+    report({"loading", 0.0, 0, 0.0, 0.0, 0.0});
+
+    // The same problem fit_cloth builds for these captures and settings.
+    std::vector<ClothTrial> trials = load_trials(request.captures, request.load);
+    for (const ClothTrial& t : trials) outcome.trial_names.push_back(t.name);
+    outcome.parameters = parameters_for(trials, request.drag);
+    std::string expected, given;
+    for (const FittedParameter& p : outcome.parameters) expected += (expected.empty() ? "" : ", ") + p.key;
+    for (const std::string& name : names) given += (given.empty() ? "" : ", ") + name;
+    if (expected != given || values.size() != static_cast<Eigen::Index>(names.size()))
+        throw std::invalid_argument("the best point gives " + (given.empty() ? std::string("no parameters") : given) +
+                                    " but these captures fit " + expected);
+    ClothFitSettings settings = request.problem;
+    settings.base = middle_of_ranges(request.problem.base, outcome.parameters);
+    outcome.start = settings.base;
+    const ClothFitProblem problem(std::move(trials), outcome.parameters, settings);
+    outcome.trials = problem.trials();
+    const int threads = request.threads > 0 ? request.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+
+    outcome.search.annealing.best_values = values;
+    outcome.search.annealing.best_unit = problem.space().to_unit(values);
+    outcome.search.annealing.best_value = error;
+    const int runs = std::max(0, request.variability_runs);
+    outcome.variability_runs_planned = runs;
+    if (!end_fit(request, problem, threads, runs, 0.0, 0.0, runs > 0 ? 0.8 : 1.0, cancelled, stop_requested, report, values,
+                 outcome)) {
+        outcome.status = ClothFitOutcome::Status::cancelled;
+        outcome.seconds = seconds_since(started);
+        return outcome;
+    }
+    outcome.evaluations += 1;  // the final evaluation
+    outcome.simulations = outcome.evaluations * static_cast<long long>(problem.trials().size());
     outcome.seconds = seconds_since(started);
     report({"final", 1.0, outcome.evaluations, outcome.final_evaluation.total, 0.0, 0.0});
     return outcome;

@@ -22,6 +22,7 @@ enum class FileKind {
     vertex_animation,   // EXR, one row per frame
     motion_gltf,        // .glb
     capture_folder,     // folder with capture.json (or the capture.json itself)
+    fit_shard,          // *.fit_shard.json: one shard of a split fit (flowvid merge)
 };
 
 const char* file_kind_name(FileKind kind);

@@ -42,6 +42,8 @@ struct EquilibriumReport {
 // `x` (3*#V) is the start and receives the result; vertices with fixed[i]
 // keep their positions. Uses the conservative terms of the model (elastic,
 // gravity, contacts); velocities are zero at rest, so damping and drag vanish.
+// Resets the model's rest fold angles to 0 (bending memory belongs to the
+// dynamic run that starts from this equilibrium).
 EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<bool>& fixed, Eigen::VectorXd& x,
                                            const EquilibriumOptions& options = {});
 

@@ -34,6 +34,20 @@ struct ClothMaterial {
     // like Blender's air damping) that fits and the gap diagnosis measure
     // the nonlinear drag against.
     double drag_linear_normal_kg_per_m2_s = 0.0;
+
+    // Optional terms of the gap diagnosis (docs/cloth_model.md, "Optional
+    // terms for the gap diagnosis"). Neither is a fabric-preset key:
+    // material_from_fabric / fabric_from_material ignore them (always 0 from
+    // a preset), like drag_linear_normal_kg_per_m2_s. 0 reproduces the model
+    // above bit for bit.
+    // Bias angle: the warp direction is rotated by this angle from the mesh's
+    // material u axis, counter-clockwise towards v (a bias-cut fabric);
+    // stretch_warp acts along it, stretch_weft across it.
+    double bias_angle_rad = 0.0;
+    // Bending memory (hysteresis): each hinge's rest angle theta0 creeps
+    // towards its current angle, theta0 += (1 - exp(-r dt)) (theta - theta0)
+    // after every accepted step of a dynamic run; <= 0: no memory.
+    double bend_memory_rate_per_s = 0.0;
 };
 
 // The values of a preset's parameters (uncertainties and ranges are dropped).
@@ -42,7 +56,8 @@ ClothMaterial material_from_fabric(const formats::FabricParameters& parameters);
 formats::FabricParameters fabric_from_material(const ClothMaterial& material);
 
 // Problems that make a simulation meaningless: non-finite numbers, a density
-// that is not positive. Field names are the preset's JSON keys. Negative
+// that is not positive. Field names are the preset's JSON keys (the two
+// optional terms, which have none, use their member names). Negative
 // stiffness is allowed here on purpose (an optimizer may try it; the
 // simulation then reports the blow-up instead of throwing).
 std::vector<Problem> check_material(const ClothMaterial& material);

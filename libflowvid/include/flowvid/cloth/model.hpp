@@ -103,7 +103,8 @@ public:
     double total_rest_area_m2() const { return m_total_area; }
     const std::vector<BendingStencil>& bending_stencils() const { return m_stencils; }
 
-    // Changes the material without rebuilding the topology (for fitting).
+    // Changes the material without rebuilding the topology (for fitting); a
+    // new bias_angle_rad recomputes the triangles' warp/weft frames.
     void set_material(const ClothMaterial& material);
     void set_environment(Environment environment);
 
@@ -136,6 +137,25 @@ public:
     double kinetic_energy(const Eigen::VectorXd& v) const;
     BlockSparseMatrix make_jacobian_matrix() const;
 
+    // Bending memory (ClothMaterial::bend_memory_rate_per_s): one rest fold
+    // angle theta0 per interior edge, in the order of bending_stencils(),
+    // radians; the bending energy is k/2 * weight * (theta - theta0)^2 (the
+    // difference taken in (-pi, pi]). All 0 (the flat rest state) until a
+    // dynamic run updates them; solve_static_equilibrium and
+    // ClothSimulator::set_state reset them.
+    Eigen::VectorXd rest_fold_angles_rad() const;
+    // Throws std::invalid_argument unless there is one finite angle per edge.
+    void set_rest_fold_angles_rad(const Eigen::VectorXd& angles_rad);
+    void reset_rest_fold_angles();
+    bool has_rest_fold() const { return !m_rest_fold_rad.empty(); }
+    // The memory law over one accepted step of length dt_s at positions x:
+    // theta0 += (1 - exp(-r dt)) (theta - theta0), r = bend_memory_rate_per_s.
+    // Does nothing when r <= 0. When `bending_force_change` (3*#V) is given,
+    // adds the change of the bending force at x that the new rest angles make
+    // (so that a force evaluated before the update can be corrected).
+    void update_rest_fold_angles(const Eigen::VectorXd& x, double dt_s,
+                                 Eigen::VectorXd* bending_force_change = nullptr);
+
     // Largest of |w_u|, |w_v| (stretch ratio along warp/weft) over triangles.
     double max_stretch_ratio(const Eigen::VectorXd& x) const;
 
@@ -151,8 +171,8 @@ public:
 
     struct TriangleData {
         std::array<int, 3> v;
-        std::array<double, 3> alpha;  // w_u = sum alpha_a x_a
-        std::array<double, 3> beta;   // w_v = sum beta_a x_a
+        std::array<double, 3> alpha;  // w_u = sum alpha_a x_a (u: the warp, rotated by the bias angle)
+        std::array<double, 3> beta;   // w_v = sum beta_a x_a (v: the weft)
         double rest_area_m2;
         std::array<int, 9> slots;     // Jacobian blocks (a, b) -> slot
     };
@@ -164,6 +184,7 @@ public:
 
 private:
     void validate_and_precompute();
+    void compute_material_frames();  // alpha, beta of every triangle for m_material.bias_angle_rad
     void evaluate_terms(const Eigen::VectorXd& x, const Eigen::VectorXd& v, double time_s, unsigned terms,
                         Eigen::VectorXd& force, BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv, JacobianMode mode,
                         Linearization* lin, const Eigen::VectorXd* product_of = nullptr);
@@ -192,6 +213,8 @@ private:
     std::vector<BendingStencil> m_stencils;
     std::vector<TriangleData> m_triangles;
     std::vector<EdgeData> m_edges;
+    double m_frame_bias_rad = 0.0;        // the bias angle alpha, beta were computed for
+    std::vector<double> m_rest_fold_rad;  // per edge; empty: all 0 (no extra work in the loops)
     std::vector<std::pair<int, int>> m_pattern_pairs;
     Eigen::VectorXd m_mass;
     Eigen::VectorXd m_vertex_area;

@@ -99,7 +99,10 @@ public:
     ClothSimulator(const ClothSimulator&) = delete;
     ClothSimulator& operator=(const ClothSimulator&) = delete;
 
-    // Pinned vertices are overwritten from their paths at `time_s`.
+    // Pinned vertices are overwritten from their paths at `time_s`. Starts a
+    // run: the model's rest fold angles (bending memory) are reset to 0; with
+    // bend_memory_rate_per_s > 0 every accepted step then updates them
+    // (ClothModel::update_rest_fold_angles).
     void set_state(const Eigen::VectorXd& x, const Eigen::VectorXd& v, double time_s);
     // Integrates to `time_s`, landing on it exactly. On failure the state is
     // the last good one and the report says why.

@@ -79,6 +79,9 @@ struct AnnealingSettings {
     // `cooling` is ignored then).
     bool fit_schedule_to_budget = false;
     double budget_seconds = 0.0;        // wall-clock limit, 0 = none
+    // Expected wall time of one evaluation, until the run has measured its
+    // own: a budgeted run never starts evaluations it cannot finish in time.
+    double evaluation_seconds_hint = 0.0;
     AnnealingCallback progress;         // after every stage
     const std::atomic<bool>* cancel = nullptr;
 };
@@ -129,11 +132,23 @@ struct MinimizeSettings {
     // Wall-clock limit of design + annealing (0 = none): the annealing gets
     // what the design left (overrides annealing.budget_seconds).
     double total_budget_seconds = 0.0;
+    // Shard `shard_index` (1-based) of `shard_count` (0: no sharding), for a
+    // search split over machines: it evaluates design points shard_index - 1,
+    // shard_index - 1 + shard_count, ... of the same design the whole search
+    // draws (same seed), then anneals from the best of those with a seed
+    // derived from the seed and shard_index. Its annealing gets the
+    // evaluations the whole search's would (max_evaluations minus the whole
+    // design), so every shard is an independent restart of equal weight.
+    // std::invalid_argument when the index is out of 1..count or there are
+    // more shards than design points.
+    int shard_index = 0;
+    int shard_count = 0;
 };
 struct MinimizeResult {
-    DesignResult design;
+    DesignResult design;        // the points this search (or shard) evaluated
     AnnealingResult annealing;
     long long evaluations = 0;  // design + annealing
+    int design_points_total = 0;  // of the whole design (sharded: all shards' points)
 };
 MinimizeResult minimize(const Objective& objective, const ParameterSpace& space, const MinimizeSettings& settings);
 

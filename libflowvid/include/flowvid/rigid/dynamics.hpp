@@ -121,12 +121,42 @@ struct FlightParameters {
     FlightParameters perturbed(const ParameterVector& delta) const;
 };
 
+// Terms the free-flight model leaves out, for the gap diagnosis
+// (gap/rigid_model.hpp; catalogue effects "air_drag" and "inertia_error").
+// All zero (the default) is the plain free flight above, computed by the
+// same code path bit for bit.
+//   quadratic_drag_per_m:   dv/dt = g - c |v| v  (c = rho Cd A / (2 m), 1/m)
+//   angular_damping_per_s:  dw/dt = I^-1 (I w) x w - k w  (body axes)
+//   log_inertia_scale_xy:   I -> D I D, D = diag(exp(a/2), exp(b/2), 1): the
+//                           moments about body x and y scaled by exp(a),
+//                           exp(b) relative to body z (principal moments when
+//                           the inertia is diagonal in mesh axes, as in the
+//                           captures). A common scale of all three moments
+//                           does not change torque-free motion, so only
+//                           these two ratios are observable.
+struct FlightEffects {
+    double quadratic_drag_per_m = 0.0;
+    double angular_damping_per_s = 0.0;
+    Eigen::Vector2d log_inertia_scale_xy = Eigen::Vector2d::Zero();
+
+    bool neutral() const {
+        return quadratic_drag_per_m == 0.0 && angular_damping_per_s == 0.0 && log_inertia_scale_xy.isZero(0.0);
+    }
+    // The body's inertia with the scale applied (the inertia itself when neutral).
+    Eigen::Matrix3d scaled_inertia(const Eigen::Matrix3d& inertia_kg_m2) const;
+};
+
 struct SimulationSettings {
     // RK4 steps per interval between consecutive requested times are
     // ceil(|interval| / max_step_s); 1/240 s is 8 steps per frame at 30 fps
     // (relative energy drift ~1e-7 over 40 frames at 13 rad/s).
     double max_step_s = 1.0 / 240.0;
     bool sensitivities = false;  // integrate the variational equations too
+    // Optional terms (neutral by default). The variational equations include
+    // them, so sensitivities stay exact d state / d p for the 14 flight
+    // parameters; derivatives with respect to the effect values themselves
+    // are not integrated (refits take those by finite differences).
+    FlightEffects effects;
 };
 
 struct Trajectory {
@@ -147,6 +177,9 @@ Trajectory simulate(const RigidBody& body, const FlightParameters& parameters, c
 // 13 numbers in the state layout above.
 Eigen::Matrix<double, kStateSize, 1> state_derivative(const RigidBody& body, const Eigen::Matrix<double, kStateSize, 1>& y,
                                                       const Eigen::Vector3d& gravity_m_per_s2);
+// The same with optional terms.
+Eigen::Matrix<double, kStateSize, 1> state_derivative(const RigidBody& body, const Eigen::Matrix<double, kStateSize, 1>& y,
+                                                      const Eigen::Vector3d& gravity_m_per_s2, const FlightEffects& effects);
 Eigen::Matrix<double, kStateSize, 1> pack_state(const RigidState& state);
 RigidState unpack_state(const Eigen::Matrix<double, kStateSize, 1>& y);
 

@@ -47,6 +47,16 @@ struct ClothFitProgress {
     double eta_s = 0.0;
 };
 
+// One of `count` independent tasks a fit is split into for a render farm or
+// a cluster (1-based `index`): its share of the design (points index - 1,
+// index - 1 + count, ... of the design the whole fit draws) and one
+// annealing from the best of them with a seed derived from (seed, index).
+// The shard with the lowest error wins; finish_cloth_fit makes its preset.
+struct ClothFitShard {
+    int index = 1;
+    int count = 1;
+};
+
 struct ClothFitRequest {
     std::string name = "fitted fabric";
     std::vector<formats::Capture> captures;
@@ -59,7 +69,14 @@ struct ClothFitRequest {
     long long variability_evaluations = 40;  // per run (a polish from the perturbed start)
     double variability_perturbation = 0.05;
     double budget_seconds = 0.0;           // wall-clock cap on the whole fit, 0 = none (then deterministic)
+    // Evaluations' worth of time the caller spends after the fit inside the
+    // same budget (e.g. floor ensembles), kept out of the search's share.
+    double evaluations_after_fit = 0.0;
     std::uint64_t seed = 1;
+    // Only this shard's search (no variability restarts, no final evaluation,
+    // no preset: outcome.search holds its best point). Throws
+    // std::invalid_argument when there are more shards than design points.
+    std::optional<ClothFitShard> shard;
     int threads = 0;                       // 0: all cores; results do not depend on it
     std::function<bool(const ClothFitProgress&)> progress;  // return false to cancel
     const std::atomic<bool>* cancel = nullptr;
@@ -78,6 +95,9 @@ struct ClothFitOutcome {
     optim::MinimizeResult search;
     std::optional<optim::VariabilityReport> variability;
     std::optional<formats::FabricPreset> preset;  // nonlinear drag only (linear drag has no preset form)
+    // Variability restarts the budget allowed (the request's, or fewer when a
+    // time budget cannot pay for them; 0: no uncertainty in the preset).
+    int variability_runs_planned = 0;
     long long evaluations = 0;             // objective evaluations in all phases
     long long simulations = 0;             // evaluations x trials
     double seconds = 0.0;
@@ -86,6 +106,18 @@ struct ClothFitOutcome {
 // Throws what load_trial throws for unusable captures, std::invalid_argument
 // for no captures.
 ClothFitOutcome fit_cloth(const ClothFitRequest& request);
+
+// The end of a fit whose main search ran elsewhere (the winning shard's
+// best point, `values` of the parameters `names` in search order):
+// variability restarts from there when request.variability_runs > 0 (a
+// restart with a lower error moves the fit there, as in fit_cloth), then the
+// final evaluation and the preset, exactly as fit_cloth ends. Ignores
+// request.shard and the time budget, so it is deterministic. outcome.search
+// gets `values` and `error` as its annealing's best; start_evaluation is
+// left empty (no start is simulated). Throws std::invalid_argument when
+// `names` are not the parameters the request's captures fit.
+ClothFitOutcome finish_cloth_fit(const ClothFitRequest& request, const std::vector<std::string>& names,
+                                 const Eigen::VectorXd& values, double error);
 
 // The trials of captures with the request's load settings (in order).
 std::vector<ClothTrial> load_trials(const std::vector<formats::Capture>& captures, const TrialLoadSettings& load);

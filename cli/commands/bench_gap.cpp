@@ -1,0 +1,289 @@
+// flowvid bench gap: sealed cases for the gap diagnosis, the diagnosis of
+// each, and the score (top-1 accuracy per effect and per effect-to-noise bin,
+// false alarms on effect-free cases, median share of the held-out gap closed).
+//
+//   flowvid bench gap --cases N --seed S --out DIR --scene CAPTURE... --fabric PRESET...
+//   flowvid bench gap --diagnose DIR      (resumable: diagnosed cases are kept)
+//   flowvid bench gap --score DIR
+// DIR/cases/case-NNN/ hold captures and base.fabric.json (what the
+// diagnoser gets); DIR/labels.json holds the hidden effects (never read by
+// the diagnoser: only --score reads it).
+
+#include "commands/diagnose.hpp"
+#include "output.hpp"
+
+#include "flowvid/cloth/material.hpp"
+#include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/fabric_preset.hpp"
+#include "flowvid/gap/bench.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <memory>
+
+namespace flowvid::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct BenchGapOptions {
+    int cases = 24;
+    std::uint64_t seed = 1;
+    std::string out;
+    std::vector<std::string> scenes;
+    std::vector<std::string> fabrics;
+    std::vector<std::string> effects;
+    std::string diagnose_dir;
+    std::string score_dir;
+    DiagnoseClothOptions diagnose;
+    gap::BenchSettings bench;
+    int threads = 0;
+};
+
+nlohmann::json values_json(const gap::EffectValues& values) {
+    nlohmann::json out = nlohmann::json::object();
+    for (const auto& [name, v] : values) {
+        const gap::Effect& effect = gap::find_effect(name);
+        for (std::size_t i = 0; i < effect.parameters.size(); ++i) out[effect.parameters[i].key] = v(static_cast<Eigen::Index>(i));
+    }
+    return out;
+}
+
+int generate(const BenchGapOptions& options, const GlobalOptions& global) {
+    if (options.scenes.empty() || options.fabrics.empty()) {
+        log_message("flowvid bench gap: give --scene (cloth.waving capture folders: camera, projector, pins) and --fabric presets");
+        return kExitUsage;
+    }
+    std::vector<formats::Capture> scenes;
+    for (const std::string& s : options.scenes) scenes.push_back(formats::read_capture(s));
+    std::vector<formats::FabricPreset> fabrics;
+    for (const std::string& f : options.fabrics) fabrics.push_back(formats::read_fabric_preset(f));
+    gap::BenchSettings settings = options.bench;
+    settings.effects = options.effects;
+    for (const std::string& e : settings.effects) gap::find_effect(e);
+    std::vector<gap::BenchCase> cases =
+        gap::draw_bench_cases(options.cases, options.seed, static_cast<int>(scenes.size()), static_cast<int>(fabrics.size()), settings);
+    fs::create_directories(fs::path(options.out) / "cases");
+    Progress progress(global, "bench gap: making cases");
+    const InterruptWatch interrupt;
+    const int threads = thread_count(options.threads);
+    nlohmann::json labels = nlohmann::json::array();
+    for (std::size_t i = 0; i < cases.size(); ++i) {
+        if (interrupt.requested()) return kExitInterrupted;
+        gap::BenchCase& c = cases[i];
+        progress.update(static_cast<double>(i) / cases.size(), c.id + " (" + c.effect + ")");
+        const std::string folder = (fs::path(options.out) / "cases" / c.id).string();
+        const cloth::ClothMaterial fabric = cloth::material_from_fabric(fabrics[static_cast<std::size_t>(c.fabric)].parameters);
+        gap::write_cloth_case(folder, c, scenes[static_cast<std::size_t>(c.scene)], fabric, settings, threads);
+        formats::FabricPreset base = fabrics[static_cast<std::size_t>(c.fabric)];
+        base.parameters = cloth::fabric_from_material(gap::bench_base_material(c, fabric));
+        base.adapters.clear();
+        formats::write_fabric_preset(folder + "/base.fabric.json", base);
+        c.effect_to_noise = gap::measure_effect_to_noise(folder, c, fabric, settings, threads);
+        labels.push_back({{"case", c.id},
+                          {"effect", c.effect},
+                          {"values", values_json(c.values)},
+                          {"scene", options.scenes[static_cast<std::size_t>(c.scene)]},
+                          {"fabric", options.fabrics[static_cast<std::size_t>(c.fabric)]},
+                          {"effect_to_noise", c.effect_to_noise}});
+    }
+    progress.done();
+    const nlohmann::json document = {{"format", "flowvid.gap_bench_labels"},
+                                     {"version", 1},
+                                     {"seed", options.seed},
+                                     {"footage_mesh", std::to_string(settings.rows) + "x" + std::to_string(settings.cols)},
+                                     {"footage_substeps_per_frame", settings.implicit_substeps},
+                                     {"frames", settings.frames},
+                                     {"cases", labels}};
+    formats::write_file_atomically((fs::path(options.out) / "labels.json").string(),
+                                   [&](std::ostream& o) { o << document.dump(2) << '\n'; });
+    std::cout << "wrote " << cases.size() << " cases to " << (fs::path(options.out) / "cases").string()
+              << " and their labels to " << (fs::path(options.out) / "labels.json").string() << '\n';
+    return kExitOk;
+}
+
+std::vector<std::string> case_folders(const std::string& dir) {
+    std::vector<std::string> out;
+    const fs::path cases = fs::path(dir) / "cases";
+    if (!fs::is_directory(cases)) return out;
+    for (const fs::directory_entry& e : fs::directory_iterator(cases))
+        if (e.is_directory() && fs::exists(e.path() / "capture.json")) out.push_back(e.path().string());
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+int diagnose_all(const BenchGapOptions& options, const GlobalOptions& global) {
+    const std::vector<std::string> folders = case_folders(options.diagnose_dir);
+    if (folders.empty()) {
+        log_message(options.diagnose_dir + ": no cases/*/capture.json (make them with flowvid bench gap --out)");
+        return kExitIoError;
+    }
+    Progress progress(global, "bench gap: diagnosing");
+    const InterruptWatch interrupt;
+    for (std::size_t i = 0; i < folders.size(); ++i) {
+        const std::string id = fs::path(folders[i]).filename().string();
+        const std::string out = (fs::path(options.diagnose_dir) / "results" / id).string();
+        if (fs::exists(fs::path(out) / "diagnosis.json")) continue;  // resumable
+        if (interrupt.requested()) return kExitInterrupted;
+        progress.update(static_cast<double>(i) / folders.size(), id);
+        nlohmann::json model_summary;
+        const std::unique_ptr<gap::GapModel> model =
+            cloth_gap_model({folders[i]}, folders[i] + "/base.fabric.json", options.diagnose, model_summary);
+        if (!model) return kExitUsage;
+        gap::DiagnoseSettings settings;
+        settings.progress = [&](const std::string&, double) { return !interrupt.requested(); };
+        try {
+            const gap::Diagnosis d = gap::diagnose(*model, settings);
+            write_diagnosis(out, diagnosis_to_json(d, model_summary));
+        } catch (const gap::Cancelled&) {
+            return kExitInterrupted;
+        }
+    }
+    progress.done();
+    return kExitOk;
+}
+
+const char* bin_of(double ratio) {
+    if (ratio < 1.0) return "<1";
+    if (ratio < 2.0) return "1-2";
+    if (ratio < 4.0) return "2-4";
+    if (ratio < 8.0) return "4-8";
+    return ">=8";
+}
+
+double median(std::vector<double> v) {
+    if (v.empty()) return std::nan("");
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+int score(const std::string& dir) {
+    const nlohmann::json labels = nlohmann::json::parse(formats::read_text_file((fs::path(dir) / "labels.json").string()));
+    struct Tally {
+        int cases = 0, correct = 0;
+    };
+    std::map<std::string, Tally> by_effect, by_bin;
+    Tally strong, none, any_gap_on_none;
+    std::vector<double> closed_named, closed_strong;
+    int missing = 0;
+    for (const nlohmann::json& label : labels.at("cases")) {
+        const std::string id = label.at("case");
+        const fs::path result = fs::path(dir) / "results" / id / "diagnosis.json";
+        if (!fs::exists(result)) {
+            ++missing;
+            continue;
+        }
+        const nlohmann::json d = nlohmann::json::parse(formats::read_text_file(result.string()));
+        const std::string effect = label.at("effect");
+        const std::string status = d.at("verdict").at("status");
+        const std::vector<std::string> named = d.at("verdict").at("effects").get<std::vector<std::string>>();
+        const std::string named_class = d.at("verdict").value("class", "");
+        if (effect == "none") {
+            ++none.cases;
+            none.correct += status == "named" ? 1 : 0;  // a false alarm
+            any_gap_on_none.cases++;
+            any_gap_on_none.correct += d.at("gap").at("detected").get<bool>() ? 1 : 0;
+            continue;
+        }
+        // Top-1: the first named effect, or the class it belongs to.
+        const bool correct = !named.empty() && (named.front() == effect || named_class.find(effect) != std::string::npos);
+        const double ratio = label.at("effect_to_noise");
+        by_effect[effect].cases++;
+        by_effect[effect].correct += correct ? 1 : 0;
+        by_bin[bin_of(ratio)].cases++;
+        by_bin[bin_of(ratio)].correct += correct ? 1 : 0;
+        const nlohmann::json& closed = d.at("verdict").at("gap_closed");
+        const double gap_closed = correct && closed.is_number() ? closed.get<double>() : 0.0;
+        if (correct) closed_named.push_back(gap_closed);
+        if (ratio >= 4.0) {
+            strong.cases++;
+            strong.correct += correct ? 1 : 0;
+            closed_strong.push_back(gap_closed);
+        }
+    }
+    const auto percent = [](const Tally& t) { return t.cases ? 100.0 * t.correct / t.cases : std::nan(""); };
+    nlohmann::json out = {{"cases_scored", static_cast<int>(labels.at("cases").size()) - missing}, {"missing", missing}};
+    std::printf("top-1 accuracy per effect\n");
+    for (const auto& [effect, t] : by_effect) {
+        std::printf("  %-16s %3d / %-3d  %5.1f %%\n", effect.c_str(), t.correct, t.cases, percent(t));
+        out["per_effect"][effect] = {{"correct", t.correct}, {"cases", t.cases}};
+    }
+    std::printf("top-1 accuracy per effect-to-noise bin\n");
+    for (const char* bin : {"<1", "1-2", "2-4", "4-8", ">=8"}) {
+        const Tally t = by_bin.count(bin) ? by_bin[bin] : Tally{};
+        std::printf("  %-6s %3d / %-3d  %5.1f %%\n", bin, t.correct, t.cases, percent(t));
+        out["per_bin"][bin] = {{"correct", t.correct}, {"cases", t.cases}};
+    }
+    std::printf("effect >= 4x noise: top-1 %d / %d = %.1f %% (goal >= 90 %%)\n", strong.correct, strong.cases, percent(strong));
+    std::printf("false alarms (an effect named on an effect-free case): %d / %d = %.1f %% (goal <= 5 %%)\n", none.correct,
+                none.cases, percent(none));
+    std::printf("gap detected on effect-free cases: %d / %d\n", any_gap_on_none.correct, any_gap_on_none.cases);
+    std::printf("median held-out gap closed: %.2f over effects >= 4x noise (0 when not named; goal >= 0.80), %.2f over "
+                "correctly named cases\n",
+                median(closed_strong), median(closed_named));
+    out["strong"] = {{"correct", strong.correct}, {"cases", strong.cases}};
+    out["false_alarms"] = {{"named", none.correct}, {"cases", none.cases}, {"gap_detected", any_gap_on_none.correct}};
+    out["median_gap_closed_strong"] = std::isfinite(median(closed_strong)) ? nlohmann::json(median(closed_strong)) : nlohmann::json();
+    out["median_gap_closed_named"] = std::isfinite(median(closed_named)) ? nlohmann::json(median(closed_named)) : nlohmann::json();
+    formats::write_file_atomically((fs::path(dir) / "score.json").string(), [&](std::ostream& o) { o << out.dump(2) << '\n'; });
+    return kExitOk;
+}
+
+int run_bench_gap(const BenchGapOptions& options, const GlobalOptions& global) {
+    const int modes = (!options.out.empty()) + (!options.diagnose_dir.empty()) + (!options.score_dir.empty());
+    if (modes != 1) {
+        log_message("flowvid bench gap: give exactly one of --out DIR (make cases), --diagnose DIR, --score DIR");
+        return kExitUsage;
+    }
+    if (!options.out.empty()) return generate(options, global);
+    if (!options.diagnose_dir.empty()) {
+        const int status = diagnose_all(options, global);
+        if (status != kExitOk) return status;
+        return score(options.diagnose_dir);
+    }
+    return score(options.score_dir);
+}
+
+}  // namespace
+
+// `flowvid bench <what>`: benchmarks that are commands (the speed benchmarks are bench/ executables).
+const RegisterCommand bench_registration{Command{
+    "bench", "benchmarks with sealed cases: `flowvid bench gap ...`", [](CLI::App& app) -> CommandRunner {
+        auto options = std::make_shared<BenchGapOptions>();
+        options->diagnose.run.resolution = "16x16";
+        app.require_subcommand(1);
+        CLI::App* gap = app.add_subcommand("gap", "sealed cases for flowvid diagnose, and its score");
+        gap->footer(
+            "Makes cloth captures with this project's simulator at a finer mesh (24x24) and smaller time step\n"
+            "(10 substeps per frame) than the diagnoser uses (16x16, 5), each with one hidden effect or none\n"
+            "(about a quarter), strengths drawn log-uniformly, filmed with stripes and sensor noise. Labels go\n"
+            "to DIR/labels.json, which only --score reads.\n\n"
+            "Examples:\n"
+            "  flowvid bench gap --cases 40 --seed 7 --out gapbench \\\n"
+            "      --scene ../shared/captures/cloth-cotton-waving-1 --scene ../shared/captures/cloth-silk-waving-2 \\\n"
+            "      --fabric cotton.fabric.json --fabric silk.fabric.json\n"
+            "  flowvid bench gap --diagnose gapbench     # diagnoses every case (resumable), then scores\n"
+            "  flowvid bench gap --score gapbench");
+        gap->add_option("--cases", options->cases, "cases to make")->check(CLI::Range(1, 10000))->capture_default_str();
+        gap->add_option("--seed", options->seed, "seed of the draw")->capture_default_str();
+        gap->add_option("--out", options->out, "folder for the cases and labels");
+        gap->add_option("--scene", options->scenes, "cloth.waving capture whose camera, projector and pins a case uses (repeat)");
+        gap->add_option("--fabric", options->fabrics, "fabric preset a case uses (repeat)");
+        gap->add_option("--effects", options->effects, "effects to draw from (default: every cloth and camera effect)")->delimiter(',');
+        gap->add_option("--frames", options->bench.frames, "frames per case")->check(CLI::Range(4, 1000))->capture_default_str();
+        gap->add_option("--diagnose", options->diagnose_dir, "diagnose every case of a bench folder, then score");
+        gap->add_option("--score", options->score_dir, "score a diagnosed bench folder");
+        gap->add_option("--threads", options->threads, "threads (0 = all cores)")->capture_default_str();
+        return [options](const GlobalOptions& global) {
+            options->diagnose.run.threads = options->threads;
+            options->diagnose.frames = options->bench.frames;
+            return run_bench_gap(*options, global);
+        };
+    }}};
+
+}  // namespace flowvid::cli

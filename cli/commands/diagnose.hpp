@@ -1,0 +1,32 @@
+#pragma once
+// What `flowvid diagnose` and `flowvid bench gap` share: the cloth gap model
+// of captures and a preset, and diagnosis.json (+ report.html) output.
+
+#include "commands/cloth_options.hpp"
+
+#include "flowvid/gap/diagnose.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace flowvid::cli {
+
+struct DiagnoseClothOptions {
+    ClothRunOptions run;  // the diagnoser's mesh (default 16x16: coarser than footage makers use)
+    int frames = 30;      // compared frames from the first (later ones are mostly chaos)
+    int floor_resolution_step = 0;  // the floor's finer-mesh member: rows and cols + this (0: none)
+};
+
+// nullptr (logged) for bad run options; throws what the readers throw.
+std::unique_ptr<gap::GapModel> cloth_gap_model(const std::vector<std::string>& capture_paths, const std::string& preset_path,
+                                               const DiagnoseClothOptions& options, nlohmann::json& model_summary);
+
+// diagnosis.json (format flowvid.diagnosis v1); `model` describes the base model.
+nlohmann::json diagnosis_to_json(const gap::Diagnosis& diagnosis, const nlohmann::json& model);
+// Writes FOLDER/diagnosis.json and FOLDER/report.html atomically.
+void write_diagnosis(const std::string& folder, const nlohmann::json& diagnosis);
+
+}  // namespace flowvid::cli

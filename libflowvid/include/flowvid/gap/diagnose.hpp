@@ -1,0 +1,104 @@
+#pragma once
+// Sim-to-real gap diagnosis: where a fitted model departs from footage, which
+// unmodelled effect causes it, and how much of the gap that effect closes.
+//
+//  1. Gap or not: the base model's residual on held-out frames, each frame in
+//     units of its floor (gap/model.hpp), against a threshold. Below it: "no
+//     structural gap", and no effect is named (this keeps false alarms down).
+//  2. Where: the residual per frame (beside what drives the motion), per
+//     region (GapModel::localise) and per frequency.
+//  3. Which: every candidate effect is screened cheaply (a quadratic through
+//     the training score at the neutral value and two steps, per parameter:
+//     the reduction it predicts); the most promising are refitted jointly with
+//     the base parameters on training frames. A candidate is named when, on
+//     held-out frames, it beats the base parameters refitted alone by a clear
+//     share of the gap, its BIC (training frames) improves on that refit by
+//     more than a strong-evidence margin, and it stays the best in most block
+//     bootstrap resamples of the held-out frames. Greedy: with one named,
+//     the others are tried on top of it. Otherwise: "unexplained", with the
+//     best candidates shown. Effects of one equivalence class are reported as
+//     the class.
+//  4. How far: the share of the held-out gap (base residual minus floor)
+//     closed, the fitted effect parameters and how the base parameters moved.
+
+#include "flowvid/gap/model.hpp"
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace flowvid::gap {
+
+struct DiagnoseSettings {
+    // Mean held-out error/floor above which the residual is a structural gap.
+    double gap_threshold = 3.0;
+    int refitted_candidates = 3;      // best screened candidates that are refitted
+    int refit_evaluations = 40;       // per refit (the null refit too)
+    int max_effects = 2;              // greedy rounds
+    // Evidence needed to name an effect:
+    double min_effect_share = 0.25;   // of the held-out gap, beyond the null refit
+    double max_delta_bic = -6.0;      // training-frame BIC against the previous model (< -6: strong evidence)
+    double min_stability = 0.8;       // share of bootstrap resamples in which it stays best
+    int bootstrap_resamples = 400;
+    std::uint64_t seed = 1;
+    std::vector<std::string> effects;  // candidates to consider (empty: all the model offers)
+    // Stage name and fraction done; return false to cancel (diagnose then throws Cancelled).
+    std::function<bool(const std::string& stage, double fraction)> progress;
+};
+
+struct Cancelled : std::runtime_error {
+    Cancelled() : std::runtime_error("cancelled") {}
+};
+
+struct CandidateEvidence {
+    std::string name;
+    std::string domain;
+    std::string equivalence_class;
+    double screen_score = 0.0;        // predicted training-score reduction (error/floor units)
+    EffectValues screened;            // the best screening point
+    bool refitted = false;
+    RefitResult refit;                // when refitted
+    double held_out_score = 0.0;      // sum over held-out frames of error/floor
+    double gap_closed = 0.0;          // share of the base held-out gap closed (NaN when not refitted)
+    double effect_share = 0.0;        // share closed beyond the null refit
+    double delta_bic = 0.0;           // against the null refit (NaN when not refitted)
+    double bootstrap_stability = 0.0;
+    bool passes = false;
+};
+
+struct Spectrum {
+    std::vector<double> frequency_hz;
+    std::vector<double> residual_power;  // of error - floor, base model
+    std::vector<double> floor_power;     // of the floor itself
+};
+
+struct Diagnosis {
+    std::string kind;
+    std::vector<std::string> trials;
+    Residuals base;                   // the base model
+    double held_out_error = 0.0;      // sum of held-out errors (metric units)
+    double held_out_floor = 0.0;      // sum of their floors
+    double held_out_score = 0.0;      // sum of error/floor
+    int held_out_frames = 0;
+    double ratio = 0.0;               // held_out_score / held_out_frames
+    double threshold = 0.0;
+    bool gap_detected = false;
+    std::string status;               // "no_gap", "named", "unexplained"
+    std::vector<std::string> named;   // effects, greedy order
+    std::string named_class;          // equivalence class of the first named effect, if any
+    std::string message;              // one sentence for people
+    std::optional<double> gap_closed; // by the named effects together
+    std::optional<RefitResult> named_refit;   // the named effects refitted together
+    RefitResult null_refit;           // base parameters alone
+    std::vector<CandidateEvidence> candidates;  // ranked: refitted by held-out score, then by screening
+    std::vector<RegionMap> maps;      // of the base model's residual
+    Spectrum spectrum;
+    long long evaluations = 0;
+    double seconds = 0.0;
+};
+
+Diagnosis diagnose(const GapModel& model, const DiagnoseSettings& settings);
+
+}  // namespace flowvid::gap

@@ -1,0 +1,250 @@
+#include "flowvid/gap/bench.hpp"
+
+#include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/gap/cloth_model.hpp"
+#include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/video/stripe_render.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <numbers>
+#include <random>
+#include <stdexcept>
+
+namespace flowvid::gap {
+
+namespace {
+
+std::vector<std::string> default_effects() {
+    std::vector<std::string> names;
+    for (const Effect& e : effect_catalogue())
+        if (e.domain != EffectDomain::rigid) names.push_back(e.name);
+    return names;
+}
+
+// Log-uniform in [lo, hi], with a random sign when `signed_value`.
+double draw(std::mt19937_64& random, double lo, double hi, bool signed_value = false) {
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    const double magnitude = lo * std::pow(hi / lo, u(random));
+    return signed_value && u(random) < 0.5 ? -magnitude : magnitude;
+}
+
+EffectValues draw_values(const std::string& name, std::mt19937_64& random) {
+    const Effect& effect = find_effect(name);
+    Eigen::VectorXd v = neutral_values(effect);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    if (name == "drag_nonlinear") {
+        v << 0.0, 0.0;  // the fabric's own nonlinear drag (bench_base_material drops it from the base)
+    } else if (name == "wind") {
+        const double speed = draw(random, 0.3, 3.0), heading = 2.0 * std::numbers::pi * u(random);
+        v(0) = speed * std::cos(heading);
+        v(1) = speed * std::sin(heading);
+        v(2) = 0.0;
+        if (u(random) < 0.5) {
+            v(3) = speed * (0.3 + 0.7 * u(random));
+            v(4) = draw(random, 0.5, 2.0);
+        }
+    } else if (name == "anisotropy") {
+        v(0) = draw(random, 0.3, 1.5, true);
+        v(1) = draw(random, 0.1, 0.7, true);
+    } else if (name == "hysteresis") {
+        v(0) = draw(random, 0.5, 15.0);
+    } else if (name == "pin_lag") {
+        v(0) = draw(random, 0.02, 0.13, true);
+    } else if (name == "pin_slip") {
+        v(0) = draw(random, 0.005, 0.06);
+    } else if (name == "camera_roll") {
+        v(0) = draw(random, 0.005, 0.08, true);
+    } else if (name == "lens_distortion") {
+        v(0) = draw(random, 0.02, 0.4, true);
+        v(1) = u(random) < 0.5 ? 0.0 : draw(random, 0.02, 0.2, true);
+    } else if (name == "rolling_shutter") {
+        v(0) = draw(random, 0.004, 0.033, true);
+    } else if (name == "motion_blur") {
+        v(0) = draw(random, 0.004, 0.033);
+    } else {
+        throw std::invalid_argument("flowvid bench gap makes cloth cases only; '" + name + "' is not a cloth or camera effect");
+    }
+    return {{name, v}};
+}
+
+std::uint8_t srgb_byte(double linear, double noise) {
+    linear = std::clamp(linear, 0.0, 1.0);
+    const double encoded = linear <= 0.0031308 ? 12.92 * linear : 1.055 * std::pow(linear, 1.0 / 2.4) - 0.055;
+    return static_cast<std::uint8_t>(std::clamp(std::lround(255.0 * (encoded + noise)), 0L, 255L));
+}
+
+// Gaussian noise of RMS sigma, correlated over 3x3 pixels (as after demosaicing).
+cv::Mat correlated_noise(int width, int height, double sigma, std::mt19937_64& random) {
+    cv::Mat white(height, width, CV_32F);
+    std::normal_distribution<float> n(0.0f, static_cast<float>(3.0 * sigma));  // a 3x3 box divides the RMS by 3
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) white.at<float>(y, x) = n(random);
+    cv::Mat out;
+    cv::blur(white, out, cv::Size(3, 3), cv::Point(-1, -1), cv::BORDER_REFLECT);
+    return out;
+}
+
+void write_png(const std::string& path, const cv::Mat& image) {
+    std::vector<std::uint8_t> bytes;
+    if (!cv::imencode(".png", image, bytes)) throw std::runtime_error("cannot encode " + path);
+    formats::write_file_atomically(path, [&](std::ostream& out) {
+        out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    });
+}
+
+cv::Mat rgb_frame(const video::ImageF& linear, const cv::Mat& noise) {
+    cv::Mat out(linear.height, linear.width, CV_8UC3);
+    for (int y = 0; y < linear.height; ++y)
+        for (int x = 0; x < linear.width; ++x) {
+            const std::uint8_t b = srgb_byte(linear.pixels[linear.index(x, y)], noise.at<float>(y, x));
+            out.at<cv::Vec3b>(y, x) = cv::Vec3b(b, b, b);
+        }
+    return out;
+}
+
+video::ClothTrial scene_trial(const formats::Capture& scene, int frames) {
+    video::ClothTrial trial;
+    trial.name = scene.folder;
+    trial.experiment = cloth::experiment_from_capture(scene);
+    trial.camera = *scene.camera;
+    trial.projector = *scene.projector;
+    const int simulated = std::min(frames + 2, trial.experiment.frame_count);
+    trial.experiment.frame_count = simulated;
+    for (cloth::PinTrajectory& pin : trial.experiment.pins)
+        if (static_cast<int>(pin.positions_m.size()) > simulated) pin.positions_m.resize(static_cast<std::size_t>(simulated));
+    return trial;
+}
+
+cloth::SwatchOptions fine_options(const BenchSettings& settings, const formats::Capture& scene, int threads) {
+    cloth::SwatchOptions options;
+    options.rows = settings.rows;
+    options.cols = settings.cols;
+    options.simulation.integrator = cloth::Integrator::implicit_euler;
+    options.simulation.implicit_substeps_per_frame = settings.implicit_substeps;
+    options.simulation.threads = std::max(1, threads);
+    if (scene.world && scene.world->gravity_m_per_s2) options.environment.gravity_m_per_s2 = *scene.world->gravity_m_per_s2;
+    return options;
+}
+
+}  // namespace
+
+std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scenes, int fabrics, const BenchSettings& settings) {
+    if (count < 1) throw std::invalid_argument("flowvid bench gap: --cases must be at least 1");
+    if (scenes < 1 || fabrics < 1) throw std::invalid_argument("flowvid bench gap: needs at least one scene and one fabric");
+    const std::vector<std::string> effects = settings.effects.empty() ? default_effects() : settings.effects;
+    std::mt19937_64 random(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<BenchCase> cases;
+    // The effect-free cases are placed evenly (about none_share of them), the
+    // effects cycle through a shuffled order so every effect is represented.
+    std::vector<std::string> order = effects;
+    std::shuffle(order.begin(), order.end(), random);
+    std::size_t next = 0;
+    double none_debt = 0.0;
+    for (int i = 0; i < count; ++i) {
+        BenchCase c;
+        char id[32];
+        std::snprintf(id, sizeof id, "case-%03d", i + 1);
+        c.id = id;
+        c.scene = static_cast<int>(u(random) * scenes) % scenes;
+        c.fabric = static_cast<int>(u(random) * fabrics) % fabrics;
+        none_debt += settings.none_share;
+        if (none_debt >= 1.0 - 1e-9 || effects.empty()) {
+            none_debt -= 1.0;
+            c.effect = "none";
+        } else {
+            c.effect = order[next++ % order.size()];
+            c.values = draw_values(c.effect, random);
+        }
+        cases.push_back(std::move(c));
+    }
+    return cases;
+}
+
+cloth::ClothMaterial bench_base_material(const BenchCase& c, const cloth::ClothMaterial& fabric) {
+    cloth::ClothMaterial base = fabric;
+    if (c.effect == "drag_nonlinear") {
+        base.drag_normal_kg_per_m3 = 0.0;
+        base.drag_degradation_s2_per_m2 = 0.0;
+    }
+    return base;
+}
+
+void write_cloth_case(const std::string& folder, const BenchCase& c, const formats::Capture& scene,
+                      const cloth::ClothMaterial& fabric, const BenchSettings& settings, int threads) {
+    if (!scene.is_cloth() || !scene.camera || !scene.projector || !scene.swatch)
+        throw std::invalid_argument(scene.json_path + ": a bench scene must be a cloth capture");
+    namespace fs = std::filesystem;
+    fs::create_directories(fs::path(folder) / "frames");
+    fs::create_directories(fs::path(folder) / "masks");
+    const video::ClothTrial trial = scene_trial(scene, settings.frames);
+    // drag_nonlinear's values are the fabric's own: the base lacks them.
+    EffectValues effects = c.values;
+    if (c.effect == "drag_nonlinear")
+        effects["drag_nonlinear"] = (Eigen::VectorXd(2) << fabric.drag_normal_kg_per_m3, fabric.drag_degradation_s2_per_m2).finished();
+    const cloth::ClothMaterial base = bench_base_material(c, fabric);
+    const ClothScenario scenario = apply_cloth_effects(trial, base, fine_options(settings, scene, threads), effects);
+    const cloth::SwatchRun run = cloth::simulate_swatch(scenario.experiment, scenario.material, scenario.options);
+    if (video::usable_frames(run) < settings.frames)
+        throw std::runtime_error(c.id + ": the footage simulation failed: " + run.simulation.report.reason);
+
+    video::StripeRenderSettings look;
+    look.shading = video::StripeShading::lambertian;
+    look.background = 0.08f;
+    video::StripeRenderer renderer(scenario.camera, trial.projector, look);
+    std::mt19937_64 random(std::hash<std::string>{}(c.id) ^ 0x6a09e667f3bcc909ULL);
+    const int width = scenario.camera.width, height = scenario.camera.height;
+    for (int k = 0; k < settings.frames; ++k) {
+        const video::StripeImage filmed = film_frame(scenario, trial, run, k, renderer);
+        char name[32];
+        std::snprintf(name, sizeof name, "%06d.png", k + 1);
+        write_png((fs::path(folder) / "frames" / name).string(),
+                  rgb_frame(filmed.image, correlated_noise(width, height, settings.noise_sigma, random)));
+        cv::Mat mask(height, width, CV_8UC1);
+        for (int y = 0; y < height; ++y)
+            for (int x = 0; x < width; ++x) mask.at<std::uint8_t>(y, x) = filmed.silhouette.at(x, y) ? 255 : 0;
+        write_png((fs::path(folder) / "masks" / name).string(), mask);
+    }
+    write_png((fs::path(folder) / "background.png").string(),
+              rgb_frame(video::ImageF(width, height, look.background), correlated_noise(width, height, settings.noise_sigma, random)));
+
+    formats::Capture out = scene;
+    out.folder = folder;
+    out.frames = {"frames/%06d.png", "", 1, settings.frames};
+    out.masks = "masks/%06d.png";
+    out.background = "background.png";
+    for (formats::Pin& pin : out.swatch->pins)
+        if (static_cast<int>(pin.positions_m.size()) > settings.frames) pin.positions_m.resize(static_cast<std::size_t>(settings.frames));
+    out.frames.count = settings.frames;
+    out.source = {{"generator", "flowvid bench gap"},
+                  {"scene", fs::path(scene.folder).filename().string()},
+                  {"licence", "CC0-1.0 (generated)"}};
+    const nlohmann::json document = formats::capture_to_json(out);
+    formats::write_file_atomically((fs::path(folder) / "capture.json").string(),
+                                   [&](std::ostream& o) { o << document.dump(1) << '\n'; });
+}
+
+double measure_effect_to_noise(const std::string& folder, const BenchCase& c, const cloth::ClothMaterial& fabric,
+                               const BenchSettings& settings, int threads) {
+    const formats::Capture capture = formats::read_capture(folder);
+    video::TrialLoadSettings load;
+    load.waving_frames = settings.frames;
+    load.full_weight_frames = settings.frames;
+    std::vector<video::ClothTrial> trials{video::load_trial(capture, load)};
+    ClothGapSettings gap;
+    gap.fit.swatch = fine_options(settings, capture, threads);
+    gap.threads = threads;
+    const ClothGapModel model(std::move(trials), bench_base_material(c, fabric), gap);
+    const Residuals r = model.evaluate({});
+    double sum = 0.0;
+    for (const FrameResidual& f : r.frames) sum += f.error / f.floor;
+    return r.frames.empty() ? 0.0 : sum / static_cast<double>(r.frames.size());
+}
+
+}  // namespace flowvid::gap

@@ -1,0 +1,114 @@
+// The effect catalogue: names, parameters (SI, units in the keys), neutral
+// values and refit ranges. Ranges span what a swatch test or a toss can show:
+// winds of a few m/s, pin timing errors of a few frames, lens distortion of
+// consumer lenses, a rolling-shutter readout up to a frame time.
+
+#include "flowvid/gap/effects.hpp"
+
+#include "flowvid/gap/model.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace flowvid::gap {
+
+const char* domain_name(EffectDomain domain) {
+    switch (domain) {
+    case EffectDomain::cloth: return "cloth";
+    case EffectDomain::camera: return "camera";
+    case EffectDomain::rigid: return "rigid";
+    }
+    return "?";
+}
+
+namespace {
+
+std::vector<Effect> make_catalogue() {
+    using D = EffectDomain;
+    return {
+        {"drag_nonlinear", D::cloth, "the thesis's nonlinear normal air drag on top of a linear-drag model",
+         {{"normal_kg_per_m3", 0.0, 0.0, 8.0, 1.0}, {"degradation_s2_per_m2", 0.0, 0.0, 4.0, 0.5}}, ""},
+        {"wind", D::cloth, "air moving past the swatch: a steady velocity (world axes) plus a sinusoidal gust along it",
+         {{"x_m_per_s", 0.0, -4.0, 4.0, 0.4},
+          {"y_m_per_s", 0.0, -4.0, 4.0, 0.4},
+          {"z_m_per_s", 0.0, -4.0, 4.0, 0.4},
+          {"gust_amplitude_m_per_s", 0.0, 0.0, 3.0, 0.4},
+          {"gust_frequency_hz", 1.0, 0.2, 4.0, 0.0}},
+         ""},
+        {"anisotropy", D::cloth, "warp and weft of different stiffness, the weave at a bias angle to the swatch edges",
+         {{"log_weft_over_warp", 0.0, -2.0, 2.0, 0.3}, {"bias_angle_rad", 0.0, -0.8, 0.8, 0.15}}, ""},
+        {"hysteresis", D::cloth, "bending with memory: the rest fold angle creeps towards the current one",
+         {{"bend_memory_rate_per_s", 0.0, 0.0, 20.0, 2.0}}, ""},
+        {"pin_lag", D::cloth, "the recorded pin trajectories run ahead of (or behind) the footage by a time offset",
+         {{"lag_s", 0.0, -0.2, 0.2, 0.02}}, ""},
+        {"pin_slip", D::cloth, "the fabric slides down through the clamps at a steady speed",
+         {{"drop_speed_m_per_s", 0.0, 0.0, 0.1, 0.01}}, ""},
+        {"camera_roll", D::camera, "the camera is rolled about its optical axis against its calibration",
+         {{"roll_rad", 0.0, -0.2, 0.2, 0.02}}, "camera_roll|gravity_tilt"},
+        {"lens_distortion", D::camera, "radial lens distortion the calibration left out (k1, k2 on normalised coordinates)",
+         {{"k1", 0.0, -0.6, 0.6, 0.05}, {"k2", 0.0, -0.6, 0.6, 0.1}}, ""},
+        {"rolling_shutter", D::camera, "rows exposed one after another: the bottom row this much later than the top",
+         {{"readout_s", 0.0, -0.04, 0.04, 0.008}}, ""},
+        {"motion_blur", D::camera, "the shutter open for part of the frame time: moving stripes smear",
+         {{"exposure_s", 0.0, 0.0, 0.04, 0.01}}, ""},
+        {"air_drag", D::rigid, "air resistance on the tossed body: quadratic on its speed, linear on its spin",
+         {{"quadratic_per_m", 0.0, 0.0, 2.0, 0.1}, {"angular_rate_per_s", 0.0, 0.0, 5.0, 0.25}}, ""},
+        {"inertia_error", D::rigid, "principal moments of inertia off from the mesh's uniform density",
+         {{"log_scale_x", 0.0, -0.5, 0.5, 0.05}, {"log_scale_y", 0.0, -0.5, 0.5, 0.05}}, ""},
+    };
+}
+
+}  // namespace
+
+const std::vector<Effect>& effect_catalogue() {
+    static const std::vector<Effect> catalogue = make_catalogue();
+    return catalogue;
+}
+
+const Effect& find_effect(const std::string& name) {
+    std::string known;
+    for (const Effect& effect : effect_catalogue()) {
+        if (effect.name == name) return effect;
+        known += (known.empty() ? "" : ", ") + effect.name;
+    }
+    throw std::invalid_argument("unknown effect '" + name + "' (known: " + known + ")");
+}
+
+const std::vector<EquivalenceClass>& equivalence_classes() {
+    static const std::vector<EquivalenceClass> classes = {
+        {"camera_roll|gravity_tilt",
+         {"camera_roll", "gravity_tilt"},
+         "one camera sees only the angle between gravity and the image axes: a rolled camera and a tilted gravity "
+         "give the same footage"},
+        {"mass_scale|force_scale",
+         {"mass_scale", "force_scale"},
+         "motion depends on force over mass only: a global mass scale and the same scale on every force (stiffness, "
+         "damping, drag) give the same footage"},
+    };
+    return classes;
+}
+
+Eigen::VectorXd neutral_values(const Effect& effect) {
+    Eigen::VectorXd values(static_cast<Eigen::Index>(effect.parameters.size()));
+    for (std::size_t i = 0; i < effect.parameters.size(); ++i)
+        values(static_cast<Eigen::Index>(i)) = effect.parameters[i].neutral;
+    return values;
+}
+
+bool is_held_out(int frame_number, int block) { return ((frame_number - 1) / std::max(1, block)) % 2 == 1; }
+
+double training_score(const Residuals& residuals) {
+    double sum = 0.0;
+    for (const FrameResidual& f : residuals.frames)
+        if (!f.held_out) sum += f.error / f.floor;
+    return sum;
+}
+
+double held_out_score(const Residuals& residuals) {
+    double sum = 0.0;
+    for (const FrameResidual& f : residuals.frames)
+        if (f.held_out) sum += f.error / f.floor;
+    return sum;
+}
+
+}  // namespace flowvid::gap
