@@ -78,7 +78,19 @@ int generate(const BenchGapOptions& options, const GlobalOptions& global) {
         progress.update(static_cast<double>(i) / cases.size(), c.id + " (" + c.effect + ")");
         const std::string folder = (fs::path(options.out) / "cases" / c.id).string();
         const cloth::ClothMaterial fabric = cloth::material_from_fabric(fabrics[static_cast<std::size_t>(c.fabric)].parameters);
-        gap::write_cloth_case(folder, c, scenes[static_cast<std::size_t>(c.scene)], fabric, settings, threads);
+        // Too strong an effect can leave no footage to make (no equilibrium,
+        // a blow-up): halve it, at most three times, and say so in the labels.
+        int weakened = 0;
+        for (;; ++weakened) {
+            try {
+                gap::write_cloth_case(folder, c, scenes[static_cast<std::size_t>(c.scene)], fabric, settings, threads);
+                break;
+            } catch (const std::runtime_error& e) {
+                if (c.effect == "none" || c.effect == "drag_nonlinear" || weakened == 3) throw;
+                log_message(std::string(e.what()) + ": halving the effect");
+                c.values = gap::weakened(c.values);
+            }
+        }
         formats::FabricPreset base = fabrics[static_cast<std::size_t>(c.fabric)];
         base.parameters = cloth::fabric_from_material(gap::bench_base_material(c, fabric));
         base.adapters.clear();
@@ -89,7 +101,8 @@ int generate(const BenchGapOptions& options, const GlobalOptions& global) {
                           {"values", values_json(c.values)},
                           {"scene", options.scenes[static_cast<std::size_t>(c.scene)]},
                           {"fabric", options.fabrics[static_cast<std::size_t>(c.fabric)]},
-                          {"effect_to_noise", c.effect_to_noise}});
+                          {"effect_to_noise", c.effect_to_noise},
+                          {"weakened", weakened}});
     }
     progress.done();
     const nlohmann::json document = {{"format", "flowvid.gap_bench_labels"},

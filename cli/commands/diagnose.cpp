@@ -11,6 +11,8 @@
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/gap/cloth_model.hpp"
 #include "flowvid/gap/diagnose.hpp"
+#include "flowvid/gap/rigid_model.hpp"
+#include "flowvid/rigid/fit_file.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -114,6 +116,11 @@ nlohmann::json diagnosis_to_json(const gap::Diagnosis& d, const nlohmann::json& 
     out["spectrum"] = {{"frequency_hz", d.spectrum.frequency_hz},
                        {"residual_power", d.spectrum.residual_power},
                        {"floor_power", d.spectrum.floor_power}};
+    // What one camera cannot tell apart, whatever the verdict.
+    nlohmann::json classes = nlohmann::json::array();
+    for (const gap::EquivalenceClass& c : gap::equivalence_classes())
+        classes.push_back({{"name", c.name}, {"members", c.members}, {"why", c.why}});
+    out["equivalence_classes"] = classes;
     out["evaluations"] = d.evaluations;
     out["seconds"] = d.seconds;
     return out;
@@ -157,6 +164,7 @@ namespace {
 struct DiagnoseOptions {
     std::vector<std::string> captures;
     std::string preset;
+    std::string fit;
     std::string out;
     std::vector<std::string> effects;
     DiagnoseClothOptions cloth;
@@ -164,8 +172,29 @@ struct DiagnoseOptions {
     bool json = false;
 };
 
+// The rigid gap model of tosses: each is fitted on its own training frames
+// (a fit that saw the held-out frames would flatter them).
+// With --fit, the first capture starts from that fit (flowvid fit rigid's
+// fit.json); a fit that saw the held-out frames makes them look better.
+std::unique_ptr<gap::GapModel> rigid_gap_model(const std::vector<std::string>& capture_paths, const std::string& fit_path,
+                                               int threads, nlohmann::json& model_summary) {
+    std::vector<gap::RigidTrial> trials;
+    for (const std::string& path : capture_paths) {
+        gap::RigidTrial trial;
+        trial.capture = read_capture_of_kind(path, {"rigid.toss"}, "flowvid diagnose");
+        if (!fit_path.empty() && trials.empty()) trial.fit = rigid::read_rigid_fit(fit_path).as_fit_result();
+        trials.push_back(std::move(trial));
+    }
+    gap::RigidGapSettings settings;
+    settings.threads = thread_count(threads);
+    model_summary = {{"model", "rigid free flight fitted on the training frames of each toss"},
+                     {"floor", "re-fits to masks rendered from the fitted motion (quantisation)"}};
+    return std::make_unique<gap::RigidGapModel>(std::move(trials), settings);
+}
+
 int run_diagnose(DiagnoseOptions& options, const GlobalOptions& global) {
-    if (options.preset.empty()) {
+    const bool rigid = formats::read_capture(options.captures.front()).is_rigid();
+    if (!rigid && options.preset.empty()) {
         log_message("flowvid diagnose: give --preset P (the fitted fabric; `flowvid fit cloth` makes one)");
         return kExitUsage;
     }
@@ -175,7 +204,9 @@ int run_diagnose(DiagnoseOptions& options, const GlobalOptions& global) {
     const InterruptWatch interrupt;
     progress.update(0.0, "floors");
     nlohmann::json model_summary;
-    const std::unique_ptr<gap::GapModel> model = cloth_gap_model(options.captures, options.preset, options.cloth, model_summary);
+    const std::unique_ptr<gap::GapModel> model =
+        rigid ? rigid_gap_model(options.captures, options.fit, options.cloth.run.threads, model_summary)
+              : cloth_gap_model(options.captures, options.preset, options.cloth, model_summary);
     if (!model) return kExitUsage;
     options.settings.effects = options.effects;
     options.settings.progress = [&](const std::string& stage, double fraction) {
@@ -213,7 +244,7 @@ const RegisterCommand registration{Command{
         auto options = std::make_shared<DiagnoseOptions>();
         options->cloth.run.resolution = "16x16";
         app.footer(
-            "Simulates the fitted model in each capture's experiment and compares every frame with the\n"
+            "Cloth: simulates the fitted fabric in each capture's experiment and compares every frame with the\n"
             "footage in units of its floor (what chaos and the mesh leave even for a perfect model).\n"
             "Frames alternate in blocks of 5 between training and held out. When the held-out residual\n"
             "is beyond --gap-threshold times the floor, every catalogue effect is screened, the most\n"
@@ -226,9 +257,11 @@ const RegisterCommand registration{Command{
             "Writes OUT/diagnosis.json and OUT/report.html (open it in a browser).\n\n"
             "Examples:\n"
             "  flowvid diagnose --preset cotton.fabric.json --capture ../shared/captures/cloth-cotton-waving-wind --out diag/\n"
-            "  flowvid diagnose --preset silk.fabric.json --capture DIR --effects pin_lag,wind --out diag/");
+            "  flowvid diagnose --preset silk.fabric.json --capture DIR --effects pin_lag,wind --out diag/\n"
+            "  flowvid diagnose --capture ../shared/captures/rigid-toss-major --out diag/   # rigid: fitted on training frames");
         app.add_option("--capture", options->captures, "capture folder (repeat for several)")->required();
-        app.add_option("--preset", options->preset, "the fitted fabric (*.fabric.json)");
+        app.add_option("--preset", options->preset, "the fitted fabric (*.fabric.json; cloth captures)");
+        app.add_option("--fit", options->fit, "rigid: start from this fit of the first capture (flowvid fit rigid's fit.json)");
         app.add_option("--out", options->out, "report folder (diagnosis.json, report.html)")->required();
         app.add_option("--effects", options->effects, "candidates to consider (default: every applicable one)")->delimiter(',');
         app.add_option("--frames", options->cloth.frames, "frames compared from the first")

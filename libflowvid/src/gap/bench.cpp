@@ -167,6 +167,15 @@ std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scene
     return cases;
 }
 
+EffectValues weakened(const EffectValues& values) {
+    EffectValues out = values;
+    for (auto& [name, v] : out) {
+        const Eigen::VectorXd neutral = neutral_values(find_effect(name));
+        v = neutral + 0.5 * (v - neutral);
+    }
+    return out;
+}
+
 cloth::ClothMaterial bench_base_material(const BenchCase& c, const cloth::ClothMaterial& fabric) {
     cloth::ClothMaterial base = fabric;
     if (c.effect == "drag_nonlinear") {
@@ -189,8 +198,14 @@ void write_cloth_case(const std::string& folder, const BenchCase& c, const forma
     if (c.effect == "drag_nonlinear")
         effects["drag_nonlinear"] = (Eigen::VectorXd(2) << fabric.drag_normal_kg_per_m3, fabric.drag_degradation_s2_per_m2).finished();
     const cloth::ClothMaterial base = bench_base_material(c, fabric);
-    const ClothScenario scenario = apply_cloth_effects(trial, base, fine_options(settings, scene, threads), effects);
-    const cloth::SwatchRun run = cloth::simulate_swatch(scenario.experiment, scenario.material, scenario.options);
+    ClothScenario scenario = apply_cloth_effects(trial, base, fine_options(settings, scene, threads), effects);
+    // Hung cloth has several equilibria: the first bow that converges.
+    cloth::SwatchRun run;
+    for (const double bow : {1.0, -1.0, 0.0}) {
+        scenario.options.initial_bow = bow;
+        run = cloth::simulate_swatch(scenario.experiment, scenario.material, scenario.options);
+        if (video::usable_frames(run) >= settings.frames) break;
+    }
     if (video::usable_frames(run) < settings.frames)
         throw std::runtime_error(c.id + ": the footage simulation failed: " + run.simulation.report.reason);
 

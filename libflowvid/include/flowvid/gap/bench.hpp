@@ -41,6 +41,10 @@ struct BenchSettings {
 std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scenes, int fabrics,
                                         const BenchSettings& settings);
 
+// The effect at half its strength (towards neutral): for a case whose
+// footage cannot be simulated (e.g. no equilibrium in too strong a wind).
+EffectValues weakened(const EffectValues& values);
+
 // The base model the diagnoser is given for a case: the fabric itself,
 // except that a drag_nonlinear case gets it without its nonlinear drag.
 cloth::ClothMaterial bench_base_material(const BenchCase& c, const cloth::ClothMaterial& fabric);
