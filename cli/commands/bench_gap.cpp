@@ -10,12 +10,14 @@
 // the diagnoser: only --score reads it).
 
 #include "commands/diagnose.hpp"
+#include "commands/fit.hpp"
 #include "output.hpp"
 
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/gap/bench.hpp"
+#include "flowvid/gap/rigid_model.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -35,6 +37,7 @@ struct BenchGapOptions {
     std::uint64_t seed = 1;
     std::string out;
     std::vector<std::string> scenes;
+    std::vector<std::string> rigid_scenes;
     std::vector<std::string> fabrics;
     std::vector<std::string> effects;
     std::string diagnose_dir;
@@ -65,8 +68,11 @@ int generate(const BenchGapOptions& options, const GlobalOptions& global) {
     gap::BenchSettings settings = options.bench;
     settings.effects = options.effects;
     for (const std::string& e : settings.effects) gap::find_effect(e);
+    std::vector<formats::Capture> rigid_scenes;
+    for (const std::string& s : options.rigid_scenes) rigid_scenes.push_back(read_capture_of_kind(s, {"rigid.toss"}, "flowvid bench gap"));
     std::vector<gap::BenchCase> cases =
-        gap::draw_bench_cases(options.cases, options.seed, static_cast<int>(scenes.size()), static_cast<int>(fabrics.size()), settings);
+        gap::draw_bench_cases(options.cases, options.seed, static_cast<int>(scenes.size()), static_cast<int>(fabrics.size()),
+                              settings, static_cast<int>(rigid_scenes.size()));
     fs::create_directories(fs::path(options.out) / "cases");
     Progress progress(global, "bench gap: making cases");
     const InterruptWatch interrupt;
@@ -77,6 +83,26 @@ int generate(const BenchGapOptions& options, const GlobalOptions& global) {
         gap::BenchCase& c = cases[i];
         progress.update(static_cast<double>(i) / cases.size(), c.id + " (" + c.effect + ")");
         const std::string folder = (fs::path(options.out) / "cases" / c.id).string();
+        if (c.rigid) {
+            gap::RigidCaseSettings rigid;
+            rigid.threads = threads;
+            gap::write_rigid_case(folder, rigid_scenes[static_cast<std::size_t>(c.scene)], c.values,
+                                  options.seed * 1000003ULL + i, rigid);
+            // Effect size: the mean error/floor of the effect-free model fitted to the case.
+            nlohmann::json ignored;
+            const std::unique_ptr<gap::GapModel> model = rigid_gap_model({folder}, "", threads, ignored);
+            const gap::Residuals r = model->evaluate({});
+            double sum = 0.0;
+            for (const gap::FrameResidual& f : r.frames) sum += f.error / f.floor;
+            c.effect_to_noise = r.frames.empty() ? 0.0 : sum / static_cast<double>(r.frames.size());
+            labels.push_back({{"case", c.id},
+                              {"kind", "rigid"},
+                              {"effect", c.effect},
+                              {"values", values_json(c.values)},
+                              {"scene", options.rigid_scenes[static_cast<std::size_t>(c.scene)]},
+                              {"effect_to_noise", c.effect_to_noise}});
+            continue;
+        }
         const cloth::ClothMaterial fabric = cloth::material_from_fabric(fabrics[static_cast<std::size_t>(c.fabric)].parameters);
         // Too strong an effect can leave no footage to make (no equilibrium,
         // a blow-up): halve it, at most three times, and say so in the labels.
@@ -91,12 +117,17 @@ int generate(const BenchGapOptions& options, const GlobalOptions& global) {
                 c.values = gap::weakened(c.values);
             }
         }
+        // A drag_nonlinear case's hidden values are the fabric's own nonlinear drag.
+        if (c.effect == "drag_nonlinear")
+            c.values["drag_nonlinear"] =
+                (Eigen::VectorXd(2) << fabric.drag_normal_kg_per_m3, fabric.drag_degradation_s2_per_m2).finished();
         formats::FabricPreset base = fabrics[static_cast<std::size_t>(c.fabric)];
         base.parameters = cloth::fabric_from_material(gap::bench_base_material(c, fabric));
         base.adapters.clear();
         formats::write_fabric_preset(folder + "/base.fabric.json", base);
         c.effect_to_noise = gap::measure_effect_to_noise(folder, c, fabric, settings, threads);
         labels.push_back({{"case", c.id},
+                          {"kind", "cloth"},
                           {"effect", c.effect},
                           {"values", values_json(c.values)},
                           {"scene", options.scenes[static_cast<std::size_t>(c.scene)]},
@@ -144,8 +175,10 @@ int diagnose_all(const BenchGapOptions& options, const GlobalOptions& global) {
         if (interrupt.requested()) return kExitInterrupted;
         progress.update(static_cast<double>(i) / folders.size(), id);
         nlohmann::json model_summary;
+        const bool rigid = formats::read_capture(folders[i]).is_rigid();
         const std::unique_ptr<gap::GapModel> model =
-            cloth_gap_model({folders[i]}, folders[i] + "/base.fabric.json", options.diagnose, model_summary);
+            rigid ? rigid_gap_model({folders[i]}, "", thread_count(options.threads), model_summary)
+                  : cloth_gap_model({folders[i]}, folders[i] + "/base.fabric.json", options.diagnose, model_summary);
         if (!model) return kExitUsage;
         gap::DiagnoseSettings settings;
         settings.progress = [&](const std::string&, double) { return !interrupt.requested(); };
@@ -274,8 +307,9 @@ const RegisterCommand bench_registration{Command{
         gap->footer(
             "Makes cloth captures with this project's simulator at a finer mesh (24x24) and smaller time step\n"
             "(10 substeps per frame) than the diagnoser uses (16x16, 5), each with one hidden effect or none\n"
-            "(about a quarter), strengths drawn log-uniformly, filmed with stripes and sensor noise. Labels go\n"
-            "to DIR/labels.json, which only --score reads.\n\n"
+            "(about a quarter), strengths drawn log-uniformly, filmed with stripes and sensor noise; with\n"
+            "--rigid-scene also rigid tosses (RK4 at 1/960 s against the diagnoser's 1/240 s) with air drag or\n"
+            "an inertia error. Labels go to DIR/labels.json, which only --score reads.\n\n"
             "Examples:\n"
             "  flowvid bench gap --cases 40 --seed 7 --out gapbench \\\n"
             "      --scene ../shared/captures/cloth-cotton-waving-1 --scene ../shared/captures/cloth-silk-waving-2 \\\n"
@@ -287,6 +321,8 @@ const RegisterCommand bench_registration{Command{
         gap->add_option("--out", options->out, "folder for the cases and labels");
         gap->add_option("--scene", options->scenes, "cloth.waving capture whose camera, projector and pins a case uses (repeat)");
         gap->add_option("--fabric", options->fabrics, "fabric preset a case uses (repeat)");
+        gap->add_option("--rigid-scene", options->rigid_scenes,
+                        "rigid.toss capture whose body and camera rigid cases use (repeat; adds air_drag and inertia_error)");
         gap->add_option("--effects", options->effects, "effects to draw from (default: every cloth and camera effect)")->delimiter(',');
         gap->add_option("--frames", options->bench.frames, "frames per case")->check(CLI::Range(4, 1000))->capture_default_str();
         gap->add_option("--diagnose", options->diagnose_dir, "diagnose every case of a bench folder, then score");

@@ -159,21 +159,6 @@ std::unique_ptr<gap::GapModel> cloth_gap_model(const std::vector<std::string>& c
     return std::make_unique<gap::ClothGapModel>(std::move(trials), cloth::material_from_fabric(preset.parameters), settings);
 }
 
-namespace {
-
-struct DiagnoseOptions {
-    std::vector<std::string> captures;
-    std::string preset;
-    std::string fit;
-    std::string out;
-    std::vector<std::string> effects;
-    DiagnoseClothOptions cloth;
-    gap::DiagnoseSettings settings;
-    bool json = false;
-};
-
-// The rigid gap model of tosses: each is fitted on its own training frames
-// (a fit that saw the held-out frames would flatter them).
 // With --fit, the first capture starts from that fit (flowvid fit rigid's
 // fit.json); a fit that saw the held-out frames makes them look better.
 std::unique_ptr<gap::GapModel> rigid_gap_model(const std::vector<std::string>& capture_paths, const std::string& fit_path,
@@ -192,6 +177,21 @@ std::unique_ptr<gap::GapModel> rigid_gap_model(const std::vector<std::string>& c
     return std::make_unique<gap::RigidGapModel>(std::move(trials), settings);
 }
 
+namespace {
+
+struct DiagnoseOptions {
+    std::vector<std::string> captures;
+    std::string preset;
+    std::string fit;
+    std::string out;
+    std::vector<std::string> effects;
+    DiagnoseClothOptions cloth;
+    gap::DiagnoseSettings settings;
+    bool json = false;
+};
+
+// The rigid gap model of tosses: each is fitted on its own training frames
+// (a fit that saw the held-out frames would flatter them).
 int run_diagnose(DiagnoseOptions& options, const GlobalOptions& global) {
     const bool rigid = formats::read_capture(options.captures.front()).is_rigid();
     if (!rigid && options.preset.empty()) {

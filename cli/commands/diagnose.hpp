@@ -24,6 +24,11 @@ struct DiagnoseClothOptions {
 std::unique_ptr<gap::GapModel> cloth_gap_model(const std::vector<std::string>& capture_paths, const std::string& preset_path,
                                                const DiagnoseClothOptions& options, nlohmann::json& model_summary);
 
+// The rigid gap model of tosses, each fitted on its training frames (with
+// `fit_path`, the first starts from that fit.json). Throws what the readers throw.
+std::unique_ptr<gap::GapModel> rigid_gap_model(const std::vector<std::string>& capture_paths, const std::string& fit_path,
+                                               int threads, nlohmann::json& model_summary);
+
 // diagnosis.json (format flowvid.diagnosis v1); `model` describes the base model.
 nlohmann::json diagnosis_to_json(const gap::Diagnosis& diagnosis, const nlohmann::json& model);
 // Writes FOLDER/diagnosis.json and FOLDER/report.html atomically.

@@ -20,10 +20,10 @@ namespace flowvid::gap {
 
 namespace {
 
-std::vector<std::string> default_effects() {
+std::vector<std::string> default_effects(bool rigid) {
     std::vector<std::string> names;
     for (const Effect& e : effect_catalogue())
-        if (e.domain != EffectDomain::rigid) names.push_back(e.name);
+        if (e.domain != EffectDomain::rigid || rigid) names.push_back(e.name);
     return names;
 }
 
@@ -67,8 +67,14 @@ EffectValues draw_values(const std::string& name, std::mt19937_64& random) {
         v(0) = draw(random, 0.004, 0.033, true);
     } else if (name == "motion_blur") {
         v(0) = draw(random, 0.004, 0.033);
+    } else if (name == "air_drag") {
+        v(0) = draw(random, 0.02, 0.5);
+        v(1) = u(random) < 0.5 ? 0.0 : draw(random, 0.2, 3.0);
+    } else if (name == "inertia_error") {
+        v(0) = draw(random, 0.05, 0.4, true);
+        v(1) = draw(random, 0.05, 0.4, true);
     } else {
-        throw std::invalid_argument("flowvid bench gap makes cloth cases only; '" + name + "' is not a cloth or camera effect");
+        throw std::invalid_argument("flowvid bench gap cannot make cases of '" + name + "'");
     }
     return {{name, v}};
 }
@@ -134,10 +140,17 @@ cloth::SwatchOptions fine_options(const BenchSettings& settings, const formats::
 
 }  // namespace
 
-std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scenes, int fabrics, const BenchSettings& settings) {
+std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scenes, int fabrics, const BenchSettings& settings,
+                                        int rigid_scenes) {
     if (count < 1) throw std::invalid_argument("flowvid bench gap: --cases must be at least 1");
     if (scenes < 1 || fabrics < 1) throw std::invalid_argument("flowvid bench gap: needs at least one scene and one fabric");
-    const std::vector<std::string> effects = settings.effects.empty() ? default_effects() : settings.effects;
+    const std::vector<std::string> effects = settings.effects.empty() ? default_effects(rigid_scenes > 0) : settings.effects;
+    int rigid_effects = 0;
+    for (const std::string& e : effects) {
+        const bool rigid = find_effect(e).domain == EffectDomain::rigid;
+        if (rigid && rigid_scenes < 1) throw std::invalid_argument("flowvid bench gap: '" + e + "' needs a rigid scene (--rigid-scene)");
+        rigid_effects += rigid ? 1 : 0;
+    }
     std::mt19937_64 random(seed);
     std::uniform_real_distribution<double> u(0.0, 1.0);
     std::vector<BenchCase> cases;
@@ -158,10 +171,13 @@ std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scene
         if (none_debt >= 1.0 - 1e-9 || effects.empty()) {
             none_debt -= 1.0;
             c.effect = "none";
+            c.rigid = rigid_effects > 0 && u(random) * static_cast<double>(effects.size()) < rigid_effects;
         } else {
             c.effect = order[next++ % order.size()];
             c.values = draw_values(c.effect, random);
+            c.rigid = find_effect(c.effect).domain == EffectDomain::rigid;
         }
+        if (c.rigid) c.scene = static_cast<int>(u(random) * rigid_scenes) % rigid_scenes;
         cases.push_back(std::move(c));
     }
     return cases;

@@ -19,6 +19,7 @@ namespace flowvid::gap {
 
 struct BenchCase {
     std::string id;              // "case-007"
+    bool rigid = false;          // a rigid toss (else a cloth swatch)
     std::string effect = "none"; // catalogue name or "none"
     EffectValues values;         // the hidden effect's parameters (empty for none)
     int scene = 0;               // index of the template capture
@@ -33,13 +34,15 @@ struct BenchSettings {
     int frames = 30;
     double noise_sigma = 1.0 / 255.0;  // per pixel, after the sRGB encoding, correlated over 3x3 pixels
     double none_share = 0.25;
-    std::vector<std::string> effects;  // drawn from (empty: every cloth and camera effect)
+    std::vector<std::string> effects;  // drawn from (empty: every cloth and camera effect, and the rigid ones with rigid scenes)
 };
 
 // The cases of a benchmark: effects, strengths (log-uniform over what a
 // swatch test can meet), scenes and fabrics drawn from `seed`.
+// With `rigid_scenes` > 0, rigid effects are drawn too and an effect-free
+// case is a toss as often as rigid effects are among all effects.
 std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scenes, int fabrics,
-                                        const BenchSettings& settings);
+                                        const BenchSettings& settings, int rigid_scenes = 0);
 
 // The effect at half its strength (towards neutral): for a case whose
 // footage cannot be simulated (e.g. no equilibrium in too strong a wind).

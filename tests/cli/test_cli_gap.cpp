@@ -1,0 +1,101 @@
+// flowvid bench gap and flowvid diagnose as a user runs them: sealed cases
+// carry no label, are valid captures and are the same bytes for the same
+// seed; the rigid cases are diagnosed and scored against their hidden labels.
+
+#include "cli_runner.hpp"
+#include "test_support.hpp"
+
+#include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/capture.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+
+using namespace flowvid::testing;
+namespace fs = std::filesystem;
+
+namespace {
+
+bool have_shared() { return fs::exists(shared_path("captures/rigid-toss-major/capture.json")); }
+
+std::string read(const fs::path& p) { return flowvid::formats::read_text_file(p.string()); }
+
+}  // namespace
+
+TEST(CliGap, ClothCasesAreSealedValidAndDeterministic) {
+    if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
+    const std::string a = scratch_dir("cli_gap_cloth_a"), b = scratch_dir("cli_gap_cloth_b");
+    for (const std::string& out : {a, b}) {
+        const CliResult r = run_flowvid({"--progress", "none", "bench", "gap", "--cases", "2", "--seed", "3", "--frames", "6",
+                                         "--effects", "pin_lag", "--out", out, "--scene",
+                                         shared_path("captures/cloth-cotton-waving-1"), "--fabric",
+                                         test_data("cloth/cotton.fabric.json"), "--threads", "2"});
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+    }
+    const nlohmann::json labels = nlohmann::json::parse(read(fs::path(a) / "labels.json"));
+    ASSERT_EQ(labels.at("cases").size(), 2u);
+    for (const nlohmann::json& label : labels.at("cases")) {
+        const fs::path folder = fs::path(a) / "cases" / label.at("case").get<std::string>();
+        // A valid capture with a base preset, and nothing in it names the effect.
+        const flowvid::formats::Capture capture = flowvid::formats::read_capture(folder.string());
+        EXPECT_EQ(capture.frames.count, 6);
+        EXPECT_TRUE(fs::exists(folder / "base.fabric.json"));
+        const std::string json = read(folder / "capture.json");
+        EXPECT_EQ(json.find(label.at("effect").get<std::string>()), std::string::npos);
+        EXPECT_EQ(json.find("lag"), std::string::npos);
+        // Same seed, same bytes: capture.json and every frame.
+        const fs::path twin = fs::path(b) / "cases" / label.at("case").get<std::string>();
+        EXPECT_EQ(json, read(twin / "capture.json"));
+        for (int k = 1; k <= 6; ++k) {
+            char name[32];
+            std::snprintf(name, sizeof name, "frames/%06d.png", k);
+            EXPECT_EQ(read(folder / name), read(twin / name)) << name;
+        }
+    }
+    // Each label measures what the diagnoser will face: the effect's size in floor units.
+    for (const nlohmann::json& label : labels.at("cases")) EXPECT_GT(label.at("effect_to_noise").get<double>(), 0.0);
+}
+
+TEST(CliGap, RigidCasesAreDiagnosedAndScoredAgainstTheirHiddenLabels) {
+    if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
+    const std::string out = scratch_dir("cli_gap_rigid");
+    CliResult r = run_flowvid({"--progress", "none", "bench", "gap", "--cases", "2", "--seed", "5", "--effects", "air_drag",
+                               "--out", out, "--scene", shared_path("captures/cloth-cotton-waving-1"), "--fabric",
+                               test_data("cloth/cotton.fabric.json"), "--rigid-scene",
+                               shared_path("captures/rigid-toss-major"), "--threads", "2"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    r = run_flowvid({"--progress", "none", "bench", "gap", "--diagnose", out, "--threads", "2"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    // The scorer's numbers are the diagnoses' against the labels, recounted here.
+    const nlohmann::json labels = nlohmann::json::parse(read(fs::path(out) / "labels.json"));
+    const nlohmann::json score = nlohmann::json::parse(read(fs::path(out) / "score.json"));
+    int correct = 0, cases = 0;
+    for (const nlohmann::json& label : labels.at("cases")) {
+        const fs::path report = fs::path(out) / "results" / label.at("case").get<std::string>();
+        ASSERT_TRUE(fs::exists(report / "report.html"));
+        const nlohmann::json d = nlohmann::json::parse(read(report / "diagnosis.json"));
+        EXPECT_EQ(d.at("kind"), "rigid");
+        const auto named = d.at("verdict").at("effects").get<std::vector<std::string>>();
+        ++cases;
+        correct += !named.empty() && named.front() == label.at("effect") ? 1 : 0;
+    }
+    EXPECT_EQ(score.at("per_effect").at("air_drag").at("cases").get<int>(), cases);
+    EXPECT_EQ(score.at("per_effect").at("air_drag").at("correct").get<int>(), correct);
+    // Drag strong enough to see (labels' effect-to-noise >= 4) is a structural gap.
+    for (const nlohmann::json& label : labels.at("cases")) {
+        if (label.at("effect_to_noise").get<double>() < 4.0) continue;
+        const nlohmann::json d = nlohmann::json::parse(
+            read(fs::path(out) / "results" / label.at("case").get<std::string>() / "diagnosis.json"));
+        EXPECT_TRUE(d.at("gap").at("detected").get<bool>()) << label.dump();
+    }
+}
+
+TEST(CliGap, DiagnoseRefusesACaptureWithoutAPreset) {
+    if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
+    const CliResult r = run_flowvid({"diagnose", "--capture", shared_path("captures/cloth-cotton-waving-1"), "--out",
+                                     scratch_dir("cli_gap_refuse")});
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("--preset"), std::string::npos) << r.err;
+}
