@@ -80,7 +80,9 @@ public:
     // Base-model parameters a refit moves, in a stable order (for reports).
     virtual std::vector<std::string> base_parameter_keys() const = 0;
     // Residuals of the base model with `effects` added (others neutral), base
-    // parameters as fitted. Deterministic.
+    // parameters as fitted -- except initial conditions, which any effect
+    // shifts: a model whose base is initial conditions (rigid tosses) re-fits
+    // them on the training frames for the effects. Deterministic.
     virtual Residuals evaluate(const EffectValues& effects) const = 0;
     // Refits the effects in `start` (their parameters, from these values)
     // jointly with the base parameters (from `base_start`'s `after` values
