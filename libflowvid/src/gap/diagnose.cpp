@@ -254,8 +254,13 @@ Diagnosis diagnose(const GapModel& model, const DiagnoseSettings& settings) {
         const double round_start = 0.15 + 0.8 * round / settings.max_effects;
         const double round_span = 0.8 / settings.max_effects;
         std::vector<CandidateEvidence> evidence;
-        const double current_score = training_score(model.evaluate(named_values));
-        ++d.evaluations;
+        // Screening steps away from the current model: the base itself in the
+        // first round, the named effects at their fitted values after.
+        double current_score = training_score(d.base);
+        if (!named_values.empty()) {
+            current_score = training_score(model.evaluate(named_values));
+            ++d.evaluations;
+        }
         int index = 0;
         for (const std::string& name : names) {
             if (named_values.count(name)) continue;
