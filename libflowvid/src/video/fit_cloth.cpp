@@ -81,6 +81,16 @@ bool end_fit(const ClothFitRequest& request, const ClothFitProblem& problem, int
             }
         }
         if (stop_requested()) return false;
+        // A restart the budget stopped before its first simplex was never
+        // polished: its values are only the +-5 % perturbation. Fewer than two
+        // polished restarts say nothing about how well the data pin the
+        // parameters, so the preset then carries no uncertainty.
+        int polished = 0;
+        for (const optim::AnnealingResult& run : outcome.variability->runs) polished += run.evaluations > 0 ? 1 : 0;
+        if (polished < std::min(2, runs)) {
+            outcome.variability.reset();
+            outcome.variability_runs_planned = 0;
+        }
     }
 
     report({"final", 0.99, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
