@@ -232,7 +232,7 @@ void write_cloth_case(const std::string& folder, const BenchCase& c, const forma
     std::mt19937_64 random(std::hash<std::string>{}(c.id) ^ 0x6a09e667f3bcc909ULL);
     const int width = scenario.camera.width, height = scenario.camera.height;
     for (int k = 0; k < settings.frames; ++k) {
-        const video::StripeImage filmed = film_frame(scenario, trial, run, k, renderer);
+        const video::StripeImage filmed = film_frame(scenario, run, k, renderer);
         char name[32];
         std::snprintf(name, sizeof name, "%06d.png", k + 1);
         write_png((fs::path(folder) / "frames" / name).string(),

@@ -135,9 +135,8 @@ ClothScenario apply_cloth_effects(const video::ClothTrial& trial, const cloth::C
     return s;
 }
 
-video::StripeImage film_frame(const ClothScenario& scenario, const video::ClothTrial& trial, const cloth::SwatchRun& run,
-                              int index, video::StripeRenderer& renderer) {
-    (void)trial;
+video::StripeImage film_frame(const ClothScenario& scenario, const cloth::SwatchRun& run, int index,
+                              video::StripeRenderer& renderer) {
     const int usable = video::usable_frames(run);
     const auto& triangles = run.swatch.mesh.triangles;
     if (scenario.exposure_s <= 0.0)
@@ -196,7 +195,9 @@ ClothGapModel::ClothGapModel(std::vector<video::ClothTrial> trials, cloth::Cloth
     for (std::size_t t = 0; t < m_trials.size(); ++t) {
         const video::ClothTrial& trial = m_trials[t];
         m_warm_starts[t] = video::matching_equilibrium(trial, m_base, fit);
+        // From the equilibrium just found: no second search over the bows.
         video::ClothFitSettings floor_fit = fit;
+        floor_fit.swatch.initial_positions = m_warm_starts[t];
         const video::PredictabilityFloor ensemble = video::estimate_floor(trial, m_base, floor_fit, m_settings.floor, threads);
         std::vector<double> floor = ensemble.metric;
         if (m_settings.floor_resolution_step > 0) {
@@ -294,7 +295,7 @@ Residuals ClothGapModel::evaluate_material(const cloth::ClothMaterial& material,
             r.driver = m_pin_speeds[t][k];
             const int index = reference.number - 1;
             if (index >= 0 && index < usable) {
-                const video::StripeImage filmed = film_frame(scenario, trial, run, index, renderer);
+                const video::StripeImage filmed = film_frame(scenario, run, index, renderer);
                 mapper.compute(filmed.image, filmed.silhouette, angles);
                 const metrics::FrameError fe = metrics::angle_map_frame_error(reference, angles, filmed.silhouette, m_settings.fit.metric);
                 r.error = fe.total;
@@ -435,7 +436,7 @@ std::vector<RegionMap> ClothGapModel::localise(const EffectValues& effects) cons
         for (const metrics::ReferenceFrame& reference : trial.frames) {
             const int index = reference.number - 1;
             if (index < 0 || index >= usable) continue;
-            const video::StripeImage filmed = film_frame(scenario, trial, run, index, renderer);
+            const video::StripeImage filmed = film_frame(scenario, run, index, renderer);
             mapper.compute(filmed.image, filmed.silhouette, angles);
             const std::vector<float> residual = residual_image(reference, angles, filmed.silhouette, m_settings.fit.metric);
             for (int y = 0; y < height; ++y)

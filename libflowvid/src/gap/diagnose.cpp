@@ -32,13 +32,11 @@ std::vector<std::vector<std::size_t>> held_out_blocks(const Residuals& r) {
     return out;
 }
 
-double parameter_count(const EffectValues& effects) {
+// Parameters an effect adds to a model (those screening can move: a gust's
+// frequency means nothing without a gust).
+double parameter_count(const Effect& effect) {
     double k = 0.0;
-    for (const auto& [name, values] : effects) {
-        const Effect& effect = find_effect(name);
-        for (const EffectParameter& p : effect.parameters) k += p.screen_step > 0.0 ? 1.0 : 0.0;
-        (void)values;
-    }
+    for (const EffectParameter& p : effect.parameters) k += p.screen_step > 0.0 ? 1.0 : 0.0;
     return k;
 }
 
@@ -293,7 +291,7 @@ Diagnosis diagnose(const GapModel& model, const DiagnoseSettings& settings) {
             c.held_out_score = held_out_score(c.refit.residuals);
             c.gap_closed = (base_held_out - c.held_out_score) / gap;
             c.effect_share = (held_out_score(current) - c.held_out_score) / gap;
-            c.delta_bic = delta_bic(c.refit.residuals, current, parameter_count({{c.name, {}}}));
+            c.delta_bic = delta_bic(c.refit.residuals, current, parameter_count(find_effect(c.name)));
         }
         std::vector<const Residuals*> refitted;
         std::vector<std::size_t> which;

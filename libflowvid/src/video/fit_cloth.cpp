@@ -4,6 +4,7 @@
 #include "flowvid/optim/thread_pool.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <functional>
@@ -46,6 +47,43 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 using Reporter = std::function<bool(const ClothFitProgress&)>;
+
+// Cancellation and progress of one fit: the request's cancel flag, or its
+// progress callback returning false, stops it.
+struct FitControl {
+    explicit FitControl(const ClothFitRequest& request)
+        : stop_requested([this, &request] { return cancelled.load() || (request.cancel && request.cancel->load()); }),
+          report([this, &request](const ClothFitProgress& p) {
+              if (request.progress && !request.progress(p)) cancelled = true;
+              return !stop_requested();
+          }) {}
+    std::atomic<bool> cancelled{false};
+    std::function<bool()> stop_requested;
+    Reporter report;
+};
+
+// The request's trials; their names and the fitted parameters go into `outcome`.
+std::vector<ClothTrial> load_fit_trials(const ClothFitRequest& request, ClothFitOutcome& outcome) {
+    std::vector<ClothTrial> trials = load_trials(request.captures, request.load);
+    for (const ClothTrial& t : trials) outcome.trial_names.push_back(t.name);
+    outcome.parameters = parameters_for(trials, request.drag);
+    return trials;
+}
+
+// The problem a whole fit searches and a merge finishes: the base starts in
+// the middle of the fitted parameters' ranges.
+ClothFitProblem make_problem(const ClothFitRequest& request, std::vector<ClothTrial> trials, ClothFitOutcome& outcome) {
+    ClothFitSettings settings = request.problem;
+    settings.base = middle_of_ranges(request.problem.base, outcome.parameters);
+    outcome.start = settings.base;
+    ClothFitProblem problem(std::move(trials), outcome.parameters, settings);
+    outcome.trials = problem.trials();
+    return problem;
+}
+
+int fit_threads(const ClothFitRequest& request) {
+    return request.threads > 0 ? request.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
 
 // How every fit ends, whole or merged from shards: variability restarts from
 // `best` (when `runs` > 0; a restart that finds a lower error improves the
@@ -108,23 +146,14 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     if (request.captures.empty()) throw std::invalid_argument("fit_cloth: no captures");
     const Clock::time_point started = Clock::now();
     ClothFitOutcome outcome;
-    std::atomic<bool> cancelled{false};
-    const std::function<bool()> stop_requested = [&] { return cancelled.load() || (request.cancel && request.cancel->load()); };
-    const Reporter report = [&](const ClothFitProgress& p) {
-        if (request.progress && !request.progress(p)) cancelled = true;
-        return !stop_requested();
-    };
+    FitControl control(request);
+    std::atomic<bool>& cancelled = control.cancelled;
+    const std::function<bool()>& stop_requested = control.stop_requested;
+    const Reporter& report = control.report;
     report({"loading", 0.0, 0, 0.0, 0.0, 0.0});
 
-    std::vector<ClothTrial> trials = load_trials(request.captures, request.load);
-    for (const ClothTrial& t : trials) outcome.trial_names.push_back(t.name);
-    outcome.parameters = parameters_for(trials, request.drag);
-    ClothFitSettings settings = request.problem;
-    settings.base = middle_of_ranges(request.problem.base, outcome.parameters);
-    outcome.start = settings.base;
-    const ClothFitProblem problem(std::move(trials), outcome.parameters, settings);
-    outcome.trials = problem.trials();
-    const int threads = request.threads > 0 ? request.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    const ClothFitProblem problem = make_problem(request, load_fit_trials(request, outcome), outcome);
+    const int threads = fit_threads(request);
     // A shard without a time budget needs no start evaluation (it only
     // times the budget and is reported beside a whole fit's final error).
     const bool evaluate_start = !request.shard || request.budget_seconds > 0.0;
@@ -148,14 +177,20 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     int variability_runs = request.shard ? 0 : request.variability_runs;  // shards skip the restarts
     double variability_seconds = 0.0;
     const auto restart_rounds = [&](int runs) { return std::ceil(double(runs) / std::max(1, threads)); };
-    const auto restart_seconds = [&](int runs) {
+    const auto restart_seconds = [&](int runs, double single_thread_evaluation_s) {
         const double evaluations = std::min<double>(request.variability_evaluations, n + 1 + 6);
-        return 1.15 * restart_rounds(runs) * evaluations * single_thread_evaluation_seconds;
+        return 1.15 * restart_rounds(runs) * evaluations * single_thread_evaluation_s;
+    };
+    // Fewer restarts (one round), then none, until they fit in `available_s`.
+    const auto affordable_runs = [&](int runs, double single_thread_evaluation_s, double available_s) {
+        if (runs > 0 && restart_seconds(runs, single_thread_evaluation_s) > available_s) runs = std::min(runs, std::max(2, threads));
+        if (runs > 0 && restart_seconds(runs, single_thread_evaluation_s) > available_s) runs = 0;
+        return runs;
     };
     if (budget > 0.0 && variability_runs > 0) {
-        if (restart_seconds(variability_runs) > 0.4 * budget) variability_runs = std::min(variability_runs, std::max(2, threads));
-        if (restart_seconds(variability_runs) > 0.4 * budget) variability_runs = 0;
-        if (variability_runs > 0) variability_seconds = std::max(restart_seconds(variability_runs), 0.2 * budget);
+        variability_runs = affordable_runs(variability_runs, single_thread_evaluation_seconds, 0.4 * budget);
+        if (variability_runs > 0)
+            variability_seconds = std::max(restart_seconds(variability_runs, single_thread_evaluation_seconds), 0.2 * budget);
     }
     outcome.variability_runs_planned = variability_runs;
     const double variability_share = budget > 0.0 ? variability_seconds / budget : (variability_runs > 0 ? 0.2 : 0.0);
@@ -217,11 +252,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
         const double latest = std::max(evaluation_seconds, pace);
         restart_hint = std::max(restart_hint, latest * static_cast<double>(std::min<std::size_t>(threads, problem.trials().size())));
         const double left = request.budget_seconds - seconds_since(started) - (1.5 + request.evaluations_after_fit) * latest;
-        const auto cost = [&](int runs) {
-            return 1.15 * restart_rounds(runs) * std::min<double>(request.variability_evaluations, n + 1 + 6) * restart_hint;
-        };
-        if (variability_runs > 0 && cost(variability_runs) > left) variability_runs = std::min(variability_runs, std::max(2, threads));
-        if (variability_runs > 0 && cost(variability_runs) > left) variability_runs = 0;
+        variability_runs = affordable_runs(variability_runs, restart_hint, left);
         outcome.variability_runs_planned = variability_runs;
         restart_budget = std::max(1.0, left) / std::max(1.0, restart_rounds(variability_runs));
     }
@@ -243,30 +274,22 @@ ClothFitOutcome finish_cloth_fit(const ClothFitRequest& request, const std::vect
     if (request.captures.empty()) throw std::invalid_argument("finish_cloth_fit: no captures");
     const Clock::time_point started = Clock::now();
     ClothFitOutcome outcome;
-    std::atomic<bool> cancelled{false};
-    const std::function<bool()> stop_requested = [&] { return cancelled.load() || (request.cancel && request.cancel->load()); };
-    const Reporter report = [&](const ClothFitProgress& p) {
-        if (request.progress && !request.progress(p)) cancelled = true;
-        return !stop_requested();
-    };
+    FitControl control(request);
+    std::atomic<bool>& cancelled = control.cancelled;
+    const std::function<bool()>& stop_requested = control.stop_requested;
+    const Reporter& report = control.report;
     report({"loading", 0.0, 0, 0.0, 0.0, 0.0});
 
     // The same problem fit_cloth builds for these captures and settings.
-    std::vector<ClothTrial> trials = load_trials(request.captures, request.load);
-    for (const ClothTrial& t : trials) outcome.trial_names.push_back(t.name);
-    outcome.parameters = parameters_for(trials, request.drag);
+    std::vector<ClothTrial> trials = load_fit_trials(request, outcome);
     std::string expected, given;
     for (const FittedParameter& p : outcome.parameters) expected += (expected.empty() ? "" : ", ") + p.key;
     for (const std::string& name : names) given += (given.empty() ? "" : ", ") + name;
     if (expected != given || values.size() != static_cast<Eigen::Index>(names.size()))
         throw std::invalid_argument("the best point gives " + (given.empty() ? std::string("no parameters") : given) +
                                     " but these captures fit " + expected);
-    ClothFitSettings settings = request.problem;
-    settings.base = middle_of_ranges(request.problem.base, outcome.parameters);
-    outcome.start = settings.base;
-    const ClothFitProblem problem(std::move(trials), outcome.parameters, settings);
-    outcome.trials = problem.trials();
-    const int threads = request.threads > 0 ? request.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    const ClothFitProblem problem = make_problem(request, std::move(trials), outcome);
+    const int threads = fit_threads(request);
 
     outcome.search.annealing.best_values = values;
     outcome.search.annealing.best_unit = problem.space().to_unit(values);

@@ -140,11 +140,11 @@ TEST(ClothGap, MotionBlurAndRollingShutterOfAStillSwatchChangeNothing) {
     // A truly still swatch: every frame the equilibrium.
     for (Eigen::VectorXd& frame : run.simulation.frames) frame = run.simulation.frames.front();
     video::StripeRenderer renderer(trial.camera, trial.projector);
-    const video::StripeImage reference = film_frame(sharp, trial, run, 1, renderer);
+    const video::StripeImage reference = film_frame(sharp, run, 1, renderer);
     const ClothScenario blurred =
         apply_cloth_effects(trial, cotton(), options,
                             {{"motion_blur", Eigen::VectorXd::Constant(1, 0.02)}, {"rolling_shutter", Eigen::VectorXd::Constant(1, 0.03)}});
-    const video::StripeImage filmed = film_frame(blurred, trial, run, 1, renderer);
+    const video::StripeImage filmed = film_frame(blurred, run, 1, renderer);
     ASSERT_EQ(filmed.image.pixels.size(), reference.image.pixels.size());
     double largest = 0.0;
     for (std::size_t i = 0; i < filmed.image.pixels.size(); ++i)

@@ -44,8 +44,8 @@ ClothScenario apply_cloth_effects(const video::ClothTrial& trial, const cloth::C
 
 // The frame at `index` (0-based) of a run as the scenario's camera films it:
 // sub-frame positions are interpolated linearly between the run's frames.
-video::StripeImage film_frame(const ClothScenario& scenario, const video::ClothTrial& trial, const cloth::SwatchRun& run,
-                              int index, video::StripeRenderer& renderer);
+video::StripeImage film_frame(const ClothScenario& scenario, const cloth::SwatchRun& run, int index,
+                              video::StripeRenderer& renderer);
 
 // Per-pixel residual of one frame: squared orientation difference where the
 // gradient mask is set, alpha where the silhouettes differ (the terms of E_k).
