@@ -10,7 +10,6 @@
 
 namespace flowvid::cli {
 
-namespace {
 const std::map<std::string, cloth::Integrator>& integrators() {
     static const std::map<std::string, cloth::Integrator> table = {
         {"rk4", cloth::Integrator::rk4_adaptive},     {"dopri54", cloth::Integrator::dopri54},
@@ -18,7 +17,6 @@ const std::map<std::string, cloth::Integrator>& integrators() {
         {"bdf2", cloth::Integrator::bdf2}};
     return table;
 }
-}  // namespace
 
 void add_cloth_run_options(CLI::App& app, ClothRunOptions& options) {
     app.add_option("--resolution", options.resolution,

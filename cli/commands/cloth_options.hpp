@@ -9,6 +9,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <map>
 #include <optional>
 #include <string>
 #include <utility>
@@ -21,6 +22,9 @@ struct ClothRunOptions {
     int threads = 0;                   // 0 = all cores
     double initial_bow = 1.0;          // which way the slack between the pins bows at the start
 };
+
+// The integrators by their command-line names (rk4, implicit, ...).
+const std::map<std::string, cloth::Integrator>& integrators();
 
 // Adds --resolution, --integrator and --threads to a command.
 void add_cloth_run_options(CLI::App& app, ClothRunOptions& options);

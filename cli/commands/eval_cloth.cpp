@@ -70,6 +70,8 @@ struct EvalClothOptions {
     std::string preset;
     std::vector<std::string> captures;
     int floor_members = 6;
+    std::string floor_kind = "full";
+    std::string floor_integrator = "rk4";
     std::string report;
     ClothRunOptions run;
     TrialOptions trial;
@@ -113,6 +115,11 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
     const cloth::ClothMaterial material = cloth::material_from_fabric(preset.parameters);
     video::FloorSettings floor;
     floor.members = options.floor_members;
+    if (options.floor_kind == "full") floor.parameter_sigma = video::preset_uncertainty(preset.parameters);
+    if (options.floor_integrator != "same") floor.integrator = integrators().at(options.floor_integrator);
+    const bool floor_has_uncertainty = !floor.parameter_sigma.empty();
+    if (options.floor_kind == "full" && !floor_has_uncertainty && floor.members > 0)
+        log_message("the preset carries no uncertainty: its floor is the chaos alone");
     const int threads = thread_count(options.run.threads);
 
     Progress progress(global, "eval cloth");
@@ -157,13 +164,22 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
                                 {"windows", window_json}};
         if (!a.vertex_rms_m.empty())
             entry["vertex_rms_mm_all_frames"] = 1e3 * video::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
+        if (a.floor)
+            entry["floor"] = {{"integrator", cloth::integrator_name(a.floor->integrator)},
+                              {"start_jitter_mm", 1e3 * a.floor->jitter_m},
+                              {"includes_uncertainty", floor_has_uncertainty}};
         results.push_back(entry);
     }
     progress.done();
-    body << html::element("p", "The predictability floor is the spread of " + std::to_string(floor.members) +
-                                   " runs whose parameters differ by one part in a million and whose starting shape is jittered "
-                                   "by 0.5 mm: no model can be expected to match a chaotic trial better than that.");
-    const nlohmann::json summary = {{"preset", options.preset}, {"floor_members", floor.members}, {"captures", results}};
+    body << html::element("p", "The predictability floor is the spread of " + std::to_string(floor.members) + " runs whose parameters " +
+                                   (floor_has_uncertainty ? "are drawn within the preset's uncertainty and " : "") +
+                                   "differ by one part in a million and whose starting shape is jittered "
+                                   "by one pixel's footprint at the swatch, run with the integrator named per capture: "
+                                   "no model can be expected to match a chaotic trial better than that.");
+    const nlohmann::json summary = {{"preset", options.preset},
+                                    {"floor_members", floor.members},
+                                    {"floor_includes_uncertainty", floor_has_uncertainty},
+                                    {"captures", results}};
     if (!options.report.empty()) {
         formats::write_file_atomically(options.report + "/eval.json", [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
         formats::write_file_atomically(options.report + "/eval.html", [&](std::ostream& out) {
@@ -181,11 +197,14 @@ const RegisterEvalKind eval_registration{FitKind{
         auto options = std::make_shared<EvalClothOptions>();
         app.footer(
             "Simulates the preset in each capture's experiment and reports, per time window (frames 1-10,\n"
-            "11-25, 26-end), the angle-map metric E_k against the footage and -- when the capture has\n"
-            "ground truth (truth/positions.exr, read here for evaluation only, never by a fit) -- the RMS\n"
-            "vertex error. Next to each: the predictability floor, the spread of an ensemble of runs\n"
-            "whose parameters differ by one part in a million and whose start is jittered by 0.5 mm.\n"
-            "Waving cloth is chaotic, so an error near its floor is as good as any model can do.\n"
+            "11-25, 26-end, and the whole trial), the angle-map metric E_k against the footage and --\n"
+            "when the capture has ground truth (truth/positions.exr, read here for evaluation only, never\n"
+            "by a fit) -- the RMS vertex error. Next to each: the predictability floor, the spread of an\n"
+            "ensemble of runs whose parameters are drawn within the preset's uncertainty (--floor full;\n"
+            "--floor chaos leaves that out) and moved by one part in a million, and whose start is\n"
+            "jittered by one pixel's footprint at the swatch (the footage places it no better), run\n"
+            "with --floor-integrator (rk4: minutes per capture at 24x24). Waving cloth is chaotic, so\n"
+            "an error near its floor is as good as any model can do.\n"
             "--report DIR writes eval.json and eval.html (tables and plots).\n\n"
             "Examples:\n"
             "  flowvid eval cloth --preset cotton.fabric.json --capture ../shared/captures/cloth-cotton-waving-2\n"
@@ -194,6 +213,19 @@ const RegisterEvalKind eval_registration{FitKind{
         app.add_option("--capture", options->captures, "cloth capture folder (repeat for several)")->required();
         app.add_option("--floor-members", options->floor_members, "ensemble size of the predictability floor (0 = none)")
             ->check(CLI::Range(0, 64))
+            ->capture_default_str();
+        app.add_option("--floor", options->floor_kind,
+                       "full: the floor's runs also draw the parameters within the preset's uncertainty; chaos: only "
+                       "the tiny perturbation and the jitter (what the captures' README measured for Blender)")
+            ->check(CLI::IsMember({"full", "chaos"}))
+            ->capture_default_str();
+        std::vector<std::string> floor_integrators = {"same"};
+        for (const auto& [name, value] : integrators()) floor_integrators.push_back(name);
+        app.add_option("--floor-integrator", options->floor_integrator,
+                       "integrator of the floor's runs: rk4 keeps the folds whose instability makes cloth chaotic; "
+                       "implicit at 5 substeps a frame damps them and claims a predictability the footage lacks; "
+                       "same: --integrator's (quicker, an underestimate)")
+            ->check(CLI::IsMember(floor_integrators))
             ->capture_default_str();
         app.add_option("--report", options->report, "folder for eval.json and eval.html");
         add_trial_options(app, options->trial);

@@ -136,6 +136,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     nlohmann::json trials = nlohmann::json::array();
     video::FloorSettings floor;
     floor.members = kFloorMembers;
+    if (outcome.preset) floor.parameter_sigma = video::preset_uncertainty(outcome.preset->parameters);
     const std::vector<video::ClothTrial>& loaded = outcome.trials;
     video::ClothFitSettings floor_settings = request.problem;
     double total_floor = 0.0;
@@ -155,6 +156,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
                               {"start_error", outcome.start_evaluation.total},
                               {"final_error", outcome.final_evaluation.total},
                               {"final_error_floor", total_floor},
+                              {"floor_integrator", cloth::integrator_name(request.problem.swatch.simulation.integrator)},
                               {"trials", trials},
                               {"evaluations", outcome.evaluations},
                               {"simulations", outcome.simulations},

@@ -174,6 +174,59 @@ Eigen::VectorXd hanging_start(const Swatch& swatch, const SwatchExperiment& expe
     return x;
 }
 
+namespace {
+
+// Gaussian offsets per coordinate of every free vertex, sigma = rms / sqrt(3)
+// so the RMS vertex offset is `rms_m`.
+Eigen::VectorXd per_vertex_jitter(const Swatch& swatch, double rms_m, std::uint64_t seed) {
+    std::mt19937_64 random(seed);
+    std::normal_distribution<double> normal(0.0, rms_m / std::sqrt(3.0));
+    Eigen::VectorXd offset = Eigen::VectorXd::Zero(3 * swatch.mesh.vertex_count());
+    for (int i = 0; i < swatch.mesh.vertex_count(); ++i)
+        if (!swatch.pinned[static_cast<std::size_t>(i)])
+            for (int k = 0; k < 3; ++k) offset(3 * i + k) = normal(random);
+    return offset;
+}
+
+// Offsets along the area-weighted vertex normals of `x`, a sum of the cosine
+// modes cos(pi p u) cos(pi q v), p, q in 0..3, with N(0, 1) amplitudes,
+// scaled so the RMS over free vertices is `rms_m`. Pinned vertices stay.
+Eigen::VectorXd smooth_normal_jitter(const Swatch& swatch, const Eigen::VectorXd& x, double rms_m, std::uint64_t seed) {
+    constexpr int kModes = 4;
+    std::mt19937_64 random(seed);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    double amplitude[kModes][kModes];
+    for (auto& row : amplitude)
+        for (double& a : row) a = normal(random);
+    const int n = swatch.mesh.vertex_count();
+    std::vector<Eigen::Vector3d> normals(static_cast<std::size_t>(n), Eigen::Vector3d::Zero());
+    for (const auto& t : swatch.mesh.triangles) {
+        const Eigen::Vector3d a = x.segment<3>(3 * t[0]), b = x.segment<3>(3 * t[1]), c = x.segment<3>(3 * t[2]);
+        const Eigen::Vector3d area_normal = (b - a).cross(c - a);  // twice the area, along the normal
+        for (int v : t) normals[static_cast<std::size_t>(v)] += area_normal;
+    }
+    Eigen::VectorXd offset = Eigen::VectorXd::Zero(3 * n);
+    double sum_squares = 0.0;
+    int free_count = 0;
+    for (int r = 0; r < swatch.rows; ++r)
+        for (int c = 0; c < swatch.cols; ++c) {
+            const int i = r * swatch.cols + c;
+            if (swatch.pinned[static_cast<std::size_t>(i)] || normals[static_cast<std::size_t>(i)].norm() == 0.0) continue;
+            const double u = swatch.cols > 1 ? static_cast<double>(c) / (swatch.cols - 1) : 0.0;
+            const double v = swatch.rows > 1 ? static_cast<double>(r) / (swatch.rows - 1) : 0.0;
+            double height = 0.0;
+            for (int p = 0; p < kModes; ++p)
+                for (int q = 0; q < kModes; ++q) height += amplitude[p][q] * std::cos(kPi * p * u) * std::cos(kPi * q * v);
+            offset.segment<3>(3 * i) = height * normals[static_cast<std::size_t>(i)].normalized();
+            sum_squares += height * height;
+            ++free_count;
+        }
+    if (sum_squares > 0.0) offset *= rms_m / std::sqrt(sum_squares / free_count);
+    return offset;
+}
+
+}  // namespace
+
 SwatchRun simulate_swatch(const SwatchExperiment& experiment, const ClothMaterial& material, const SwatchOptions& options,
                           const ProgressCallback& progress) {
     SwatchRun run;
@@ -193,12 +246,10 @@ SwatchRun simulate_swatch(const SwatchExperiment& experiment, const ClothMateria
         return run;
     }
     if (options.initial_jitter_m > 0.0) {
-        // Gaussian offsets per coordinate, sigma = jitter / sqrt(3) so the RMS vertex offset is the jitter.
-        std::mt19937_64 random(options.jitter_seed);
-        std::normal_distribution<double> normal(0.0, options.initial_jitter_m / std::sqrt(3.0));
-        for (int i = 0; i < model.vertex_count(); ++i)
-            if (!run.swatch.pinned[static_cast<std::size_t>(i)])
-                for (int k = 0; k < 3; ++k) x(3 * i + k) += normal(random);
+        if (options.jitter_shape == SwatchOptions::JitterShape::smooth_normal)
+            x += smooth_normal_jitter(run.swatch, x, options.initial_jitter_m, options.jitter_seed);
+        else
+            x += per_vertex_jitter(run.swatch, options.initial_jitter_m, options.jitter_seed);
     }
     run.simulation = simulate(model, run.swatch.pins, x, Eigen::VectorXd::Zero(x.size()), 0.0, experiment.fps,
                               experiment.frame_count, options.simulation, progress);

@@ -13,11 +13,27 @@ std::vector<FrameWindow> standard_windows(int frame_count) {
     std::vector<FrameWindow> windows;
     for (const FrameWindow w : {FrameWindow{1, 10}, FrameWindow{11, 25}, FrameWindow{26, std::numeric_limits<int>::max()}})
         if (w.first <= frame_count) windows.push_back({w.first, std::min(w.last, frame_count)});
+    if (frame_count > 10) windows.push_back({1, frame_count});
     return windows;
 }
 
 std::string window_name(const FrameWindow& window) {
     return std::to_string(window.first) + "-" + std::to_string(window.last);
+}
+
+double pixel_footprint_m(const formats::CameraModel& camera, const Eigen::VectorXd& positions) {
+    double depth_sum = 0.0;
+    const Eigen::Index count = positions.size() / 3;
+    for (Eigen::Index i = 0; i < count; ++i) depth_sum += camera.to_camera(positions.segment<3>(3 * i)).z();
+    const double focal_px = std::sqrt(camera.K(0, 0) * camera.K(1, 1));
+    return count > 0 && focal_px > 0.0 ? depth_sum / static_cast<double>(count) / focal_px : 0.0;
+}
+
+std::map<std::string, double> preset_uncertainty(const formats::FabricParameters& parameters) {
+    std::map<std::string, double> sigma;
+    for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table())
+        if (const auto& u = (parameters.*info.member).uncertainty; u && *u > 0.0) sigma[info.key] = *u;
+    return sigma;
 }
 
 namespace {
@@ -34,14 +50,43 @@ cloth::SwatchRun run_trial(const ClothTrial& trial, const cloth::ClothMaterial& 
     return cloth::simulate_swatch(trial.experiment, material, options);
 }
 
-cloth::ClothMaterial perturbed(const cloth::ClothMaterial& material, double relative, std::mt19937_64& random) {
+cloth::ClothMaterial perturbed(const cloth::ClothMaterial& material, const FloorSettings& floor, std::mt19937_64& random) {
     std::uniform_real_distribution<double> u(-1.0, 1.0);
+    std::normal_distribution<double> normal(0.0, 1.0);
     cloth::ClothMaterial m = material;
+    std::map<std::pair<double, double>, double> tied_draws;  // (value, sigma) -> its normal draw
     for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table()) {
-        const double value = material_parameter(m, info.key);
-        set_material_parameter(m, info.key, value * (1.0 + relative * u(random)));
+        const double value = material_parameter(material, info.key);
+        double moved = value * (1.0 + floor.relative_perturbation * u(random));
+        const auto sigma = floor.parameter_sigma.find(info.key);
+        if (sigma != floor.parameter_sigma.end() && sigma->second > 0.0 && value > 0.0) {
+            const auto [draw, fresh] = tied_draws.try_emplace({value, sigma->second}, 0.0);
+            if (fresh) draw->second = normal(random);
+            moved *= std::exp(draw->second * sigma->second / value);
+        }
+        set_material_parameter(m, info.key, moved);
     }
     return m;
+}
+
+}  // namespace
+
+std::vector<FloorMember> draw_floor_members(const cloth::ClothMaterial& material, const FloorSettings& floor) {
+    std::mt19937_64 random(floor.seed);
+    std::vector<FloorMember> members;
+    for (int m = 0; m < floor.members; ++m) {
+        cloth::ClothMaterial drawn = perturbed(material, floor, random);
+        members.push_back({std::move(drawn), random()});
+    }
+    return members;
+}
+
+namespace {
+
+ClothFitSettings floor_run_settings(const ClothFitSettings& settings, const FloorSettings& floor) {
+    ClothFitSettings members = settings;
+    if (floor.integrator) members.swatch.simulation.integrator = *floor.integrator;
+    return members;
 }
 
 // The floor around an unperturbed run that the caller already has.
@@ -50,6 +95,8 @@ PredictabilityFloor floor_around(const ClothTrial& trial, const cloth::ClothMate
                                  const cloth::SwatchRun& nominal) {
     PredictabilityFloor out;
     out.members = floor.members;
+    out.integrator = settings.swatch.simulation.integrator;
+    out.jitter_m = floor.jitter_m ? *floor.jitter_m : pixel_footprint_m(trial.camera, nominal.simulation.frames.front());
     const int frames = usable_frames(nominal);
     const cloth::GridFrames nominal_grid = cloth::sample_frames(nominal.swatch.mesh,
         std::vector<Eigen::VectorXd>(nominal.simulation.frames.begin(), nominal.simulation.frames.begin() + frames),
@@ -57,23 +104,18 @@ PredictabilityFloor floor_around(const ClothTrial& trial, const cloth::ClothMate
     const ClothTrial as_footage =
         simulated_trial(trial, nominal, settings.metric.silhouette_term == metrics::SilhouetteTerm::edge_distance);
 
-    // Materials and seeds are drawn up front so members do not depend on the thread count.
-    std::mt19937_64 random(floor.seed);
-    std::vector<cloth::ClothMaterial> materials;
-    std::vector<std::uint64_t> seeds;
-    for (int m = 0; m < floor.members; ++m) {
-        materials.push_back(perturbed(material, floor.relative_perturbation, random));
-        seeds.push_back(random());
-    }
+    // Drawn up front so members do not depend on the thread count.
+    const std::vector<FloorMember> drawn = draw_floor_members(material, floor);
     std::vector<std::vector<double>> squared(static_cast<std::size_t>(floor.members));
     std::vector<std::vector<metrics::FrameError>> errors(static_cast<std::size_t>(floor.members));
     optim::ThreadPool pool(std::max(1, threads));
     pool.run(static_cast<std::size_t>(floor.members), [&](std::size_t m, int) {
         cloth::SwatchOptions options = settings.swatch;
         options.initial_positions = nominal.simulation.frames.front();  // same branch, a few Newton steps
-        options.initial_jitter_m = floor.jitter_m;
-        options.jitter_seed = seeds[m];
-        const cloth::SwatchRun run = run_trial(trial, materials[m], settings, options);
+        options.initial_jitter_m = out.jitter_m;
+        options.jitter_shape = floor.jitter_shape;
+        options.jitter_seed = drawn[m].jitter_seed;
+        const cloth::SwatchRun run = run_trial(trial, drawn[m].material, settings, options);
         const int good = std::min(frames, usable_frames(run));
         const cloth::GridFrames grid = cloth::sample_frames(run.swatch.mesh,
             std::vector<Eigen::VectorXd>(run.simulation.frames.begin(), run.simulation.frames.begin() + good),
@@ -99,7 +141,8 @@ PredictabilityFloor floor_around(const ClothTrial& trial, const cloth::ClothMate
 
 PredictabilityFloor estimate_floor(const ClothTrial& trial, const cloth::ClothMaterial& material,
                                    const ClothFitSettings& settings, const FloorSettings& floor, int threads) {
-    return floor_around(trial, material, settings, floor, threads, run_trial(trial, material, settings, settings.swatch));
+    const ClothFitSettings members = floor_run_settings(settings, floor);
+    return floor_around(trial, material, members, floor, threads, run_trial(trial, material, members, members.swatch));
 }
 
 double weighted_floor(const ClothTrial& trial, const PredictabilityFloor& floor) {
@@ -134,7 +177,13 @@ TrialAssessment assess_trial(const ClothTrial& trial, const cloth::ClothMaterial
         const cloth::GridFrames real = cloth::grid_frames_of(*truth);
         out.vertex_rms_m = cloth::rms_distance_per_frame_m(out.predicted, real);
     }
-    if (floor) out.floor = floor_around(trial, material, settings, *floor, threads, run);
+    if (floor) {
+        const ClothFitSettings members = floor_run_settings(settings, *floor);
+        out.floor = members.swatch.simulation.integrator == settings.swatch.simulation.integrator
+                        ? floor_around(trial, material, members, *floor, threads, run)
+                        : floor_around(trial, material, members, *floor, threads,
+                                       run_trial(trial, material, members, members.swatch));
+    }
     return out;
 }
 

@@ -55,6 +55,13 @@ struct SwatchOptions {
     // predictability ensembles. 0: the equilibrium itself.
     double initial_jitter_m = 0.0;
     std::uint64_t jitter_seed = 1;
+    // per_vertex: independent offsets per vertex and axis (in-plane parts are
+    // stretch, which the stiff springs erase within a step). smooth_normal:
+    // a random smooth field (the 16 lowest cosine modes over uv) along the
+    // surface normal -- the shape error a camera leaves, in the soft
+    // direction, where it survives to grow.
+    enum class JitterShape { per_vertex, smooth_normal };
+    JitterShape jitter_shape = JitterShape::per_vertex;
 };
 
 struct Swatch {

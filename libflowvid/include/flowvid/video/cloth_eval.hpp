@@ -2,9 +2,9 @@
 // How well a fabric reproduces a cloth trial, and how well it *could*: the
 // metric error per frame (and the vertex error when the capture has ground
 // truth, read only for evaluation), next to the predictability floor --
-// the spread of an ensemble of runs whose parameters differ by a tiny
-// relative amount and whose starting shape is jittered at the level of
-// measurement noise. Waving cloth is chaotic: an error at or below its floor
+// the spread of an ensemble of runs whose parameters are drawn within their
+// fitted uncertainty and moved by a tiny relative amount, and whose starting
+// shape is jittered at the level of measurement noise. Waving cloth is chaotic: an error at or below its floor
 // is as good as any model can do in that time window.
 
 #include "flowvid/cloth/swatch_output.hpp"
@@ -12,6 +12,7 @@
 #include "flowvid/video/cloth_fit.hpp"
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -22,19 +23,47 @@ struct FrameWindow {
     int first = 1;  // 1-based capture frames, inclusive
     int last = 10;
 };
-// 1-10, 11-25, 26-end (those that exist for `frame_count` frames).
+// 1-10, 11-25, 26-end (those that exist for `frame_count` frames), then the
+// whole trial 1-end.
 std::vector<FrameWindow> standard_windows(int frame_count);
 std::string window_name(const FrameWindow& window);  // "1-10"
 
 struct FloorSettings {
     int members = 6;
     double relative_perturbation = 1e-6;  // every parameter times (1 + U(-p, p))
-    double jitter_m = 5e-4;               // RMS offset of the starting shape's free vertices
+    // RMS offset of the starting shape's free vertices. Empty: one pixel's
+    // footprint at the swatch (its mean depth / the focal length) -- the
+    // footage cannot place the starting shape better than about a pixel.
+    std::optional<double> jitter_m;
     std::uint64_t seed = 1;
+    // 1-sigma uncertainty per fabric parameter key (its SI unit). Each member
+    // draws value * exp(N(0, sigma / value)): positive, and sigma wide for
+    // the small relative uncertainties fits produce. Parameters with equal
+    // value and sigma (a fit's warp/weft tie) move together. Empty: the floor
+    // is the chaos alone.
+    std::map<std::string, double> parameter_sigma;
+    cloth::SwatchOptions::JitterShape jitter_shape = cloth::SwatchOptions::JitterShape::smooth_normal;
+    // The members' integrator (and their unperturbed reference run's). Empty:
+    // the settings' own. Backward Euler's numerical damping at a few
+    // substeps per frame hides the fold instabilities that make cloth
+    // chaotic; the adaptive rk4 keeps them (docs/cloth_fitting.md).
+    std::optional<cloth::Integrator> integrator;
 };
+
+struct FloorMember {
+    cloth::ClothMaterial material;
+    std::uint64_t jitter_seed = 1;
+};
+// The floor's members as `floor` draws them around `material` (seeded).
+std::vector<FloorMember> draw_floor_members(const cloth::ClothMaterial& material, const FloorSettings& floor);
+
+// The 1-sigma uncertainties a preset carries, for FloorSettings::parameter_sigma.
+std::map<std::string, double> preset_uncertainty(const formats::FabricParameters& parameters);
 
 struct PredictabilityFloor {
     int members = 0;
+    double jitter_m = 0.0;  // the starting-shape jitter the members had
+    cloth::Integrator integrator = cloth::Integrator::implicit_euler;  // the members'
     // Per simulated frame (index 0 = frame 1): RMS over members of the RMS
     // vertex distance from the unperturbed run, metres (uv grid of the mesh).
     std::vector<double> vertex_rms_m;
@@ -46,6 +75,10 @@ struct PredictabilityFloor {
 // The floor of `material` on `trial`. Members run in parallel on `threads`.
 PredictabilityFloor estimate_floor(const ClothTrial& trial, const cloth::ClothMaterial& material,
                                    const ClothFitSettings& settings, const FloorSettings& floor, int threads = 1);
+
+// One pixel's footprint, metres, at the mean camera depth of `positions`
+// (3 per vertex, world metres) seen by `camera`.
+double pixel_footprint_m(const formats::CameraModel& camera, const Eigen::VectorXd& positions);
 
 // sum over compared frames of w_k * floor E_k: the floor of a trial's weighted error.
 double weighted_floor(const ClothTrial& trial, const PredictabilityFloor& floor);
