@@ -761,3 +761,39 @@ def render_frames(out_dir, frame_start, frame_end, scene=None):
         bpy.ops.render.render(write_still=True, scene=scene.name)
         paths.append(scene.render.filepath)
     return paths
+
+
+def encode_video(frame_paths, out_path, fps, scene=None):
+    """Joins rendered frames (same size, in order) into one H.264 MP4 through Blender's sequencer, in a
+    temporary scene so the caller's scene keeps its settings. Returns out_path."""
+    if not frame_paths:
+        raise FlowvidError("no frames to encode")
+    source = scene or bpy.context.scene
+    width, height = render_size(source)
+    movie = bpy.data.scenes.new("flowvid_encode")
+    try:
+        movie.render.resolution_x, movie.render.resolution_y = width, height
+        movie.render.resolution_percentage = 100
+        movie.render.fps = int(round(fps))
+        movie.render.fps_base = movie.render.fps / fps
+        movie.sequence_editor_create()
+        folder = os.path.dirname(os.path.abspath(frame_paths[0]))
+        strip = movie.sequence_editor.sequences.new_image("frames", os.path.abspath(frame_paths[0]), 1, 1)
+        for path in frame_paths[1:]:
+            if os.path.dirname(os.path.abspath(path)) != folder:
+                raise FlowvidError("frames to encode must share one folder: %s" % path)
+            strip.elements.append(os.path.basename(path))
+        movie.frame_start, movie.frame_end = 1, len(frame_paths)
+        movie.render.image_settings.file_format = "FFMPEG"
+        movie.render.ffmpeg.format = "MPEG4"
+        movie.render.ffmpeg.codec = "H264"
+        movie.render.ffmpeg.constant_rate_factor = "HIGH"
+        movie.render.filepath = os.path.abspath(out_path)
+        movie.render.use_file_extension = False
+        os.makedirs(os.path.dirname(os.path.abspath(out_path)), exist_ok=True)
+        bpy.ops.render.render(animation=True, scene=movie.name)
+    finally:
+        bpy.data.scenes.remove(movie)
+    if not os.path.isfile(out_path):
+        raise FlowvidError("Blender wrote no video to %s (is its FFmpeg support installed?)" % out_path)
+    return out_path

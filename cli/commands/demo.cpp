@@ -3,15 +3,28 @@
 
 #include "command.hpp"
 #include "output.hpp"
+#include "report_html.hpp"
 
 #include "flowvid/formats/any_file.hpp"
 #include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/flowlines.hpp"
 
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
+#include <sstream>
+
+extern char** environ;
 
 namespace flowvid::cli {
 namespace {
@@ -21,6 +34,8 @@ struct DemoOptions {
     std::string out = "out/demo";
     std::string data = FLOWVID_BUNDLED_DATA_DIR;
     std::vector<std::string> only;
+    int fabric_budget_s = 150;
+    int blender_frames = 48;
 };
 
 struct DemoStage {
@@ -28,6 +43,193 @@ struct DemoStage {
     const char* what;
     int (*run)(const DemoOptions&, const GlobalOptions&);
 };
+
+// Runs a program after printing its command line (the demo teaches the
+// commands it runs). Its stdout goes to `stdout_file` (a --json summary);
+// its progress and logs pass through to stderr. Returns its exit code.
+int run_program(std::vector<std::string> argv_text, const std::string& shown, const fs::path& stdout_file) {
+    std::cout << "$ " << shown << '\n' << std::flush;
+    std::vector<char*> argv;
+    for (std::string& a : argv_text) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, stdout_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    pid_t child = 0;
+    const int spawned = posix_spawnp(&child, argv[0], &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (spawned != 0) {
+        log_message("flowvid demo: could not start " + argv_text[0] + ": " + std::strerror(spawned));
+        return kExitFailure;
+    }
+    int status = 0;
+    while (waitpid(child, &status, 0) < 0 && errno == EINTR) {
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : kExitFailure;
+}
+
+std::string flowvid_executable() { return fs::read_symlink("/proc/self/exe").string(); }
+
+// `flowvid ARGS...` with this very executable, as the user would type it.
+int run_flowvid(const std::vector<std::string>& args, const fs::path& stdout_file, const GlobalOptions& global) {
+    std::vector<std::string> argv = {flowvid_executable(), global.quiet ? "--quiet" : "--progress=" + global.progress};
+    argv.insert(argv.end(), args.begin(), args.end());
+    std::string shown = "flowvid";
+    for (const std::string& a : args) shown += " " + a;
+    return run_program(argv, shown, stdout_file);
+}
+
+// scripts/demo_blender.py STAGE ARGS... in headless Blender; the add-on calls
+// this flowvid (FLOWVID_CLI). Blender's own log lines go to its stdout file.
+int run_blender(const DemoOptions& options, const std::vector<std::string>& args, const fs::path& stdout_file) {
+    setenv("FLOWVID_CLI", flowvid_executable().c_str(), 1);
+    std::vector<std::string> argv = {"blender", "-b", "--factory-startup", "-noaudio", "--python-exit-code", "1",
+                                     "--python", (fs::path(options.data) / "scripts" / "demo_blender.py").string(), "--"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    std::string shown;
+    for (const std::string& a : argv) shown += (shown.empty() ? "" : " ") + a;
+    return run_program(argv, shown, stdout_file);
+}
+
+// The last JSON object line of a file (Blender prints its log before it).
+nlohmann::json last_json_line(const fs::path& path) {
+    std::ifstream in(path);
+    nlohmann::json found = nlohmann::json::value_t::discarded;
+    for (std::string line; std::getline(in, line);)
+        if (!line.empty() && line.front() == '{') {
+            nlohmann::json parsed = nlohmann::json::parse(line, nullptr, false);
+            if (!parsed.is_discarded()) found = std::move(parsed);
+        }
+    return found;
+}
+
+nlohmann::json read_json_file(const fs::path& path) {
+    std::ifstream in(path);
+    return nlohmann::json::parse(in, nullptr, false);  // discarded (is_discarded) when not JSON
+}
+
+// The fitted fabric the later stages use: the fabric stage's, or the bundled example.
+fs::path demo_preset(const DemoOptions& options) {
+    const fs::path fitted = fs::path(options.out) / "fabric" / "cotton.fabric.json";
+    return fs::exists(fitted) ? fitted : fs::path(options.data) / "formats" / "examples" / "cotton.fabric.json";
+}
+
+// Stage "fabric": a cotton preset fitted from the bundled static drape and
+// the first 24 frames of a waving test, its parameters printed with their
+// uncertainty, then evaluated next to the predictability floor.
+int run_fabric_stage(const DemoOptions& options, const GlobalOptions& global) {
+    const fs::path data = fs::path(options.data) / "data" / "demo";
+    const fs::path out = fs::path(options.out) / "fabric";
+    fs::create_directories(out);
+    const std::string preset = (out / "cotton.fabric.json").string();
+    int status = run_flowvid({"fit", "cloth", "--capture", (data / "cotton-static").string(), "--capture",
+                              (data / "cotton-waving").string(), "--out", preset, "--frames", "24", "--resolution",
+                              "16x16", "--budget-seconds", std::to_string(options.fabric_budget_s), "--json"},
+                             out / "fit.json", global);
+    if (status != kExitOk) return status;
+    const formats::FabricPreset fitted = formats::read_fabric_preset(preset);
+    std::cout << "  fitted " << fitted.name << " (" << preset << "):\n";
+    for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table()) {
+        const formats::FabricParameter& p = fitted.parameters.*info.member;
+        std::cout << "    " << info.key << " = " << html::format_compact(p.value)
+                  << ' ' << info.unit
+                  << (p.uncertainty ? "  +- " + html::format_compact(*p.uncertainty, 2)
+                      : p.range     ? std::string("  (no uncertainty: raise --fabric-budget-seconds)")
+                                    : std::string("  (fixed: the capture's declared mass)"))
+                  << '\n';
+    }
+    status = run_flowvid({"eval", "cloth", "--preset", preset, "--capture", (data / "cotton-waving").string(), "--frames",
+                          "24", "--resolution", "16x16", "--floor-members", "4", "--report", (out / "eval").string(),
+                          "--json"},
+                         out / "eval.json", global);
+    if (status != kExitOk) return status;
+    const nlohmann::json fit = read_json_file(out / "fit.json");
+    const nlohmann::json eval = read_json_file(out / "eval.json");
+    if (fit.is_discarded() || eval.is_discarded()) return kExitFailure;
+    std::cout << "  weighted metric error " << html::format_number(fit["start_error"].get<double>()) << " -> "
+              << html::format_number(fit["final_error"].get<double>()) << " in " << html::format_number(fit["seconds"].get<double>())
+              << " s; per window (metric / floor):";
+    for (const auto& w : eval["captures"][0]["windows"])
+        std::cout << "  " << w["frames"].get<std::string>() << ": " << html::format_number(w["metric_mean"].get<double>())
+                  << " / " << html::format_number(w["metric_floor"].is_number() ? w["metric_floor"].get<double>() : NAN);
+    std::cout << "\n  report: " << (out / "eval" / "eval.html").string() << '\n';
+    return kExitOk;
+}
+
+// Stage "garment": the fabric on a skirt around an animated body, in
+// headless Blender through the add-on's preset mapping; frames and a video.
+int run_garment_stage(const DemoOptions& options, const GlobalOptions&) {
+    const fs::path out = fs::path(options.out) / "garment";
+    fs::create_directories(out);
+    const int status = run_blender(options, {"garment", "--preset", demo_preset(options).string(), "--out", out.string(),
+                                             "--frames", std::to_string(options.blender_frames)},
+                                   out / "blender.log");
+    const nlohmann::json summary = last_json_line(out / "blender.log");
+    if (status != kExitOk || summary.is_discarded()) {
+        log_message("flowvid demo: Blender failed; its log: " + (out / "blender.log").string());
+        return status != kExitOk ? status : kExitFailure;
+    }
+    formats::write_file_atomically((out / "garment.json").string(), [&](std::ostream& s) { s << summary.dump(2) << '\n'; });
+    std::cout << "  mapping: " << summary.value("mapping", "") << "; video: " << summary.value("video", "") << '\n';
+    for (const auto& note : summary["not_represented"]) std::cout << "  note: " << note.get<std::string>() << '\n';
+    return kExitOk;
+}
+
+// Stage "video": the bundled waterfall clip tracked into a particle bank, an
+// infinite loop synthesized and measured against naive looping and the flow
+// map, then an edit along a Blender particle system's flow lines seen through
+// the (panning) scene camera, rendered through Blender.
+int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
+    const fs::path clip = fs::path(options.data) / "data" / "demo" / "waterfall";
+    const fs::path out = fs::path(options.out) / "video";
+    fs::create_directories(out);
+    const std::string bank = (out / "waterfall.bank.exr").string();
+    int status = run_flowvid({"track", "--capture", clip.string(), "--out", bank, "--json"}, out / "track.json", global);
+    if (status == kExitOk)
+        status = run_flowvid({"synth", "--bank", bank, "--loop", "--out", (out / "loop.mp4").string(), "--json"},
+                             out / "loop.json", global);
+    if (status == kExitOk)
+        status = run_flowvid({"quality", "--bank", bank, "--json"}, out / "quality.json", global);
+    if (status != kExitOk) return status;
+    status = run_blender(options, {"video", "--bank", bank, "--clip", clip.string(), "--inputs",
+                                   (clip / "flowlines.svg").string(), "--out", (out / "edit").string(), "--frames",
+                                   std::to_string(options.blender_frames)},
+                         out / "blender.log");
+    const nlohmann::json summary = last_json_line(out / "blender.log");
+    if (status != kExitOk || summary.is_discarded()) {
+        log_message("flowvid demo: Blender failed; its log: " + (out / "blender.log").string());
+        return status != kExitOk ? status : kExitFailure;
+    }
+    formats::write_file_atomically((out / "edit.json").string(), [&](std::ostream& s) { s << summary.dump(2) << '\n'; });
+    const nlohmann::json quality = read_json_file(out / "quality.json");
+    if (!quality.is_discarded() && quality.contains("methods"))
+        for (const char* method : {"ours", "loop", "flow map"})
+            if (quality["methods"].contains(method))
+                std::cout << "  " << method << ": loop-seam max " << html::format_number(quality["methods"][method].value("seam_max_ratio", NAN))
+                          << " (of the clip's 95th-percentile change), share above the clip's 99th "
+                          << html::format_percent(quality["methods"][method].value("share_above_clip_p99", NAN)) << '\n';
+    std::cout << "  loop: " << (out / "loop.mp4").string() << "; edit along " << summary.value("lines", 0)
+              << " particle lines: " << summary.value("video", "") << '\n';
+    return kExitOk;
+}
+
+// Stage "diagnosis": the gap diagnosis of the fitted cotton on a bundled
+// waving capture made with one unmodelled effect (which one is not given to
+// the diagnoser).
+int run_diagnosis_stage(const DemoOptions& options, const GlobalOptions& global) {
+    const fs::path out = fs::path(options.out) / "diagnosis";
+    fs::create_directories(out);
+    const int status = run_flowvid({"diagnose", "--preset", demo_preset(options).string(), "--capture",
+                                    (fs::path(options.data) / "data" / "demo" / "cotton-waving-effect").string(), "--out",
+                                    (out / "report").string(), "--json"},
+                                   out / "diagnose.json", global);
+    if (status != kExitOk) return status;
+    const nlohmann::json d = read_json_file(out / "diagnose.json");
+    if (d.is_discarded()) return kExitFailure;
+    std::cout << "  verdict: " << d["verdict"].get<std::string>() << " -- " << d["message"].get<std::string>() << '\n'
+              << "  report: " << (out / "report" / "report.html").string() << '\n';
+    return kExitOk;
+}
 
 // Stage "formats": every bundled example file validates, is summarised, and
 // the flow lines survive JSON -> SVG -> JSON unchanged.
@@ -84,9 +286,108 @@ int run_formats_stage(const DemoOptions& options, const GlobalOptions& global) {
     return invalid == 0 && same ? kExitOk : kExitFailure;
 }
 
+// A relative link, or the text marked missing when the stage left no such file.
+std::string link(const fs::path& target, const fs::path& index_dir, const std::string& text) {
+    if (target.empty() || !fs::exists(target)) return html::escape(text) + " (missing)";
+    return "<a href=\"" + html::escape(fs::relative(target, index_dir).generic_string()) + "\">" + html::escape(text) + "</a>";
+}
+
+// index.html beside the stages' folders: every output that exists, linked,
+// with the key figures (fit error, time taken, floor, diagnosis verdict).
+void write_index(const DemoOptions& options, const std::string& stages_run, double seconds) {
+    const fs::path out = options.out;
+    std::ostringstream body;
+    body << html::element("h1", "flowvid demo")
+         << html::element("p", "Every output `flowvid demo` has left in " + out.string() + ". The last run (" + stages_run +
+                                   ") took " + html::format_number(seconds) + " s.");
+    if (fs::exists(out / "formats" / "summaries.json"))
+        body << html::element("h2", "Formats") << "<p>" << link(out / "formats" / "summaries.json", out, "summaries.json")
+             << " &middot; " << link(out / "formats" / "waterfall.svg", out, "flow lines as SVG") << "</p>\n";
+    const nlohmann::json fit = read_json_file(out / "fabric" / "fit.json");
+    const nlohmann::json eval = read_json_file(out / "fabric" / "eval.json");
+    if (!fit.is_discarded() && fit.is_object()) {
+        body << html::element("h2", "Fabric from footage")
+             << "<p>" << link(out / "fabric" / "cotton.fabric.json", out, "cotton.fabric.json") << ": weighted metric error "
+             << html::format_number(fit.value("start_error", NAN)) << " &rarr; "
+             << html::format_number(fit.value("final_error", NAN)) << " (floor "
+             << html::format_number(fit.value("final_error_floor", NAN)) << ") in "
+             << html::format_number(fit.value("seconds", NAN)) << " s, " << fit.value("evaluations", 0) << " evaluations.";
+        if (!eval.is_discarded() && eval.is_object())
+            body << " " << link(out / "fabric" / "eval" / "eval.html", out, "evaluation report (plots per frame)");
+        body << "</p>\n";
+        if (!eval.is_discarded() && eval.contains("captures")) {
+            html::Table table;
+            table.caption = "metric E_k per window next to its predictability floor";
+            table.header = {"frames", "metric E_k", "floor"};
+            for (const auto& w : eval["captures"][0]["windows"])
+                table.rows.push_back({w.value("frames", ""), html::format_number(w["metric_mean"].is_number() ? w["metric_mean"].get<double>() : NAN),
+                                      html::format_number(w["metric_floor"].is_number() ? w["metric_floor"].get<double>() : NAN)});
+            body << html::table(table);
+        }
+    }
+    const auto thumbnail = [&](const nlohmann::json& frames) {
+        if (!frames.is_array() || frames.empty()) return std::string();
+        const fs::path middle = frames[frames.size() / 2].get<std::string>();
+        return "<p><img src=\"" + html::escape(fs::relative(middle, out).generic_string()) +
+               "\" alt=\"a rendered frame\" width=\"320\"></p>\n";
+    };
+    const nlohmann::json garment = read_json_file(out / "garment" / "garment.json");
+    if (!garment.is_discarded() && garment.is_object()) {
+        body << html::element("h2", "Onto a garment (Blender)") << "<p>"
+             << link(garment.value("video", ""), out, "garment.mp4") << ": the preset through the add-on's "
+             << html::escape(garment.value("mapping", "")) << " mapping, rendered in "
+             << html::format_number(garment.value("render_seconds", NAN)) << " s.</p>\n"
+             << thumbnail(garment["frames"]);
+    }
+    const nlohmann::json edit = read_json_file(out / "video" / "edit.json");
+    const nlohmann::json quality = read_json_file(out / "video" / "quality.json");
+    const bool have_edit = !edit.is_discarded() && edit.is_object();
+    const bool have_quality = !quality.is_discarded() && quality.contains("methods");
+    if (have_edit || have_quality) {
+        body << html::element("h2", "Video editing") << "<p>";
+        if (fs::exists(out / "video" / "loop.mp4"))
+            body << link(out / "video" / "loop.mp4", out, "loop.mp4") << " (seamless infinite loop)";
+        if (have_edit)
+            body << " &middot; " << link(edit.value("video", ""), out, "edit.mp4") << " (along " << edit.value("lines", 0)
+                 << " lines of a Blender particle system seen through the panning camera) &middot; "
+                 << link(edit.value("flowlines", ""), out, "the flow lines");
+        body << "</p>\n";
+        if (have_edit) body << thumbnail(edit["frames"]);
+        if (have_quality) {
+            html::Table table;
+            table.caption = "loop seams: largest frame-to-frame change / the clip's 95th percentile (lower is smoother)";
+            table.header = {"method", "seam max", "share above the clip's 99th percentile"};
+            for (const char* method : {"ours", "loop", "flow map"})
+                if (quality["methods"].contains(method))
+                    table.rows.push_back({method, html::format_number(quality["methods"][method].value("seam_max_ratio", NAN)),
+                                          html::format_percent(quality["methods"][method].value("share_above_clip_p99", NAN))});
+            body << html::table(table);
+        }
+    }
+    const nlohmann::json diagnosis = read_json_file(out / "diagnosis" / "diagnose.json");
+    if (!diagnosis.is_discarded() && diagnosis.is_object()) {
+        const std::string verdict = diagnosis.value("verdict", "");
+        body << html::element("h2", "Diagnosis") << html::element("p", "verdict: " + verdict, "verdict")
+             << html::element("p", diagnosis.value("message", "")) << "<p>held-out error / floor "
+             << html::format_number(diagnosis["held_out_over_floor"].is_number() ? diagnosis["held_out_over_floor"].get<double>() : NAN)
+             << ", gap closed "
+             << html::format_percent(diagnosis["gap_closed"].is_number() ? diagnosis["gap_closed"].get<double>() : NAN)
+             << ", " << html::format_number(diagnosis.value("seconds", NAN)) << " s. "
+             << link(out / "diagnosis" / "report" / "report.html", out, "full report (heat maps, ablation table)") << "</p>\n";
+    }
+    formats::write_file_atomically((out / "index.html").string(),
+                                   [&](std::ostream& stream) { stream << html::page("flowvid demo", body.str()); });
+}
+
 const std::vector<DemoStage>& demo_stages() {
     static const std::vector<DemoStage> stages = {
         {"formats", "validate and summarise the bundled example files; flow lines to SVG and back", run_formats_stage},
+        {"fabric", "fit a cotton preset to bundled swatch footage (static + waving); errors next to their floor",
+         run_fabric_stage},
+        {"garment", "the fitted fabric on a skirt around an animated body, rendered by headless Blender", run_garment_stage},
+        {"video", "track a waterfall clip, loop it seamlessly, edit it along a Blender particle system's lines",
+         run_video_stage},
+        {"diagnosis", "diagnose the fitted cotton on bundled footage with a hidden unmodelled effect", run_diagnosis_stage},
     };
     return stages;
 }
@@ -102,14 +403,18 @@ int run_demo(const DemoOptions& options, const GlobalOptions& global) {
     }
     const auto start = std::chrono::steady_clock::now();
     int status = kExitOk;
+    std::string stages_run;
     for (const DemoStage& stage : demo_stages()) {
         if (!options.only.empty() && std::find(options.only.begin(), options.only.end(), stage.name) == options.only.end())
             continue;
         std::cout << "== " << stage.name << ": " << stage.what << '\n';
+        stages_run += (stages_run.empty() ? "" : ", ") + std::string(stage.name);
         const int result = stage.run(options, global);
         if (result != kExitOk) status = result;
     }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    write_index(options, stages_run, seconds);
+    std::cout << "index: " << (fs::path(options.out) / "index.html").string() << '\n';
     std::cout << "demo " << (status == kExitOk ? "finished" : "FAILED") << " in " << seconds << " s; outputs in "
               << options.out << '\n';
     return status;
@@ -127,6 +432,12 @@ const RegisterCommand registration{Command{
         app.add_option("--out", options->out, "folder for every output")->capture_default_str();
         app.add_option("--data", options->data, "flowvid source tree holding the bundled data")->capture_default_str();
         app.add_option("--only", options->only, "run only these stages");
+        app.add_option("--blender-frames", options->blender_frames, "frames the Blender stages simulate and render")
+            ->check(CLI::Range(2, 1000))
+            ->capture_default_str();
+        app.add_option("--fabric-budget-seconds", options->fabric_budget_s, "wall-time budget of the fabric fit")
+            ->check(CLI::Range(10, 3600))
+            ->capture_default_str();
         return [options](const GlobalOptions& global) { return run_demo(*options, global); };
     }}};
 

@@ -225,8 +225,12 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
                     std::set<int> frames;
                     for (const auto& key : a.keys) frames.insert(key.frame);
                     for (const auto& key : b.keys) frames.insert(key.frame);
+                    // One point count for every key: the most any frame's lengths ask for.
+                    int samples = 0;
                     for (int f : frames)
-                        d2.output.line.keys.push_back({f, interpolated_points(a, b, inter.weight, f)});
+                        samples = std::max(samples, static_cast<int>(interpolated_points(a, b, inter.weight, f).size()));
+                    for (int f : frames)
+                        d2.output.line.keys.push_back({f, interpolated_points(a, b, inter.weight, f, samples)});
                 } else {
                     d2.output.line.points = interpolated_points(a, b, inter.weight, settings.first_frame);
                 }

@@ -208,10 +208,10 @@ std::vector<InterpolatedLine> interpolate_between(const std::vector<std::vector<
 }
 
 std::vector<Eigen::Vector2d> interpolated_points(const formats::FlowLine& a, const formats::FlowLine& b, double weight,
-                                                 double frame) {
+                                                 double frame, int samples) {
     const std::vector<Eigen::Vector2d> pa = formats::points_at_frame(a, frame);
     const std::vector<Eigen::Vector2d> pb = formats::points_at_frame(b, frame);
-    return blend_polylines(pa, pb, weight, blend_samples(pa, pb));
+    return blend_polylines(pa, pb, weight, samples > 0 ? samples : blend_samples(pa, pb));
 }
 
 std::string interpolated_line_id(const std::string& a, const std::string& b, double weight) {

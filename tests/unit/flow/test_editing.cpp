@@ -290,3 +290,45 @@ TEST(FlowEditing, DensePlanRoundTripsThroughSvgAndJson) {
     formats::write_flowline_set(dir + "/dense.flowlines.json", dense);
     EXPECT_EQ(formats::read_flowline_set(dir + "/dense.flowlines.json"), dense);
 }
+
+// Moving output lines whose lengths change differently from key to key (a
+// Blender particle system's trajectories seen by a panning camera): the lines
+// interpolated between them are moving lines too, and every key of one line
+// needs the same point count (regression: the count followed each frame's
+// lengths, and rendering refused the line).
+TEST(FlowEditing, LinesBetweenMovingLinesKeepOnePointCountPerLine) {
+    const std::vector<double> xs = {20, 35, 50};
+    auto bank = vertical_bank(xs, 10.0, 110.0, 10, [](int l, double, double) { return 0.2f + 0.3f * l; });
+    const ParticleStreams streams(bank, vertical_lines(xs, 10.0, 110.0), SynthesisSettings{});
+    formats::FlowLineSet drawing;
+    drawing.width = drawing.height = 120;
+    for (std::size_t i = 0; i < xs.size(); ++i) drawing.inputs.push_back(line("in-" + std::to_string(i), {{xs[i], 10.0}, {xs[i], 110.0}}));
+    formats::FlowLine left, right;
+    left.id = "left";
+    left.from = "in-0";
+    left.keys = {{1, {{30.0, 10.0}, {30.0, 70.0}}}, {5, {{30.0, 10.0}, {30.0, 110.0}}}};        // grows 60 -> 100 px
+    right.id = "right";
+    right.from = "in-2";
+    right.keys = {{1, {{60.0, 10.0}, {60.0, 40.0}, {60.0, 70.0}}}, {5, {{60.0, 10.0}, {60.0, 30.0}, {60.0, 40.0}}}};  // shrinks
+    drawing.outputs = {left, right};
+    EditSettings edit;
+    edit.correspondence_frames = 2;
+    const EditPlan plan = plan_edit(drawing, streams, edit);
+    int interpolated = 0;
+    for (const DenseLine& d : plan.lines) {
+        if (d.drawn) continue;
+        ++interpolated;
+        ASSERT_EQ(d.output.line.keys.size(), 2u) << d.output.line.id;
+        EXPECT_EQ(d.output.line.keys[0].points.size(), d.output.line.keys[1].points.size()) << d.output.line.id;
+        // Still the blend at each key: the ends lie between the two lines' ends.
+        std::string a, b;
+        double w = 0.0;
+        ASSERT_TRUE(parse_interpolated_line_id(d.output.line.id, a, b, w));
+        for (const auto& key : d.output.line.keys) {
+            const auto pl = formats::points_at_frame(left, key.frame), pr = formats::points_at_frame(right, key.frame);
+            EXPECT_TRUE(key.points.back().isApprox((1 - w) * pl.back() + w * pr.back(), 1e-9)) << key.frame;
+        }
+        EXPECT_NO_THROW(formats::points_at_frame(d.output.line, 3.0));
+    }
+    EXPECT_GT(interpolated, 0);
+}

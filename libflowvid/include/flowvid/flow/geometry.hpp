@@ -82,9 +82,11 @@ std::vector<InterpolatedLine> interpolate_between(const std::vector<std::vector<
                                                   const std::vector<std::vector<int>>& chains, double spacing_px);
 
 // The geometry of an interpolated line at a frame (keyed lines are taken at
-// that frame, so interpolating a moving line gives a moving line).
+// that frame, so interpolating a moving line gives a moving line), with
+// `samples` points (0: from the lines' lengths at that frame; the keys of one
+// moving line must all have the same count).
 std::vector<Eigen::Vector2d> interpolated_points(const formats::FlowLine& a, const formats::FlowLine& b, double weight,
-                                                 double frame);
+                                                 double frame, int samples = 0);
 
 // Ids of interpolated input lines, "A~B@0.250": readable, and the bank's line
 // id alone lets synthesis rebuild the geometry from the sparse drawing.
