@@ -65,7 +65,7 @@ def main():
     except SystemExit as exit_request:
         sys.stdout.flush()
         os._exit(2 if exit_request.code else 0)
-    here = os.path.dirname(os.path.abspath(__file__))
+    here = os.path.dirname(os.path.realpath(__file__))  # through symlinks to the checkout
     sys.path.insert(0, options.addon or os.path.join(os.path.dirname(here), "blender_addon"))
     import bpy
 

@@ -1,7 +1,7 @@
 """The Blender stages of `flowvid demo`, headless (the demo runs this; so can you):
 
     blender -b --factory-startup --python-exit-code 1 --python scripts/demo_blender.py -- \\
-        garment --preset cotton.fabric.json --out out/demo/garment [--frames 48]
+        garment --preset cotton.fabric.json --out out/demo/garment [--frames 48] [--save scene.blend]
     blender -b --factory-startup --python-exit-code 1 --python scripts/demo_blender.py -- \\
         video --bank fall.bank.exr --clip data/demo/waterfall --inputs data/demo/waterfall/flowlines.svg \\
         --out out/demo/video [--frames 48]
@@ -29,6 +29,7 @@ def _arguments(argv):
     stages = parser.add_subparsers(dest="stage", required=True)
     garment = stages.add_parser("garment", help="a skirt with a fabric preset on an animated body")
     garment.add_argument("--preset", required=True, help="*.fabric.json to apply")
+    garment.add_argument("--save", help="also save the scene as this .blend (e.g. for scripts/blender_batch.py)")
     video = stages.add_parser("video", help="a particle system's flow lines synthesized from a bank")
     video.add_argument("--bank", required=True, help="particle bank from flowvid track")
     video.add_argument("--clip", required=True, help="the capture (or clip) the bank was tracked from")
@@ -126,6 +127,9 @@ def garment(options):
     scene.world = bpy.data.worlds.new("World")
     scene.world.color = (0.25, 0.25, 0.28)
 
+    if options.save:
+        os.makedirs(os.path.dirname(os.path.abspath(options.save)), exist_ok=True)
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(options.save))
     started = time.monotonic()
     frames = api.render_frames(os.path.join(options.out, "frames"), 1, options.frames, scene=scene)
     video = api.encode_video(frames, os.path.join(options.out, "garment.mp4"), scene.render.fps, scene=scene)
@@ -162,7 +166,9 @@ def video(options):
 
     # A ledge the water pours from: particles leave it sideways and fall.
     emitter_mesh = bpy.data.meshes.new("Ledge")
-    emitter_mesh.from_pydata([(-1.6, -0.1, 0.0), (1.6, -0.1, 0.0), (1.6, 0.1, 0.0), (-1.6, 0.1, 0.0)], [],
+    # Tilted, so the lines start at different heights and their particles do
+    # not line up in rows across the fall.
+    emitter_mesh.from_pydata([(-1.6, -0.1, 0.5), (1.6, -0.1, -0.5), (1.6, 0.1, -0.5), (-1.6, 0.1, 0.5)], [],
                              [(0, 1, 2, 3)])
     emitter = bpy.data.objects.new("Ledge", emitter_mesh)
     emitter.location = (0.0, 0.0, 2.0)
@@ -173,7 +179,7 @@ def video(options):
     settings.frame_start, settings.frame_end = 1, 2
     settings.lifetime = 400
     settings.emit_from = "FACE"
-    settings.use_emit_random = False
+    settings.use_emit_random = True  # seeded: the same scene gives the same particles
     settings.normal_factor = 0.0
     settings.object_align_factor = (0.0, 0.0, 0.6)
     settings.factor_random = 0.4
@@ -207,7 +213,7 @@ def main():
     except SystemExit as exit_request:
         sys.stdout.flush()
         os._exit(2 if exit_request.code else 0)
-    here = os.path.dirname(os.path.abspath(__file__))
+    here = os.path.dirname(os.path.realpath(__file__))  # through symlinks to the checkout
     sys.path.insert(0, os.path.join(os.path.dirname(here), "blender_addon"))
     global bpy
     import bpy

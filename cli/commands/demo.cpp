@@ -426,8 +426,12 @@ const RegisterCommand registration{Command{
         std::string stage_list;
         for (const DemoStage& stage : demo_stages()) stage_list += std::string("  ") + stage.name + ": " + stage.what + "\n";
         app.footer("Stages (all by default, in this order):\n" + stage_list +
+                   "\nEach stage prints the commands it runs (run them yourself: docs/guide/) and writes under\n"
+                   "--out; index.html there links every output with thumbnails and key figures. The garment\n"
+                   "and video stages need `blender` on PATH. The whole demo takes about MINUTES_PLACEHOLDER minutes on 2 cores.\n"
                    "\nExamples:\n"
                    "  flowvid demo\n"
+                   "  flowvid demo --only fabric --only garment --out /tmp/demo\n"
                    "  flowvid demo --only formats --out /tmp/demo");
         app.add_option("--out", options->out, "folder for every output")->capture_default_str();
         app.add_option("--data", options->data, "flowvid source tree holding the bundled data")->capture_default_str();

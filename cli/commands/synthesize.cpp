@@ -162,7 +162,10 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
             summary["dense_lines"] = plan.lines.size();
             summary["interpolated_lines"] = interpolated;
             summary["correspondence_cost"] = plan.total_cost;
-            if (!options.dense_out.empty()) formats::write_flowline_set(options.dense_out, flow::plan_to_flowlines(drawing, plan));
+            if (!options.dense_out.empty()) {
+                prepare_output_folder(options.dense_out);
+                formats::write_flowline_set(options.dense_out, flow::plan_to_flowlines(drawing, plan));
+            }
         }
     }
     const flow::Synthesizer synthesizer(streams, outputs, std::move(background), settings);
@@ -175,6 +178,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
         last = synthesizer.period_frames();
     }
 
+    prepare_output_folder(options.out);  // out/%06d.png or a video: its folder, made when missing
     flow::FrameWriter writer(options.out, synthesizer.width(), synthesizer.height(), bank->fps);
     Progress progress(global, edit ? "edit" : "synth");
     std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs

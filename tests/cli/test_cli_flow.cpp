@@ -109,11 +109,12 @@ TEST(CliFlow, TracksAParticleBankThatValidates) {
 
 TEST(CliFlow, SynthRangesJoinSeamlesslyAndLoop) {
     const std::string dir = own_dir("cli_flow_synth");
-    const CliResult whole = run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "6", "--out", dir + "/a/%04d.png", "--json"});
-    ASSERT_EQ(whole.exit_code, 4) << "the folder a/ does not exist yet";
-    EXPECT_TRUE(mentions(whole.err, dir + "/a")) << whole.err;
-    fs::create_directories(dir + "/a");
-    fs::create_directories(dir + "/b");
+    // An output folder that cannot be made (a file is in the way): I/O error naming it.
+    std::ofstream(dir + "/file") << "in the way";
+    const CliResult blocked = run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "6", "--out", dir + "/file/a/%04d.png"});
+    ASSERT_EQ(blocked.exit_code, 4) << blocked.err;
+    EXPECT_TRUE(mentions(blocked.err, dir + "/file/a")) << blocked.err;
+    // Missing folders are made (a/ and b/ do not exist yet).
     const CliResult first = run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "6", "--out", dir + "/a/%04d.png", "--json"});
     ASSERT_EQ(first.exit_code, 0) << first.err;
     const nlohmann::json summary = nlohmann::json::parse(first.out);
