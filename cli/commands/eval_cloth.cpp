@@ -71,7 +71,8 @@ struct EvalClothOptions {
     std::vector<std::string> captures;
     int floor_members = 6;
     std::string floor_kind = "full";
-    std::string floor_integrator = "rk4";
+    std::string floor_integrator = "implicit";
+    int floor_substeps = video::kFloorSubstepsPerFrame;
     std::string report;
     ClothRunOptions run;
     TrialOptions trial;
@@ -113,10 +114,15 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
         captures.push_back(read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid eval cloth"));
     if (!options.report.empty()) prepare_output_folder(options.report + "/eval.json");
     const cloth::ClothMaterial material = cloth::material_from_fabric(preset.parameters);
-    video::FloorSettings floor;
-    floor.members = options.floor_members;
+    video::FloorSettings floor = video::reported_floor(options.floor_members);
     if (options.floor_kind == "full") floor.parameter_sigma = video::preset_uncertainty(preset.parameters);
-    if (options.floor_integrator != "same") floor.integrator = integrators().at(options.floor_integrator);
+    if (options.floor_integrator == "same") {
+        floor.integrator.reset();
+        floor.implicit_substeps_per_frame.reset();
+    } else {
+        floor.integrator = integrators().at(options.floor_integrator);
+        floor.implicit_substeps_per_frame = options.floor_substeps;
+    }
     const bool floor_has_uncertainty = !floor.parameter_sigma.empty();
     if (options.floor_kind == "full" && !floor_has_uncertainty && floor.members > 0)
         log_message("the preset carries no uncertainty: its floor is the chaos alone");
@@ -166,6 +172,7 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
             entry["vertex_rms_mm_all_frames"] = 1e3 * video::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
         if (a.floor)
             entry["floor"] = {{"integrator", cloth::integrator_name(a.floor->integrator)},
+                              {"implicit_substeps_per_frame", a.floor->implicit_substeps_per_frame},
                               {"start_jitter_mm", 1e3 * a.floor->jitter_m},
                               {"includes_uncertainty", floor_has_uncertainty}};
         results.push_back(entry);
@@ -203,8 +210,8 @@ const RegisterEvalKind eval_registration{FitKind{
             "ensemble of runs whose parameters are drawn within the preset's uncertainty (--floor full;\n"
             "--floor chaos leaves that out) and moved by one part in a million, and whose start is\n"
             "jittered by one pixel's footprint at the swatch (the footage places it no better), run\n"
-            "with --floor-integrator (rk4: minutes per capture at 24x24). Waving cloth is chaotic, so\n"
-            "an error near its floor is as good as any model can do.\n"
+            "with --floor-integrator at --floor-substeps (small steps: large ones damp the chaos away).\n"
+            "Waving cloth is chaotic, so an error near its floor is as good as any model can do.\n"
             "--report DIR writes eval.json and eval.html (tables and plots).\n\n"
             "Examples:\n"
             "  flowvid eval cloth --preset cotton.fabric.json --capture ../shared/captures/cloth-cotton-waving-2\n"
@@ -222,10 +229,15 @@ const RegisterEvalKind eval_registration{FitKind{
         std::vector<std::string> floor_integrators = {"same"};
         for (const auto& [name, value] : integrators()) floor_integrators.push_back(name);
         app.add_option("--floor-integrator", options->floor_integrator,
-                       "integrator of the floor's runs: rk4 keeps the folds whose instability makes cloth chaotic; "
-                       "implicit at 5 substeps a frame damps them and claims a predictability the footage lacks; "
-                       "same: --integrator's (quicker, an underestimate)")
+                       "integrator of the floor's runs: implicit at --floor-substeps (default) or rk4 keep the folds "
+                       "whose instability makes cloth chaotic (rk4 is the reference, but slow on stiff fabrics); "
+                       "same: --integrator's own steps (quick; at 5 substeps a frame backward Euler damps the chaos "
+                       "and claims a predictability the footage lacks)")
             ->check(CLI::IsMember(floor_integrators))
+            ->capture_default_str();
+        app.add_option("--floor-substeps", options->floor_substeps,
+                       "substeps a frame of an implicit floor integrator (the error's runs keep their 5)")
+            ->check(CLI::Range(1, 1000))
             ->capture_default_str();
         app.add_option("--report", options->report, "folder for eval.json and eval.html");
         add_trial_options(app, options->trial);
@@ -293,8 +305,7 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
         }
         // The floor of the recognised preset on this capture: differences
         // between presets below it mean nothing.
-        video::FloorSettings floor;
-        floor.members = 4;
+        const video::FloorSettings floor = video::reported_floor(4);
         const double floor_error = video::weighted_floor(
             trials[c], video::estimate_floor(trials[c], cloth::material_from_fabric(presets[best].parameters), *settings, floor,
                                              thread_count(options.run.threads)));

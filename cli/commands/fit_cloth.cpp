@@ -90,6 +90,28 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
 
 int run_shards(const FitClothOptions& options, const GlobalOptions& global, video::ClothFitRequest request);
 
+// Each trial's final error next to its predictability floor (a small
+// ensemble at the fitted fabric, with its uncertainty, at the steps the
+// commands report floors with, inside the budget): an error near the floor is
+// as good as it gets. `total_floor` gets the sum of the trials' weighted floors.
+nlohmann::json trials_with_floors(const video::ClothFitOutcome& outcome, const video::ClothFitRequest& request,
+                                  double& total_floor) {
+    video::FloorSettings floor = video::reported_floor(kFloorMembers);
+    if (outcome.preset) floor.parameter_sigma = video::preset_uncertainty(outcome.preset->parameters);
+    nlohmann::json trials = nlohmann::json::array();
+    total_floor = 0.0;
+    for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i) {
+        const video::PredictabilityFloor f =
+            video::estimate_floor(outcome.trials[i], outcome.fitted, request.problem, floor, request.threads);
+        const double trial_floor = video::weighted_floor(outcome.trials[i], f);
+        total_floor += trial_floor;
+        trials.push_back({{"capture", outcome.trial_names[i]},
+                          {"final_error", outcome.final_evaluation.trials[i].error},
+                          {"floor", trial_floor}});
+    }
+    return trials;
+}
+
 int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     const auto command_started = std::chrono::steady_clock::now();
     const auto seconds_since = [](std::chrono::steady_clock::time_point t) {
@@ -108,7 +130,9 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     if (sharded) return run_shards(options, global, std::move(request));
     // The floor ensembles below run inside the same budget: one simulation of
     // each trial per member, about one evaluation each.
-    request.evaluations_after_fit = kFloorMembers + 2;  // + the members' equilibrium searches
+    // Each member and its reference run take kFloorSubstepsPerFrame / 5 times a
+    // fit simulation; + the members' equilibrium searches.
+    request.evaluations_after_fit = (kFloorMembers + 1) * video::kFloorSubstepsPerFrame / 5 + 2;
 
     Progress progress(global, "fit cloth");
     const InterruptWatch interrupt;
@@ -131,32 +155,16 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
                     std::to_string(request.variability_runs) + " variability restarts" +
                     (outcome.variability_runs_planned == 0 ? ": the preset has no uncertainty (raise --budget-seconds)" : ""));
     const optim::VariabilityReport* variability = outcome.variability ? &*outcome.variability : nullptr;
-    // Each trial's error next to its predictability floor (a small ensemble
-    // at the fitted fabric): an error near the floor is as good as it gets.
-    nlohmann::json trials = nlohmann::json::array();
-    video::FloorSettings floor;
-    floor.members = kFloorMembers;
-    if (outcome.preset) floor.parameter_sigma = video::preset_uncertainty(outcome.preset->parameters);
-    const std::vector<video::ClothTrial>& loaded = outcome.trials;
-    video::ClothFitSettings floor_settings = request.problem;
     double total_floor = 0.0;
-    for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i) {
-        const video::PredictabilityFloor f =
-            video::estimate_floor(loaded[i], outcome.fitted, floor_settings, floor, request.threads);
-        const double trial_floor = video::weighted_floor(loaded[i], f);
-        total_floor += trial_floor;
-        trials.push_back({{"capture", outcome.trial_names[i]},
-                          {"start_error", outcome.start_evaluation.trials[i].error},
-                          {"final_error", outcome.final_evaluation.trials[i].error},
-                          {"floor", trial_floor}});
-    }
+    nlohmann::json trials = trials_with_floors(outcome, request, total_floor);
+    for (std::size_t i = 0; i < trials.size(); ++i) trials[i]["start_error"] = outcome.start_evaluation.trials[i].error;
     nlohmann::json summary = {{"out", options.out},
                               {"drag", video::drag_model_name(request.drag)},
                               {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
                               {"start_error", outcome.start_evaluation.total},
                               {"final_error", outcome.final_evaluation.total},
                               {"final_error_floor", total_floor},
-                              {"floor_integrator", cloth::integrator_name(request.problem.swatch.simulation.integrator)},
+                              {"floor_integrator", "implicit_euler, " + std::to_string(video::kFloorSubstepsPerFrame) + " substeps a frame"},
                               {"trials", trials},
                               {"evaluations", outcome.evaluations},
                               {"simulations", outcome.simulations},
@@ -338,9 +346,8 @@ int merge_cloth(const MergeRequest& merge, const GlobalOptions& global) {
         shard_errors.push_back(file->shard.best_error);
     }
     const optim::VariabilityReport* variability = outcome.variability ? &*outcome.variability : nullptr;
-    nlohmann::json trials = nlohmann::json::array();
-    for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i)
-        trials.push_back({{"capture", outcome.trial_names[i]}, {"final_error", outcome.final_evaluation.trials[i].error}});
+    double total_floor = 0.0;
+    const nlohmann::json trials = trials_with_floors(outcome, request, total_floor);
     const std::string split = std::to_string(winner.shard.index) + "/" + std::to_string(winner.shard.count);
     const nlohmann::json summary = {{"out", merge.out},
                                     {"drag", video::drag_model_name(request.drag)},
@@ -348,6 +355,8 @@ int merge_cloth(const MergeRequest& merge, const GlobalOptions& global) {
                                     {"winner", {{"shard", split}, {"file", winner.path}, {"error", winner.shard.best_error}}},
                                     {"shard_errors", shard_errors},
                                     {"final_error", outcome.final_evaluation.total},
+                                    {"final_error_floor", total_floor},
+                                    {"floor_integrator", "implicit_euler, " + std::to_string(video::kFloorSubstepsPerFrame) + " substeps a frame"},
                                     {"trials", trials},
                                     {"evaluations", evaluations},
                                     {"variability_runs", outcome.variability_runs_planned},

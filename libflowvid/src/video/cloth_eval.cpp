@@ -29,6 +29,14 @@ double pixel_footprint_m(const formats::CameraModel& camera, const Eigen::Vector
     return count > 0 && focal_px > 0.0 ? depth_sum / static_cast<double>(count) / focal_px : 0.0;
 }
 
+FloorSettings reported_floor(int members) {
+    FloorSettings floor;
+    floor.members = members;
+    floor.integrator = cloth::Integrator::implicit_euler;
+    floor.implicit_substeps_per_frame = kFloorSubstepsPerFrame;
+    return floor;
+}
+
 std::map<std::string, double> preset_uncertainty(const formats::FabricParameters& parameters) {
     std::map<std::string, double> sigma;
     for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table())
@@ -86,7 +94,13 @@ namespace {
 ClothFitSettings floor_run_settings(const ClothFitSettings& settings, const FloorSettings& floor) {
     ClothFitSettings members = settings;
     if (floor.integrator) members.swatch.simulation.integrator = *floor.integrator;
+    if (floor.implicit_substeps_per_frame) members.swatch.simulation.implicit_substeps_per_frame = *floor.implicit_substeps_per_frame;
     return members;
+}
+
+bool same_run_settings(const ClothFitSettings& a, const ClothFitSettings& b) {
+    return a.swatch.simulation.integrator == b.swatch.simulation.integrator &&
+           a.swatch.simulation.implicit_substeps_per_frame == b.swatch.simulation.implicit_substeps_per_frame;
 }
 
 // The floor around an unperturbed run that the caller already has.
@@ -96,6 +110,8 @@ PredictabilityFloor floor_around(const ClothTrial& trial, const cloth::ClothMate
     PredictabilityFloor out;
     out.members = floor.members;
     out.integrator = settings.swatch.simulation.integrator;
+    const bool implicit = out.integrator == cloth::Integrator::implicit_euler || out.integrator == cloth::Integrator::bdf2;
+    out.implicit_substeps_per_frame = implicit ? settings.swatch.simulation.implicit_substeps_per_frame : 0;
     out.jitter_m = floor.jitter_m ? *floor.jitter_m : pixel_footprint_m(trial.camera, nominal.simulation.frames.front());
     const int frames = usable_frames(nominal);
     const cloth::GridFrames nominal_grid = cloth::sample_frames(nominal.swatch.mesh,
@@ -179,7 +195,7 @@ TrialAssessment assess_trial(const ClothTrial& trial, const cloth::ClothMaterial
     }
     if (floor) {
         const ClothFitSettings members = floor_run_settings(settings, *floor);
-        out.floor = members.swatch.simulation.integrator == settings.swatch.simulation.integrator
+        out.floor = same_run_settings(members, settings)
                         ? floor_around(trial, material, members, *floor, threads, run)
                         : floor_around(trial, material, members, *floor, threads,
                                        run_trial(trial, material, members, members.swatch));

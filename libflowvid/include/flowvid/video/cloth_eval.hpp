@@ -43,11 +43,13 @@ struct FloorSettings {
     // is the chaos alone.
     std::map<std::string, double> parameter_sigma;
     cloth::SwatchOptions::JitterShape jitter_shape = cloth::SwatchOptions::JitterShape::smooth_normal;
-    // The members' integrator (and their unperturbed reference run's). Empty:
-    // the settings' own. Backward Euler's numerical damping at a few
-    // substeps per frame hides the fold instabilities that make cloth
-    // chaotic; the adaptive rk4 keeps them (docs/cloth_fitting.md).
+    // The members' integrator and, for the implicit ones, substeps per frame
+    // (also their unperturbed reference run's). Empty: the settings' own.
+    // Backward Euler's numerical damping at a few substeps per frame hides
+    // the fold instabilities that make cloth chaotic; smaller steps or the
+    // adaptive rk4 keep them (docs/cloth_fitting.md).
     std::optional<cloth::Integrator> integrator;
+    std::optional<int> implicit_substeps_per_frame;
 };
 
 struct FloorMember {
@@ -57,6 +59,12 @@ struct FloorMember {
 // The floor's members as `floor` draws them around `material` (seeded).
 std::vector<FloorMember> draw_floor_members(const cloth::ClothMaterial& material, const FloorSettings& floor);
 
+// The floor the commands report next to errors: `members` runs with
+// backward Euler at kFloorSubstepsPerFrame substeps a frame, whatever the
+// errors' runs use (5 substeps damp the chaos away: docs/cloth_fitting.md).
+inline constexpr int kFloorSubstepsPerFrame = 20;
+FloorSettings reported_floor(int members);
+
 // The 1-sigma uncertainties a preset carries, for FloorSettings::parameter_sigma.
 std::map<std::string, double> preset_uncertainty(const formats::FabricParameters& parameters);
 
@@ -64,6 +72,7 @@ struct PredictabilityFloor {
     int members = 0;
     double jitter_m = 0.0;  // the starting-shape jitter the members had
     cloth::Integrator integrator = cloth::Integrator::implicit_euler;  // the members'
+    int implicit_substeps_per_frame = 0;                               // theirs (0: an adaptive integrator)
     // Per simulated frame (index 0 = frame 1): RMS over members of the RMS
     // vertex distance from the unperturbed run, metres (uv grid of the mesh).
     std::vector<double> vertex_rms_m;
