@@ -153,6 +153,13 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
                                   one_decimal(1e3 * w.vertex_rms_m), one_decimal(1e3 * w.vertex_floor_m)});
         }
         body << html::element("h2", captures[i].folder) << html::table(table);
+        if (a.floor)
+            body << html::element("p", "floor runs: " + std::string(cloth::integrator_name(a.floor->integrator)) +
+                                           (a.floor->implicit_substeps_per_frame > 0
+                                                ? " at " + std::to_string(a.floor->implicit_substeps_per_frame) + " substeps a frame"
+                                                : std::string()) +
+                                           ", start jittered by " + html::format_number(1e3 * a.floor->jitter_m) + " mm",
+                                  "muted");
         std::vector<double> metric, metric_floor, vertex_mm, vertex_floor_mm;
         for (const auto& e : a.frames) metric.push_back(e.total);
         if (a.floor) metric_floor = a.floor->metric;
@@ -181,7 +188,7 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
     body << html::element("p", "The predictability floor is the spread of " + std::to_string(floor.members) + " runs whose parameters " +
                                    (floor_has_uncertainty ? "are drawn within the preset's uncertainty and " : "") +
                                    "differ by one part in a million and whose starting shape is jittered "
-                                   "by one pixel's footprint at the swatch, run with the integrator named per capture: "
+                                   "by one pixel's footprint at the swatch, run as each capture's note says: "
                                    "no model can be expected to match a chaotic trial better than that.");
     const nlohmann::json summary = {{"preset", options.preset},
                                     {"floor_members", floor.members},
