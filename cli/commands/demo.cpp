@@ -79,18 +79,6 @@ int run_flowvid(const std::vector<std::string>& args, const fs::path& stdout_fil
     return run_program(argv, shown, stdout_file);
 }
 
-// scripts/demo_blender.py STAGE ARGS... in headless Blender; the add-on calls
-// this flowvid (FLOWVID_CLI). Blender's own log lines go to its stdout file.
-int run_blender(const DemoOptions& options, const std::vector<std::string>& args, const fs::path& stdout_file) {
-    setenv("FLOWVID_CLI", flowvid_executable().c_str(), 1);
-    std::vector<std::string> argv = {"blender", "-b", "--factory-startup", "-noaudio", "--python-exit-code", "1",
-                                     "--python", (fs::path(options.data) / "scripts" / "demo_blender.py").string(), "--"};
-    argv.insert(argv.end(), args.begin(), args.end());
-    std::string shown;
-    for (const std::string& a : argv) shown += (shown.empty() ? "" : " ") + a;
-    return run_program(argv, shown, stdout_file);
-}
-
 // The last JSON object line of a file (Blender prints its log before it).
 nlohmann::json last_json_line(const fs::path& path) {
     std::ifstream in(path);
@@ -101,6 +89,28 @@ nlohmann::json last_json_line(const fs::path& path) {
             if (!parsed.is_discarded()) found = std::move(parsed);
         }
     return found;
+}
+
+// scripts/demo_blender.py STAGE ARGS... in headless Blender; the add-on calls
+// this flowvid (FLOWVID_CLI). Blender's log goes to FOLDER/blender.log, the
+// stage's JSON summary (its last line) to FOLDER/SUMMARY_NAME and `summary`.
+int run_blender(const DemoOptions& options, const std::vector<std::string>& args, const fs::path& folder,
+                const std::string& summary_name, nlohmann::json& summary) {
+    setenv("FLOWVID_CLI", flowvid_executable().c_str(), 1);
+    std::vector<std::string> argv = {"blender", "-b", "--factory-startup", "-noaudio", "--python-exit-code", "1",
+                                     "--python", (fs::path(options.data) / "scripts" / "demo_blender.py").string(), "--"};
+    argv.insert(argv.end(), args.begin(), args.end());
+    std::string shown;
+    for (const std::string& a : argv) shown += (shown.empty() ? "" : " ") + a;
+    const fs::path log = folder / "blender.log";
+    const int status = run_program(argv, shown, log);
+    summary = last_json_line(log);
+    if (status != kExitOk || summary.is_discarded()) {
+        log_message("flowvid demo: Blender failed; its log: " + log.string());
+        return status != kExitOk ? status : kExitFailure;
+    }
+    formats::write_file_atomically((folder / summary_name).string(), [&](std::ostream& s) { s << summary.dump(2) << '\n'; });
+    return kExitOk;
 }
 
 nlohmann::json read_json_file(const fs::path& path) {
@@ -163,15 +173,11 @@ int run_fabric_stage(const DemoOptions& options, const GlobalOptions& global) {
 int run_garment_stage(const DemoOptions& options, const GlobalOptions&) {
     const fs::path out = fs::path(options.out) / "garment";
     fs::create_directories(out);
+    nlohmann::json summary;
     const int status = run_blender(options, {"garment", "--preset", demo_preset(options).string(), "--out", out.string(),
                                              "--frames", std::to_string(options.blender_frames)},
-                                   out / "blender.log");
-    const nlohmann::json summary = last_json_line(out / "blender.log");
-    if (status != kExitOk || summary.is_discarded()) {
-        log_message("flowvid demo: Blender failed; its log: " + (out / "blender.log").string());
-        return status != kExitOk ? status : kExitFailure;
-    }
-    formats::write_file_atomically((out / "garment.json").string(), [&](std::ostream& s) { s << summary.dump(2) << '\n'; });
+                                   out, "garment.json", summary);
+    if (status != kExitOk) return status;
     std::cout << "  mapping: " << summary.value("mapping", "") << "; video: " << summary.value("video", "") << '\n';
     for (const auto& note : summary["not_represented"]) std::cout << "  note: " << note.get<std::string>() << '\n';
     return kExitOk;
@@ -193,16 +199,12 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
     if (status == kExitOk)
         status = run_flowvid({"quality", "--bank", bank, "--json"}, out / "quality.json", global);
     if (status != kExitOk) return status;
+    nlohmann::json summary;
     status = run_blender(options, {"video", "--bank", bank, "--clip", clip.string(), "--inputs",
                                    (clip / "flowlines.svg").string(), "--out", (out / "edit").string(), "--frames",
                                    std::to_string(options.blender_frames)},
-                         out / "blender.log");
-    const nlohmann::json summary = last_json_line(out / "blender.log");
-    if (status != kExitOk || summary.is_discarded()) {
-        log_message("flowvid demo: Blender failed; its log: " + (out / "blender.log").string());
-        return status != kExitOk ? status : kExitFailure;
-    }
-    formats::write_file_atomically((out / "edit.json").string(), [&](std::ostream& s) { s << summary.dump(2) << '\n'; });
+                         out, "edit.json", summary);
+    if (status != kExitOk) return status;
     const nlohmann::json quality = read_json_file(out / "quality.json");
     if (!quality.is_discarded() && quality.contains("methods"))
         for (const char* method : {"ours", "loop", "flow map"})

@@ -128,11 +128,11 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     prepare_output_folder(options.out);
     video::ClothFitRequest request = make_request(options, *swatch, std::move(captures), options.out);
     if (sharded) return run_shards(options, global, std::move(request));
-    // The floor ensembles below run inside the same budget: one simulation of
-    // each trial per member, about one evaluation each.
-    // Each member and its reference run take kFloorSubstepsPerFrame / 5 times a
-    // fit simulation; + the members' equilibrium searches.
-    request.evaluations_after_fit = (kFloorMembers + 1) * video::kFloorSubstepsPerFrame / 5 + 2;
+    // The floor ensembles below run inside the same budget: each member and
+    // its reference run cost the floor's substeps over the fit's times a fit
+    // simulation of each trial; + the members' equilibrium searches.
+    const int fit_substeps = std::max(1, request.problem.swatch.simulation.implicit_substeps_per_frame);
+    request.evaluations_after_fit = (kFloorMembers + 1) * video::kFloorSubstepsPerFrame / fit_substeps + 2;
 
     Progress progress(global, "fit cloth");
     const InterruptWatch interrupt;

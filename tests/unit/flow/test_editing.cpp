@@ -269,13 +269,28 @@ TEST(FlowEditing, TimeVaryingOutputLinesFollowTheirKeys) {
     }
 }
 
+namespace {
+
+// Three vertical input lines at x = 20, 35, 50 (y 10..110) with a bank of
+// 10 particles each, and a 120 x 120 drawing holding them as in-0..in-2.
+struct ThreeVerticalInputs {
+    std::vector<double> xs = {20, 35, 50};
+    ParticleStreams streams{vertical_bank(xs, 10.0, 110.0, 10, [](int l, double, double) { return 0.2f + 0.3f * l; }),
+                            vertical_lines(xs, 10.0, 110.0), SynthesisSettings{}};
+    formats::FlowLineSet drawing = [this] {
+        formats::FlowLineSet d;
+        d.width = d.height = 120;
+        for (std::size_t i = 0; i < xs.size(); ++i) d.inputs.push_back(line("in-" + std::to_string(i), {{xs[i], 10.0}, {xs[i], 110.0}}));
+        return d;
+    }();
+};
+
+}  // namespace
+
 TEST(FlowEditing, DensePlanRoundTripsThroughSvgAndJson) {
-    const std::vector<double> xs = {20, 35, 50};
-    auto bank = vertical_bank(xs, 10.0, 110.0, 10, [](int l, double, double) { return 0.2f + 0.3f * l; });
-    const ParticleStreams streams(bank, vertical_lines(xs, 10.0, 110.0), SynthesisSettings{});
-    formats::FlowLineSet drawing;
-    drawing.width = drawing.height = 120;
-    for (std::size_t i = 0; i < xs.size(); ++i) drawing.inputs.push_back(line("in-" + std::to_string(i), {{xs[i], 10.0}, {xs[i], 110.0}}));
+    const ThreeVerticalInputs setup;
+    const ParticleStreams& streams = setup.streams;
+    formats::FlowLineSet drawing = setup.drawing;
     drawing.outputs.push_back(line("left", {{30.0, 10.0}, {26.0, 110.0}}, "in-0"));
     drawing.outputs.push_back(line("right", {{54.0, 10.0}, {60.0, 110.0}}, "in-2"));
     EditSettings edit;
@@ -297,12 +312,9 @@ TEST(FlowEditing, DensePlanRoundTripsThroughSvgAndJson) {
 // needs the same point count (regression: the count followed each frame's
 // lengths, and rendering refused the line).
 TEST(FlowEditing, LinesBetweenMovingLinesKeepOnePointCountPerLine) {
-    const std::vector<double> xs = {20, 35, 50};
-    auto bank = vertical_bank(xs, 10.0, 110.0, 10, [](int l, double, double) { return 0.2f + 0.3f * l; });
-    const ParticleStreams streams(bank, vertical_lines(xs, 10.0, 110.0), SynthesisSettings{});
-    formats::FlowLineSet drawing;
-    drawing.width = drawing.height = 120;
-    for (std::size_t i = 0; i < xs.size(); ++i) drawing.inputs.push_back(line("in-" + std::to_string(i), {{xs[i], 10.0}, {xs[i], 110.0}}));
+    const ThreeVerticalInputs setup;
+    const ParticleStreams& streams = setup.streams;
+    formats::FlowLineSet drawing = setup.drawing;
     formats::FlowLine left, right;
     left.id = "left";
     left.from = "in-0";
