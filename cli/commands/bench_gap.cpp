@@ -44,6 +44,7 @@ struct BenchGapOptions {
     std::string score_dir;
     DiagnoseClothOptions diagnose;
     gap::BenchSettings bench;
+    std::string footage_integrator = "implicit";
     int threads = 0;
 };
 
@@ -140,8 +141,10 @@ int generate(const BenchGapOptions& options, const GlobalOptions& global) {
                                      {"version", 1},
                                      {"seed", options.seed},
                                      {"footage_mesh", std::to_string(settings.rows) + "x" + std::to_string(settings.cols)},
+                                     {"footage_integrator", options.footage_integrator},
                                      {"footage_substeps_per_frame", settings.implicit_substeps},
                                      {"frames", settings.frames},
+                                     {"strength", settings.strength},
                                      {"cases", labels}};
     formats::write_file_atomically((fs::path(options.out) / "labels.json").string(),
                                    [&](std::ostream& o) { o << document.dump(2) << '\n'; });
@@ -325,12 +328,34 @@ const RegisterCommand bench_registration{Command{
                         "rigid.toss capture whose body and camera rigid cases use (repeat; adds air_drag and inertia_error)");
         gap->add_option("--effects", options->effects, "effects to draw from (default: every cloth and camera effect)")->delimiter(',');
         gap->add_option("--frames", options->bench.frames, "frames per case")->check(CLI::Range(4, 1000))->capture_default_str();
+        std::vector<std::string> integrator_names;
+        for (const auto& [name, value] : integrators()) integrator_names.push_back(name);
+        gap->add_option("--footage-integrator", options->footage_integrator, "integrator the cases are made with")
+            ->check(CLI::IsMember(integrator_names))
+            ->capture_default_str();
+        gap->add_option("--footage-substeps", options->bench.implicit_substeps, "the footage's steps per frame (implicit integrators)")
+            ->check(CLI::Range(1, 1000))
+            ->capture_default_str();
+        gap->add_option("--strength", options->bench.strength,
+                        "multiplies every drawn effect magnitude (1: log-uniform over what a swatch test meets)")
+            ->check(CLI::Range(0.01, 100.0))
+            ->capture_default_str();
+        gap->add_option("--none-share", options->bench.none_share, "share of effect-free cases")
+            ->check(CLI::Range(0.0, 1.0))
+            ->capture_default_str();
+        gap->add_option("--integrator", options->diagnose.run.integrator, "the diagnoser's integrator (with --diagnose)")
+            ->check(CLI::IsMember(integrator_names))
+            ->capture_default_str();
+        gap->add_option("--substeps", options->diagnose.substeps_per_frame, "the diagnoser's steps per frame (implicit integrators)")
+            ->check(CLI::Range(1, 1000))
+            ->capture_default_str();
         gap->add_option("--diagnose", options->diagnose_dir, "diagnose every case of a bench folder, then score");
         gap->add_option("--score", options->score_dir, "score a diagnosed bench folder");
         gap->add_option("--threads", options->threads, "threads (0 = all cores)")->capture_default_str();
         return [options](const GlobalOptions& global) {
             options->diagnose.run.threads = options->threads;
             options->diagnose.frames = options->bench.frames;
+            options->bench.integrator = integrators().at(options->footage_integrator);
             return run_bench_gap(*options, global);
         };
     }}};

@@ -148,12 +148,16 @@ std::unique_ptr<gap::GapModel> cloth_gap_model(const std::vector<std::string>& c
     }
     gap::ClothGapSettings settings;
     settings.fit.swatch = *swatch;
+    settings.fit.swatch.simulation.implicit_substeps_per_frame = options.substeps_per_frame;
     settings.threads = thread_count(options.run.threads);
     settings.floor_resolution_step = options.floor_resolution_step;
+    if (options.floor == "chaos") settings.floor = video::FloorSettings{settings.floor.members, 1e-6, 5e-4, 1};
     model_summary = {{"preset", preset_path},
                      {"resolution", options.run.resolution},
                      {"integrator", options.run.integrator},
+                     {"substeps_per_frame", options.substeps_per_frame},
                      {"frames", options.frames},
+                     {"floor", options.floor},
                      {"floor_members", settings.floor.members},
                      {"floor_resolution_step", settings.floor_resolution_step}};
     return std::make_unique<gap::ClothGapModel>(std::move(trials), cloth::material_from_fabric(preset.parameters), settings);
@@ -270,6 +274,15 @@ const RegisterCommand registration{Command{
         app.add_option("--floor-resolution-step", options->cloth.floor_resolution_step,
                        "the floor also holds a run on a mesh this many rows and columns finer (0: none)")
             ->check(CLI::Range(0, 64))
+            ->capture_default_str();
+        app.add_option("--floor", options->cloth.floor,
+                       "repeatability: how far repeated takes of the experiment spread (a pixel's start jitter, 20 "
+                       "substeps a frame; what eval cloth reports); chaos: the model's own steps and a 0.5 mm jitter "
+                       "(much tighter: mesh and step differences then count as gaps)")
+            ->check(CLI::IsMember({"repeatability", "chaos"}))
+            ->capture_default_str();
+        app.add_option("--substeps", options->cloth.substeps_per_frame, "steps per frame of the implicit integrators")
+            ->check(CLI::Range(1, 1000))
             ->capture_default_str();
         app.add_option("--gap-threshold", options->settings.gap_threshold,
                        "held-out error over floor (mean per frame) above which a gap is structural")

@@ -34,14 +34,19 @@ double draw(std::mt19937_64& random, double lo, double hi, bool signed_value = f
     return signed_value && u(random) < 0.5 ? -magnitude : magnitude;
 }
 
-EffectValues draw_values(const std::string& name, std::mt19937_64& random) {
+// Magnitudes are log-uniform over what a swatch test can meet, times
+// `strength`; rates and angles of direction are not scaled.
+EffectValues draw_values(const std::string& name, double strength, std::mt19937_64& random) {
     const Effect& effect = find_effect(name);
     Eigen::VectorXd v = neutral_values(effect);
     std::uniform_real_distribution<double> u(0.0, 1.0);
+    const auto magnitude = [&](double lo, double hi, bool signed_value = false) {
+        return strength * draw(random, lo, hi, signed_value);
+    };
     if (name == "drag_nonlinear") {
         v << 0.0, 0.0;  // the fabric's own nonlinear drag (bench_base_material drops it from the base)
     } else if (name == "wind") {
-        const double speed = draw(random, 0.3, 3.0), heading = 2.0 * std::numbers::pi * u(random);
+        const double speed = magnitude(0.3, 3.0), heading = 2.0 * std::numbers::pi * u(random);
         v(0) = speed * std::cos(heading);
         v(1) = speed * std::sin(heading);
         v(2) = 0.0;
@@ -50,32 +55,35 @@ EffectValues draw_values(const std::string& name, std::mt19937_64& random) {
             v(4) = draw(random, 0.5, 2.0);
         }
     } else if (name == "anisotropy") {
-        v(0) = draw(random, 0.3, 1.5, true);
-        v(1) = draw(random, 0.1, 0.7, true);
+        v(0) = magnitude(0.3, 1.5, true);
+        v(1) = magnitude(0.1, 0.7, true);
     } else if (name == "hysteresis") {
-        v(0) = draw(random, 0.5, 15.0);
+        v(0) = magnitude(0.5, 15.0);
     } else if (name == "pin_lag") {
-        v(0) = draw(random, 0.02, 0.13, true);
+        v(0) = magnitude(0.02, 0.13, true);
     } else if (name == "pin_slip") {
-        v(0) = draw(random, 0.005, 0.06);
+        v(0) = magnitude(0.005, 0.06);
     } else if (name == "camera_roll") {
-        v(0) = draw(random, 0.005, 0.08, true);
+        v(0) = magnitude(0.005, 0.08, true);
     } else if (name == "lens_distortion") {
-        v(0) = draw(random, 0.02, 0.4, true);
-        v(1) = u(random) < 0.5 ? 0.0 : draw(random, 0.02, 0.2, true);
+        v(0) = magnitude(0.02, 0.4, true);
+        v(1) = u(random) < 0.5 ? 0.0 : magnitude(0.02, 0.2, true);
     } else if (name == "rolling_shutter") {
-        v(0) = draw(random, 0.004, 0.033, true);
+        v(0) = magnitude(0.004, 0.033, true);
     } else if (name == "motion_blur") {
-        v(0) = draw(random, 0.004, 0.033);
+        v(0) = magnitude(0.004, 0.033);
     } else if (name == "air_drag") {
-        v(0) = draw(random, 0.02, 0.5);
-        v(1) = u(random) < 0.5 ? 0.0 : draw(random, 0.2, 3.0);
+        v(0) = magnitude(0.02, 0.5);
+        v(1) = u(random) < 0.5 ? 0.0 : magnitude(0.2, 3.0);
     } else if (name == "inertia_error") {
-        v(0) = draw(random, 0.05, 0.4, true);
-        v(1) = draw(random, 0.05, 0.4, true);
+        v(0) = magnitude(0.05, 0.4, true);
+        v(1) = magnitude(0.05, 0.4, true);
     } else {
         throw std::invalid_argument("flowvid bench gap cannot make cases of '" + name + "'");
     }
+    // Keep within the catalogue's ranges (what the diagnoser can fit).
+    for (std::size_t i = 0; i < effect.parameters.size(); ++i)
+        v(static_cast<Eigen::Index>(i)) = std::clamp(v(static_cast<Eigen::Index>(i)), effect.parameters[i].lower, effect.parameters[i].upper);
     return {{name, v}};
 }
 
@@ -131,7 +139,7 @@ cloth::SwatchOptions fine_options(const BenchSettings& settings, const formats::
     cloth::SwatchOptions options;
     options.rows = settings.rows;
     options.cols = settings.cols;
-    options.simulation.integrator = cloth::Integrator::implicit_euler;
+    options.simulation.integrator = settings.integrator;
     options.simulation.implicit_substeps_per_frame = settings.implicit_substeps;
     options.simulation.threads = std::max(1, threads);
     if (scene.world && scene.world->gravity_m_per_s2) options.environment.gravity_m_per_s2 = *scene.world->gravity_m_per_s2;
@@ -174,7 +182,7 @@ std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scene
             c.rigid = rigid_effects > 0 && u(random) * static_cast<double>(effects.size()) < rigid_effects;
         } else {
             c.effect = order[next++ % order.size()];
-            c.values = draw_values(c.effect, random);
+            c.values = draw_values(c.effect, settings.strength, random);
             c.rigid = find_effect(c.effect).domain == EffectDomain::rigid;
         }
         if (c.rigid) c.scene = static_cast<int>(u(random) * rigid_scenes) % rigid_scenes;

@@ -8,6 +8,7 @@
 // them apart from the cases: nothing in a case folder names its effect.
 
 #include "flowvid/cloth/material.hpp"
+#include "flowvid/cloth/simulator.hpp"
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/gap/effects.hpp"
 
@@ -30,10 +31,12 @@ struct BenchCase {
 struct BenchSettings {
     int rows = 24;                 // the footage maker's mesh (the diagnoser's default is 16x16)
     int cols = 24;
-    int implicit_substeps = 10;    // per frame (the diagnoser's default is 5)
+    cloth::Integrator integrator = cloth::Integrator::implicit_euler;  // the footage maker's
+    int implicit_substeps = 10;    // per frame, for an implicit integrator (the diagnoser's default is 5)
     int frames = 30;
     double noise_sigma = 1.0 / 255.0;  // per pixel, after the sRGB encoding, correlated over 3x3 pixels
     double none_share = 0.25;
+    double strength = 1.0;         // multiplies every drawn effect magnitude (not rates or directions)
     std::vector<std::string> effects;  // drawn from (empty: every cloth and camera effect, and the rigid ones with rigid scenes)
 };
 
