@@ -45,6 +45,8 @@ struct BenchGapOptions {
     DiagnoseClothOptions diagnose;
     gap::BenchSettings bench;
     std::string footage_integrator = "implicit";
+    std::string footage_resolution = "24x24";
+    bool oracle = false;  // score: also the gap the true effect closes in the diagnoser's model
     int threads = 0;
 };
 
@@ -211,14 +213,41 @@ double median(std::vector<double> v) {
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-int score(const std::string& dir) {
+gap::EffectValues values_from_json(const std::string& name, const nlohmann::json& values) {
+    const gap::Effect& effect = gap::find_effect(name);
+    Eigen::VectorXd v = gap::neutral_values(effect);
+    for (std::size_t i = 0; i < effect.parameters.size(); ++i)
+        if (values.contains(effect.parameters[i].key)) v(static_cast<Eigen::Index>(i)) = values.at(effect.parameters[i].key).get<double>();
+    return {{name, v}};
+}
+
+// The share of the held-out gap the hidden effect itself, at its true values,
+// closes in the diagnoser's model: the most any diagnosis could close, the
+// rest being the model's own discretisation against the footage's.
+double oracle_gap_closed(const std::string& folder, const std::string& effect, const nlohmann::json& values,
+                         const BenchGapOptions& options) {
+    nlohmann::json ignored;
+    const bool rigid = formats::read_capture(folder).is_rigid();
+    const std::unique_ptr<gap::GapModel> model =
+        rigid ? rigid_gap_model({folder}, "", thread_count(options.threads), ignored)
+              : cloth_gap_model({folder}, folder + "/base.fabric.json", options.diagnose, ignored);
+    if (!model) return std::nan("");
+    const gap::Residuals base = model->evaluate({}), truth = model->evaluate(values_from_json(effect, values));
+    int held_out = 0;
+    for (const gap::FrameResidual& f : base.frames) held_out += f.held_out ? 1 : 0;
+    const double gap = gap::held_out_score(base) - held_out;
+    return gap > 0.0 ? (gap::held_out_score(base) - gap::held_out_score(truth)) / gap : std::nan("");
+}
+
+int score(const std::string& dir, const BenchGapOptions& options) {
     const nlohmann::json labels = nlohmann::json::parse(formats::read_text_file((fs::path(dir) / "labels.json").string()));
     struct Tally {
         int cases = 0, correct = 0;
     };
     std::map<std::string, Tally> by_effect, by_bin;
     Tally strong, none, any_gap_on_none;
-    std::vector<double> closed_named, closed_strong;
+    std::vector<double> closed_named, closed_strong, oracle_strong;
+    nlohmann::json oracle_by_case = nlohmann::json::object();
     int missing = 0;
     for (const nlohmann::json& label : labels.at("cases")) {
         const std::string id = label.at("case");
@@ -253,6 +282,11 @@ int score(const std::string& dir) {
             strong.cases++;
             strong.correct += correct ? 1 : 0;
             closed_strong.push_back(gap_closed);
+            if (options.oracle) {
+                const double oracle = oracle_gap_closed((fs::path(dir) / "cases" / id).string(), effect, label.at("values"), options);
+                if (std::isfinite(oracle)) oracle_strong.push_back(oracle);
+                oracle_by_case[id] = std::isfinite(oracle) ? nlohmann::json(oracle) : nlohmann::json();
+            }
         }
     }
     const auto percent = [](const Tally& t) { return t.cases ? 100.0 * t.correct / t.cases : std::nan(""); };
@@ -275,6 +309,13 @@ int score(const std::string& dir) {
     std::printf("median held-out gap closed: %.2f over effects >= 4x noise (0 when not named; goal >= 0.80), %.2f over "
                 "correctly named cases\n",
                 median(closed_strong), median(closed_named));
+    if (options.oracle) {
+        std::printf("median held-out gap the true effect closes in the diagnoser's model (the most a diagnosis can close): "
+                    "%.2f over effects >= 4x noise\n",
+                    median(oracle_strong));
+        out["oracle_gap_closed_strong"] = oracle_by_case;
+        out["median_oracle_gap_closed_strong"] = std::isfinite(median(oracle_strong)) ? nlohmann::json(median(oracle_strong)) : nlohmann::json();
+    }
     out["strong"] = {{"correct", strong.correct}, {"cases", strong.cases}};
     out["false_alarms"] = {{"named", none.correct}, {"cases", none.cases}, {"gap_detected", any_gap_on_none.correct}};
     out["median_gap_closed_strong"] = std::isfinite(median(closed_strong)) ? nlohmann::json(median(closed_strong)) : nlohmann::json();
@@ -293,9 +334,9 @@ int run_bench_gap(const BenchGapOptions& options, const GlobalOptions& global) {
     if (!options.diagnose_dir.empty()) {
         const int status = diagnose_all(options, global);
         if (status != kExitOk) return status;
-        return score(options.diagnose_dir);
+        return score(options.diagnose_dir, options);
     }
-    return score(options.score_dir);
+    return score(options.score_dir, options);
 }
 
 }  // namespace
@@ -312,11 +353,14 @@ const RegisterCommand bench_registration{Command{
             "(10 substeps per frame) than the diagnoser uses (16x16, 5), each with one hidden effect or none\n"
             "(about a quarter), strengths drawn log-uniformly, filmed with stripes and sensor noise; with\n"
             "--rigid-scene also rigid tosses (RK4 at 1/960 s against the diagnoser's 1/240 s) with air drag or\n"
-            "an inertia error. Labels go to DIR/labels.json, which only --score reads.\n\n"
+            "an inertia error. Labels go to DIR/labels.json, which only --score reads. A label's effect-to-noise\n"
+            "is the effect alone (the exact effect-free model at the footage's own mesh) in units of the\n"
+            "repeatability floor the diagnoser uses; --strength scales every drawn magnitude to fill the bins.\n\n"
             "Examples:\n"
             "  flowvid bench gap --cases 40 --seed 7 --out gapbench \\\n"
             "      --scene ../shared/captures/cloth-cotton-waving-1 --scene ../shared/captures/cloth-silk-waving-2 \\\n"
             "      --fabric cotton.fabric.json --fabric silk.fabric.json\n"
+            "  flowvid bench gap --cases 12 --strength 4 --out strong ...   # effects four times as strong\n"
             "  flowvid bench gap --diagnose gapbench     # diagnoses every case (resumable), then scores\n"
             "  flowvid bench gap --score gapbench");
         gap->add_option("--cases", options->cases, "cases to make")->check(CLI::Range(1, 10000))->capture_default_str();
@@ -333,6 +377,8 @@ const RegisterCommand bench_registration{Command{
         gap->add_option("--footage-integrator", options->footage_integrator, "integrator the cases are made with")
             ->check(CLI::IsMember(integrator_names))
             ->capture_default_str();
+        gap->add_option("--footage-resolution", options->footage_resolution, "the footage's mesh, RxC (finer than the diagnoser's)")
+            ->capture_default_str();
         gap->add_option("--footage-substeps", options->bench.implicit_substeps, "the footage's steps per frame (implicit integrators)")
             ->check(CLI::Range(1, 1000))
             ->capture_default_str();
@@ -346,16 +392,25 @@ const RegisterCommand bench_registration{Command{
         gap->add_option("--integrator", options->diagnose.run.integrator, "the diagnoser's integrator (with --diagnose)")
             ->check(CLI::IsMember(integrator_names))
             ->capture_default_str();
+        gap->add_option("--resolution", options->diagnose.run.resolution, "the diagnoser's mesh, RxC (with --diagnose)")
+            ->capture_default_str();
         gap->add_option("--substeps", options->diagnose.substeps_per_frame, "the diagnoser's steps per frame (implicit integrators)")
             ->check(CLI::Range(1, 1000))
             ->capture_default_str();
         gap->add_option("--diagnose", options->diagnose_dir, "diagnose every case of a bench folder, then score");
         gap->add_option("--score", options->score_dir, "score a diagnosed bench folder");
+        gap->add_flag("--oracle", options->oracle,
+                      "with --score: also simulate each strong case's true effect in the diagnoser's model (the share of "
+                      "the gap any diagnosis could close; the rest is discretisation)");
         gap->add_option("--threads", options->threads, "threads (0 = all cores)")->capture_default_str();
         return [options](const GlobalOptions& global) {
             options->diagnose.run.threads = options->threads;
             options->diagnose.frames = options->bench.frames;
             options->bench.integrator = integrators().at(options->footage_integrator);
+            const std::optional<std::pair<int, int>> footage = parse_grid(options->footage_resolution, "--footage-resolution");
+            if (!footage) return static_cast<int>(kExitUsage);
+            options->bench.rows = footage->first;
+            options->bench.cols = footage->second;
             return run_bench_gap(*options, global);
         };
     }}};

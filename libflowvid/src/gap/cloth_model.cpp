@@ -266,7 +266,11 @@ cloth::SwatchRun ClothGapModel::run_scenario(std::size_t trial, const ClothScena
     return cloth::simulate_swatch(scenario.experiment, scenario.material, options);
 }
 
-Residuals ClothGapModel::evaluate(const EffectValues& effects) const { return evaluate_material(m_base, effects); }
+Residuals ClothGapModel::evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>& base) const {
+    cloth::ClothMaterial material = m_base;
+    for (const BaseParameterChange& change : base) video::set_material_parameter(material, change.key, change.after);
+    return evaluate_material(material, effects);
+}
 
 Residuals ClothGapModel::evaluate_material(const cloth::ClothMaterial& material, const EffectValues& effects) const {
     Residuals out;

@@ -108,8 +108,8 @@ struct Screened {
 // (both sides when the range allows, else two steps out); the reduction a
 // quadratic through them predicts, or the best sampled one. An effect's
 // score is its best parameter's.
-Screened screen(const GapModel& model, const std::string& name, const EffectValues& fixed, double base_score,
-                long long& evaluations) {
+Screened screen(const GapModel& model, const std::string& name, const EffectValues& fixed,
+                const std::vector<BaseParameterChange>& base, double base_score, long long& evaluations) {
     const Effect& effect = find_effect(name);
     Screened out;
     out.best = fixed;
@@ -125,7 +125,7 @@ Screened screen(const GapModel& model, const std::string& name, const EffectValu
             EffectValues trial = fixed;
             trial[name] = neutral_values(effect);
             trial[name](static_cast<Eigen::Index>(i)) = p.neutral + offsets[static_cast<std::size_t>(s)];
-            const Residuals r = model.evaluate(trial);
+            const Residuals r = model.evaluate(trial, base);
             ++evaluations;
             scores[static_cast<std::size_t>(s)] = r.ok ? training_score(r) : std::numeric_limits<double>::infinity();
         }
@@ -252,13 +252,12 @@ Diagnosis diagnose(const GapModel& model, const DiagnoseSettings& settings) {
         const double round_start = 0.15 + 0.8 * round / settings.max_effects;
         const double round_span = 0.8 / settings.max_effects;
         std::vector<CandidateEvidence> evidence;
-        // Screening steps away from the current model: the base itself in the
-        // first round, the named effects at their fitted values after.
-        double current_score = training_score(d.base);
-        if (!named_values.empty()) {
-            current_score = training_score(model.evaluate(named_values));
-            ++d.evaluations;
-        }
+        // Screening steps away from the model an effect must beat: the null
+        // refit in the first round (the base parameters refitted alone absorb
+        // what they can, e.g. a different discretisation's damping, so that
+        // what is left shows the effect's own signature), the named effects
+        // at their fitted values after.
+        const double current_score = training_score(current);
         int index = 0;
         for (const std::string& name : names) {
             if (named_values.count(name)) continue;
@@ -268,7 +267,7 @@ Diagnosis diagnose(const GapModel& model, const DiagnoseSettings& settings) {
             const Effect& effect = find_effect(name);
             c.domain = domain_name(effect.domain);
             c.equivalence_class = effect.equivalence_class;
-            const Screened s = screen(model, name, named_values, current_score, d.evaluations);
+            const Screened s = screen(model, name, named_values, current_refit.base, current_score, d.evaluations);
             c.screen_score = s.score;
             c.screened = s.best;
             c.gap_closed = kNaN;

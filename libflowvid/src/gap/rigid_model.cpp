@@ -562,9 +562,9 @@ Residuals RigidGapModel::residuals_of(const FlightEffects& effects, const std::v
     return out;
 }
 
-Residuals RigidGapModel::evaluate(const EffectValues& effects) const {
+Residuals RigidGapModel::evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>& base) const {
     const FlightEffects terms = flight_effects(effects);
-    std::vector<FlightParameters> parameters = base_parameters();
+    std::vector<FlightParameters> parameters = starting_parameters(base);
     std::string reason;
     if (m_settings.refit_initial_state) {
         const Profile p = profiles({terms}, parameters, true).front();

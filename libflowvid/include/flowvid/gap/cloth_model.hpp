@@ -68,7 +68,7 @@ public:
     std::vector<std::string> trial_names() const override;
     std::vector<std::string> candidate_effects() const override;
     std::vector<std::string> base_parameter_keys() const override { return m_settings.refit_base; }
-    Residuals evaluate(const EffectValues& effects) const override;
+    Residuals evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>& base = {}) const override;
     RefitResult refit(const EffectValues& start, int max_evaluations,
                       const std::vector<BaseParameterChange>& base_start = {}) const override;
     std::vector<RegionMap> localise(const EffectValues& effects) const override;

@@ -83,7 +83,9 @@ public:
     // parameters as fitted -- except initial conditions, which any effect
     // shifts: a model whose base is initial conditions (rigid tosses) re-fits
     // them on the training frames for the effects. Deterministic.
-    virtual Residuals evaluate(const EffectValues& effects) const = 0;
+    // With `base`, the base parameters take those changes' `after` values
+    // (e.g. a refit's): screening then steps away from that model.
+    virtual Residuals evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>& base = {}) const = 0;
     // Refits the effects in `start` (their parameters, from these values)
     // jointly with the base parameters (from `base_start`'s `after` values
     // where given, else as fitted), on training frames only.

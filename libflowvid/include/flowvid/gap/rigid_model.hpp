@@ -116,7 +116,7 @@ public:
     // angular_velocity_{x,y,z}_rad_per_s, gravity_tilt_rad, gravity_roll_rad:
     // all at the trial's reference frame (the fit's first frame).
     std::vector<std::string> base_parameter_keys() const override;
-    Residuals evaluate(const EffectValues& effects) const override;
+    Residuals evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>& base = {}) const override;
     // Compass search over the effects' parameters in `start` (within their
     // catalogue ranges, steps from their screen steps) minimising
     // training_score, each point scored by re-fitting every trial's flight
