@@ -221,8 +221,8 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
 // capture made with one unmodelled effect (which one is not given to the
 // diagnoser). The base is the bundled preset fitted to the whole public
 // cotton captures (data/demo/cotton-full-fit.fabric.json): the fabric
-// stage's quick fit (24 frames, 16 x 16) misses the footage by hundreds of
-// times the floor, more than any single effect can explain, and the
+// stage's quick fit (24 frames, 16 x 16) misses the footage by far more than
+// the effect does, more than any single effect can explain, and the
 // diagnosis rightly calls such a gap unexplained.
 int run_diagnosis_stage(const DemoOptions& options, const GlobalOptions& global) {
     const fs::path out = fs::path(options.out) / "diagnosis";

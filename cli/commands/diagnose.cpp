@@ -249,11 +249,12 @@ const RegisterCommand registration{Command{
         options->cloth.run.resolution = "16x16";
         app.footer(
             "Cloth: simulates the fitted fabric in each capture's experiment and compares every frame with the\n"
-            "footage in units of its floor (what chaos and the mesh leave even for a perfect model).\n"
-            "Frames alternate in blocks of 5 between training and held out. When the held-out residual\n"
-            "is beyond --gap-threshold times the floor, every catalogue effect is screened, the most\n"
-            "promising are refitted jointly with the fabric's bend, stretch and drag on training\n"
-            "frames, and one is named only when it beats the fabric refitted alone on held-out frames by\n"
+            "footage in units of its floor (how far repeated takes of the experiment spread: what even a\n"
+            "perfect model leaves). Frames alternate in blocks of 5 between training and held out. When\n"
+            "the held-out residual is beyond --gap-threshold times the floor, the fabric's bend, stretch\n"
+            "and drag are refitted alone on training frames (the null refit), every catalogue effect is\n"
+            "screened from there, the most promising are refitted jointly with the fabric, and one is\n"
+            "named only when it beats the null refit on held-out frames by\n"
             "a clear share of the gap, with a strong BIC margin, in most bootstrap resamples.\n"
             "Effects: drag_nonlinear wind anisotropy hysteresis pin_lag pin_slip camera_roll\n"
             "lens_distortion rolling_shutter motion_blur (rigid: air_drag inertia_error).\n"

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <stdexcept>
 
 namespace flowvid::video {
 
@@ -114,6 +115,13 @@ PredictabilityFloor floor_around(const ClothTrial& trial, const cloth::ClothMate
     out.implicit_substeps_per_frame = implicit ? settings.swatch.simulation.implicit_substeps_per_frame : 0;
     out.jitter_m = floor.jitter_m ? *floor.jitter_m : pixel_footprint_m(trial.camera, nominal.simulation.frames.front());
     const int frames = usable_frames(nominal);
+    int needed = 0;
+    for (const metrics::ReferenceFrame& reference : trial.frames) needed = std::max(needed, reference.number);
+    if (frames < needed)
+        throw std::runtime_error("predictability floor of " + trial.name + ": the unperturbed run stopped at frame " +
+                                 std::to_string(frames) + " of " + std::to_string(needed) + " (" +
+                                 (nominal.simulation.report.reason.empty() ? std::string("no frames") : nominal.simulation.report.reason) +
+                                 "); more substeps per frame or a coarser mesh may let it through");
     const cloth::GridFrames nominal_grid = cloth::sample_frames(nominal.swatch.mesh,
         std::vector<Eigen::VectorXd>(nominal.simulation.frames.begin(), nominal.simulation.frames.begin() + frames),
         nominal.swatch.rows, nominal.swatch.cols);
