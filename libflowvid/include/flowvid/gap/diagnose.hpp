@@ -7,7 +7,8 @@
 //     structural gap", and no effect is named (this keeps false alarms down).
 //  2. Where: the residual per frame (beside what drives the motion), per
 //     region (GapModel::localise) and per frequency.
-//  3. Which: every candidate effect is screened cheaply (a quadratic through
+//  3. Which: the base parameters are refitted alone (the null refit); from
+//     there every candidate effect is screened cheaply (a quadratic through
 //     the training score at the neutral value and two steps, per parameter:
 //     the reduction it predicts); the most promising are refitted jointly with
 //     the base parameters on training frames. A candidate is named when, on
