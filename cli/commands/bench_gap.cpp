@@ -252,15 +252,15 @@ int score(const std::string& dir, const BenchGapOptions& options) {
     for (const nlohmann::json& label : labels.at("cases")) {
         const std::string id = label.at("case");
         const fs::path result = fs::path(dir) / "results" / id / "diagnosis.json";
+        // The oracle needs no diagnosis: the ceiling of a diagnoser setting
+        // can be measured before (or instead of) running it.
+        if (options.oracle && label.at("effect") != "none" && label.at("effect_to_noise").get<double>() >= 4.0) {
+            const double oracle = oracle_gap_closed((fs::path(dir) / "cases" / id).string(), label.at("effect"), label.at("values"), options);
+            if (std::isfinite(oracle)) oracle_strong.push_back(oracle);
+            oracle_by_case[id] = std::isfinite(oracle) ? nlohmann::json(oracle) : nlohmann::json();
+        }
         if (!fs::exists(result)) {
             ++missing;
-            // The oracle needs no diagnosis: the ceiling of a diagnoser
-            // setting can be measured before (or instead of) running it.
-            if (options.oracle && label.at("effect") != "none" && label.at("effect_to_noise").get<double>() >= 4.0) {
-                const double oracle = oracle_gap_closed((fs::path(dir) / "cases" / id).string(), label.at("effect"), label.at("values"), options);
-                if (std::isfinite(oracle)) oracle_strong.push_back(oracle);
-                oracle_by_case[id] = std::isfinite(oracle) ? nlohmann::json(oracle) : nlohmann::json();
-            }
             continue;
         }
         const nlohmann::json d = nlohmann::json::parse(formats::read_text_file(result.string()));
@@ -289,11 +289,6 @@ int score(const std::string& dir, const BenchGapOptions& options) {
             strong.cases++;
             strong.correct += correct ? 1 : 0;
             closed_strong.push_back(gap_closed);
-            if (options.oracle) {
-                const double oracle = oracle_gap_closed((fs::path(dir) / "cases" / id).string(), effect, label.at("values"), options);
-                if (std::isfinite(oracle)) oracle_strong.push_back(oracle);
-                oracle_by_case[id] = std::isfinite(oracle) ? nlohmann::json(oracle) : nlohmann::json();
-            }
         }
     }
     const auto percent = [](const Tally& t) { return t.cases ? 100.0 * t.correct / t.cases : std::nan(""); };

@@ -90,6 +90,12 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
 
 int run_shards(const FitClothOptions& options, const GlobalOptions& global, video::ClothFitRequest request);
 
+// How the reported floor's runs are integrated (video::reported_floor).
+std::string reported_floor_integrator() {
+    return std::string(cloth::integrator_name(cloth::Integrator::implicit_euler)) + ", " +
+           std::to_string(video::kFloorSubstepsPerFrame) + " substeps a frame";
+}
+
 // Each trial's final error next to its predictability floor (a small
 // ensemble at the fitted fabric, with its uncertainty, at the steps the
 // commands report floors with, inside the budget): an error near the floor is
@@ -164,7 +170,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
                               {"start_error", outcome.start_evaluation.total},
                               {"final_error", outcome.final_evaluation.total},
                               {"final_error_floor", total_floor},
-                              {"floor_integrator", "implicit_euler, " + std::to_string(video::kFloorSubstepsPerFrame) + " substeps a frame"},
+                              {"floor_integrator", reported_floor_integrator()},
                               {"trials", trials},
                               {"evaluations", outcome.evaluations},
                               {"simulations", outcome.simulations},
@@ -356,7 +362,7 @@ int merge_cloth(const MergeRequest& merge, const GlobalOptions& global) {
                                     {"shard_errors", shard_errors},
                                     {"final_error", outcome.final_evaluation.total},
                                     {"final_error_floor", total_floor},
-                                    {"floor_integrator", "implicit_euler, " + std::to_string(video::kFloorSubstepsPerFrame) + " substeps a frame"},
+                                    {"floor_integrator", reported_floor_integrator()},
                                     {"trials", trials},
                                     {"evaluations", evaluations},
                                     {"variability_runs", outcome.variability_runs_planned},
