@@ -396,6 +396,10 @@ const RegisterCommand bench_registration{Command{
             ->capture_default_str();
         gap->add_option("--resolution", options->diagnose.run.resolution, "the diagnoser's mesh, RxC (with --diagnose)")
             ->capture_default_str();
+        gap->add_option("--silhouette-weight", options->diagnose.silhouette_weight,
+                        "the diagnoser's silhouette weight (with --diagnose or --oracle; labels are measured with the default)")
+            ->check(CLI::NonNegativeNumber)
+            ->capture_default_str();
         gap->add_option("--substeps", options->diagnose.substeps_per_frame, "the diagnoser's steps per frame (implicit integrators)")
             ->check(CLI::Range(1, 1000))
             ->capture_default_str();

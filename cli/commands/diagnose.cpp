@@ -149,9 +149,15 @@ std::unique_ptr<gap::GapModel> cloth_gap_model(const std::vector<std::string>& c
     gap::ClothGapSettings settings;
     settings.fit.swatch = *swatch;
     settings.fit.swatch.simulation.implicit_substeps_per_frame = options.substeps_per_frame;
+    settings.fit.metric.alpha = options.silhouette_weight;
     settings.threads = thread_count(options.run.threads);
     settings.floor_resolution_step = options.floor_resolution_step;
-    if (options.floor == "chaos") settings.floor = video::FloorSettings{settings.floor.members, 1e-6, 5e-4, 1};
+    if (options.floor == "chaos") {  // the model's own steps, a 0.5 mm start jitter
+        video::FloorSettings chaos;
+        chaos.members = settings.floor.members;
+        chaos.jitter_m = 5e-4;
+        settings.floor = chaos;
+    }
     model_summary = {{"preset", preset_path},
                      {"resolution", options.run.resolution},
                      {"integrator", options.run.integrator},
@@ -159,7 +165,8 @@ std::unique_ptr<gap::GapModel> cloth_gap_model(const std::vector<std::string>& c
                      {"frames", options.frames},
                      {"floor", options.floor},
                      {"floor_members", settings.floor.members},
-                     {"floor_resolution_step", settings.floor_resolution_step}};
+                     {"floor_resolution_step", settings.floor_resolution_step},
+                     {"silhouette_weight", options.silhouette_weight}};
     return std::make_unique<gap::ClothGapModel>(std::move(trials), cloth::material_from_fabric(preset.parameters), settings);
 }
 
@@ -281,6 +288,11 @@ const RegisterCommand registration{Command{
                        "substeps a frame; what eval cloth reports); chaos: the model's own steps and a 0.5 mm jitter "
                        "(much tighter: mesh and step differences then count as gaps)")
             ->check(CLI::IsMember({"repeatability", "chaos"}))
+            ->capture_default_str();
+        app.add_option("--silhouette-weight", options->cloth.silhouette_weight,
+                       "weight of a mismatched silhouette pixel against a squared radian of fold orientation "
+                       "(the fit's is 0.1; folds sit where the mesh puts them, the outline does not)")
+            ->check(CLI::NonNegativeNumber)
             ->capture_default_str();
         app.add_option("--substeps", options->cloth.substeps_per_frame, "steps per frame of the implicit integrators")
             ->check(CLI::Range(1, 1000))

@@ -4,6 +4,7 @@
 
 #include "commands/cloth_options.hpp"
 
+#include "flowvid/gap/cloth_model.hpp"
 #include "flowvid/gap/diagnose.hpp"
 
 #include <nlohmann/json.hpp>
@@ -22,6 +23,9 @@ struct DiagnoseClothOptions {
     // "repeatability" (as eval cloth reports it) or "chaos" (the model's own
     // steps, a 0.5 mm start jitter: far tighter, so discretisation counts as a gap).
     std::string floor = "repeatability";
+    // The metric's alpha: a mismatched silhouette pixel against a squared
+    // radian of fold orientation (gap/cloth_model.hpp says why not the fit's 0.1).
+    double silhouette_weight = gap::kDiagnosisSilhouetteWeight;
 };
 
 // nullptr (logged) for bad run options; throws what the readers throw.
