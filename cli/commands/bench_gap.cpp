@@ -347,12 +347,12 @@ int run_bench_gap(const BenchGapOptions& options, const GlobalOptions& global) {
 const RegisterCommand bench_registration{Command{
     "bench", "benchmarks with sealed cases: `flowvid bench gap ...`", [](CLI::App& app) -> CommandRunner {
         auto options = std::make_shared<BenchGapOptions>();
-        options->diagnose.run.resolution = "16x16";
+        options->diagnose.run.resolution = kDiagnoserResolution;
         app.require_subcommand(1);
         CLI::App* gap = app.add_subcommand("gap", "sealed cases for flowvid diagnose, and its score");
         gap->footer(
             "Makes cloth captures with this project's simulator at a finer mesh (24x24) and smaller time step\n"
-            "(10 substeps per frame) than the diagnoser uses (16x16, 5), each with one hidden effect or none\n"
+            "(10 substeps per frame) than the diagnoser uses (20x20, 5), each with one hidden effect or none\n"
             "(about a quarter), strengths drawn log-uniformly, filmed with stripes and sensor noise; with\n"
             "--rigid-scene also rigid tosses (RK4 at 1/960 s against the diagnoser's 1/240 s) with air drag or\n"
             "an inertia error. Labels go to DIR/labels.json, which only --score reads. A label's effect-to-noise\n"

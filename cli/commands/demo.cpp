@@ -440,7 +440,7 @@ const RegisterCommand registration{Command{
         app.footer("Stages (all by default, in this order):\n" + stage_list +
                    "\nEach stage prints the commands it runs (run them yourself: docs/guide/) and writes under\n"
                    "--out; index.html there links every output with thumbnails and key figures. The garment\n"
-                   "and video stages need `blender` on PATH. The whole demo takes about 4 minutes on 2 cores.\n"
+                   "and video stages need `blender` on PATH. The whole demo takes about 6 minutes on 2 cores.\n"
                    "\nExamples:\n"
                    "  flowvid demo\n"
                    "  flowvid demo --only fabric --only garment --out /tmp/demo\n"

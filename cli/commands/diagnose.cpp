@@ -253,7 +253,7 @@ const RegisterCommand registration{Command{
     "diagnose", "where a fitted simulation departs from footage, which unmodelled effect causes it, how far it shrinks",
     [](CLI::App& app) -> CommandRunner {
         auto options = std::make_shared<DiagnoseOptions>();
-        options->cloth.run.resolution = "16x16";
+        options->cloth.run.resolution = kDiagnoserResolution;
         app.footer(
             "Cloth: simulates the fitted fabric in each capture's experiment and compares every frame with the\n"
             "footage in units of its floor (how far repeated takes of the experiment spread: what even a\n"
@@ -291,7 +291,7 @@ const RegisterCommand registration{Command{
             ->capture_default_str();
         app.add_option("--silhouette-weight", options->cloth.silhouette_weight,
                        "weight of a mismatched silhouette pixel against a squared radian of fold orientation "
-                       "(the fit's is 0.1; folds sit where the mesh puts them, the outline does not)")
+                       "(the fit's is 0.1; where folds form depends on the mesh far more than the outline does)")
             ->check(CLI::NonNegativeNumber)
             ->capture_default_str();
         app.add_option("--substeps", options->cloth.substeps_per_frame, "steps per frame of the implicit integrators")

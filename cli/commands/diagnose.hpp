@@ -15,8 +15,14 @@
 
 namespace flowvid::cli {
 
+// The diagnoser's default mesh: coarser than footage makers use (bench gap
+// makes 24x24), fine enough that its static drape is within reach of a finer
+// mesh's. At 16x16 the drape alone sat 7 to 12 times the floor from 24x24
+// footage, more than many effects (docs/gap.md).
+inline constexpr const char* kDiagnoserResolution = "20x20";
+
 struct DiagnoseClothOptions {
-    ClothRunOptions run;  // the diagnoser's mesh (default 16x16: coarser than footage makers use)
+    ClothRunOptions run;  // the diagnoser's mesh (commands set kDiagnoserResolution)
     int frames = 30;      // compared frames from the first (later ones are mostly chaos)
     int floor_resolution_step = 0;  // the floor's finer-mesh member: rows and cols + this (0: none)
     int substeps_per_frame = 5;     // implicit integrators' steps per frame

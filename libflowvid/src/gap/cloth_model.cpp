@@ -178,12 +178,6 @@ std::vector<float> residual_image(const metrics::ReferenceFrame& reference, cons
     return out;
 }
 
-video::ClothFitSettings diagnosis_fit_settings() {
-    video::ClothFitSettings settings;
-    settings.metric.alpha = kDiagnosisSilhouetteWeight;
-    return settings;
-}
-
 ClothGapModel::ClothGapModel(std::vector<video::ClothTrial> trials, cloth::ClothMaterial base, ClothGapSettings settings)
     : m_trials(std::move(trials)), m_base(std::move(base)), m_settings(std::move(settings)) {
     if (m_trials.empty()) throw std::invalid_argument("ClothGapModel: no trials");

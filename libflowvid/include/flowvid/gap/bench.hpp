@@ -29,7 +29,7 @@ struct BenchCase {
 };
 
 struct BenchSettings {
-    int rows = 24;                 // the footage maker's mesh (the diagnoser's default is 16x16)
+    int rows = 24;                 // the footage maker's mesh (the diagnoser's default is 20x20)
     int cols = 24;
     cloth::Integrator integrator = cloth::Integrator::implicit_euler;  // the footage maker's
     int implicit_substeps = 10;    // per frame, for an implicit integrator (the diagnoser's default is 5)

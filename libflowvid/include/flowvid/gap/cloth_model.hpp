@@ -24,17 +24,16 @@ namespace flowvid::gap {
 // squared radian of fold orientation (the fit's, after the thesis, 0.1).
 // Where folds form is decided by the mesh, so at fold pixels a model on a
 // coarser mesh than the footage's differs even with the right physics; the
-// outline is what another mesh or step barely changes and what wind, pin
-// timing or a camera roll move. On the sealed benchmark this raised the share
+// outline depends less on the mesh and is what wind, pin timing or a camera
+// roll move. On the sealed benchmark (16x16 diagnoser) this raised the share
 // of the gap the true effect can close from 0.69 to 0.80 (docs/gap.md).
 inline constexpr double kDiagnosisSilhouetteWeight = 1.0;
 
-// ClothFitSettings with the diagnosis's metric.
-video::ClothFitSettings diagnosis_fit_settings();
-
 struct ClothGapSettings {
+    ClothGapSettings() { fit.metric.alpha = kDiagnosisSilhouetteWeight; }
+
     // Swatch options (resolution, integrator), metric; fit.base is ignored.
-    video::ClothFitSettings fit = diagnosis_fit_settings();
+    video::ClothFitSettings fit;
     // The floor as eval cloth reports it: how repeatable the experiment is
     // (pixel-footprint start jitter, backward Euler at 20 substeps a frame,
     // which matches Blender's trial-to-trial spread: docs/cloth_fitting.md).
