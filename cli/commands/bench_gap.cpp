@@ -232,11 +232,7 @@ double oracle_gap_closed(const std::string& folder, const std::string& effect, c
         rigid ? rigid_gap_model({folder}, "", thread_count(options.threads), ignored)
               : cloth_gap_model({folder}, folder + "/base.fabric.json", options.diagnose, ignored);
     if (!model) return std::nan("");
-    const gap::Residuals base = model->evaluate({}), truth = model->evaluate(values_from_json(effect, values));
-    int held_out = 0;
-    for (const gap::FrameResidual& f : base.frames) held_out += f.held_out ? 1 : 0;
-    const double gap = gap::held_out_score(base) - held_out;
-    return gap > 0.0 ? (gap::held_out_score(base) - gap::held_out_score(truth)) / gap : std::nan("");
+    return gap::held_out_gap_closed(model->evaluate({}), model->evaluate(values_from_json(effect, values)));
 }
 
 int score(const std::string& dir, const BenchGapOptions& options) {

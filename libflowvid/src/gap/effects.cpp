@@ -8,6 +8,7 @@
 #include "flowvid/gap/model.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace flowvid::gap {
@@ -109,6 +110,13 @@ double held_out_score(const Residuals& residuals) {
     for (const FrameResidual& f : residuals.frames)
         if (f.held_out) sum += f.error / f.floor;
     return sum;
+}
+
+double held_out_gap_closed(const Residuals& base, const Residuals& with) {
+    int held_out = 0;
+    for (const FrameResidual& f : base.frames) held_out += f.held_out ? 1 : 0;
+    const double gap = held_out_score(base) - held_out;
+    return gap > 0.0 ? (held_out_score(base) - held_out_score(with)) / gap : std::nan("");
 }
 
 }  // namespace flowvid::gap

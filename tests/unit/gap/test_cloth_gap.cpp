@@ -180,20 +180,11 @@ TEST(ClothGap, DiagnosisNamesAHiddenPinLagAndFindsNoGapWithoutIt) {
     EXPECT_GT(*d.gap_closed, 0.8);
 }
 
-}  // namespace
-}  // namespace flowvid::gap
-
-namespace flowvid::gap {
-namespace {
-
-// The share of the held-out gap (beyond the floor level) that the true
-// effect closes in a model on a coarser mesh than the footage's.
+// The share of the held-out gap that the true effect closes in a model on a
+// coarser mesh than the footage's.
 double true_effect_closes(const video::ClothTrial& footage, const EffectValues& truth, const ClothGapSettings& settings) {
     const ClothGapModel model({footage}, cotton(), settings);
-    const Residuals base = model.evaluate({}), with_truth = model.evaluate(truth);
-    int held_out = 0;
-    for (const FrameResidual& f : base.frames) held_out += f.held_out ? 1 : 0;
-    return (held_out_score(base) - held_out_score(with_truth)) / (held_out_score(base) - held_out);
+    return held_out_gap_closed(model.evaluate({}), model.evaluate(truth));
 }
 
 // Why the diagnosis weighs the silhouette more than the fit does: footage

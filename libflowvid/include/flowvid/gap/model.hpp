@@ -46,6 +46,10 @@ struct Residuals {
 // the diagnosis judges them by.
 double training_score(const Residuals& residuals);
 double held_out_score(const Residuals& residuals);
+// The share of the base's held-out gap (its score beyond the floor level,
+// error = floor in every held-out frame) that `with` closes; NaN when the
+// base is within the floor level.
+double held_out_gap_closed(const Residuals& base, const Residuals& with);
 
 struct BaseParameterChange {
     std::string key;         // model parameter ("bend_N_m", "gravity_tilt_rad", ...)
