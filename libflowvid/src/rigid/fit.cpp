@@ -162,8 +162,39 @@ std::vector<Eigen::Quaterniond> uniform_rotations(int count) {
     return out;
 }
 
+// COM positions at `times_s` (ascending, >= 0) from X0 and v0 at time 0 under
+// gravity and quadratic drag dv/dt = g - k |v| v: a parabola without drag,
+// else RK4 with steps of at most 1/240 s (the fit's own step).
+std::vector<Eigen::Vector3d> com_path(const Eigen::Vector3d& X0, const Eigen::Vector3d& v0, const Eigen::Vector3d& g,
+                                      double drag_per_m, const std::vector<double>& times_s) {
+    std::vector<Eigen::Vector3d> out;
+    out.reserve(times_s.size());
+    if (drag_per_m == 0.0) {
+        for (double t : times_s) out.push_back(X0 + v0 * t + 0.5 * g * t * t);
+        return out;
+    }
+    auto acceleration = [&](const Eigen::Vector3d& v) { return Eigen::Vector3d(g - drag_per_m * v.norm() * v); };
+    Eigen::Vector3d X = X0, v = v0;
+    double now = 0.0;
+    for (double t : times_s) {
+        const int steps = static_cast<int>(std::ceil(std::max(t - now, 0.0) * 240.0));
+        const double h = steps > 0 ? (t - now) / steps : 0.0;
+        for (int i = 0; i < steps; ++i) {
+            const Eigen::Vector3d k1v = acceleration(v), k1x = v;
+            const Eigen::Vector3d k2v = acceleration(v + 0.5 * h * k1v), k2x = v + 0.5 * h * k1v;
+            const Eigen::Vector3d k3v = acceleration(v + 0.5 * h * k2v), k3x = v + 0.5 * h * k2v;
+            const Eigen::Vector3d k4v = acceleration(v + h * k3v), k4x = v + h * k3v;
+            X += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
+            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+        }
+        now = std::max(now, t);
+        out.push_back(X);
+    }
+    return out;
+}
+
 TrajectoryEstimate estimate_trajectory(const SilhouetteModel& model, const std::vector<FrameObservation>& frames,
-                                       double gravity_magnitude) {
+                                       double gravity_magnitude, double quadratic_drag_per_m) {
     TrajectoryEstimate estimate;
     const formats::CameraModel& camera = model.camera();
     const double f = 0.5 * (camera.K(0, 0) + camera.K(1, 1));
@@ -220,30 +251,37 @@ TrajectoryEstimate estimate_trajectory(const SilhouetteModel& model, const std::
     const Eigen::Vector3d X0 = z0 * (K_inv * Eigen::Vector3d(a.x(), a.y(), 1.0));
     x << X0, b.x() * z0 / f, b.y() * z0 / f, 0.0, 0.0, accel.norm() > 0.0 ? std::atan2(accel.x(), accel.y()) : 0.0;
     const double sigma_px = 2.0, sigma_log_depth = 0.3;
+    std::vector<double> times_s;
+    for (const FrameObservation* o : valid) times_s.push_back(o->time_s);
+    // The parabola first; with drag, refined from there (the pixel-space
+    // start below is a parabola's and lands the drag model in a poor valley).
+    double drag_per_m = 0.0;
     auto residuals = [&](const Eigen::VectorXd& p) {
         Eigen::VectorXd r(3 * valid.size());
         const GravityAngles angles{p[6], p[7]};
-        const Eigen::Vector3d g = gravity_magnitude * angles.direction();
+        const std::vector<Eigen::Vector3d> path =
+            com_path(p.segment<3>(0), p.segment<3>(3), gravity_magnitude * angles.direction(), drag_per_m, times_s);
         for (std::size_t i = 0; i < valid.size(); ++i) {
-            const double t = valid[i]->time_s;
-            const Eigen::Vector3d X = p.segment<3>(0) + p.segment<3>(3) * t + 0.5 * g * t * t;
+            const Eigen::Vector3d& X = path[i];
             const Eigen::Vector2d u = model.project(X);
             r.segment<2>(static_cast<Eigen::Index>(3 * i)) = (u - valid[i]->centroid_px) / sigma_px;
             r[static_cast<Eigen::Index>(3 * i + 2)] = X.z() > 0.0 ? std::log(X.z() / z_area[i]) / sigma_log_depth : 1e3;
         }
         return r;
     };
-    if (valid.size() >= 3) x = small_least_squares(residuals, x, 60);
+    if (valid.size() >= 3) {
+        x = small_least_squares(residuals, x, 60);
+        drag_per_m = quadratic_drag_per_m;
+        if (drag_per_m != 0.0) x = small_least_squares(residuals, x, 60);
+    }
     estimate.com_m = x.segment<3>(0);
     estimate.com_velocity_m_per_s = x.segment<3>(3);
     estimate.gravity = GravityAngles{x[6], x[7]};
     if (valid.size() < 3) estimate.com_velocity_m_per_s.setZero();
     double sum = 0.0;
-    const Eigen::Vector3d g = gravity_magnitude * estimate.gravity.direction();
-    for (const FrameObservation* o : valid) {
-        const double t = o->time_s;
-        sum += (model.project(estimate.com_m + estimate.com_velocity_m_per_s * t + 0.5 * g * t * t) - o->centroid_px).squaredNorm();
-    }
+    const std::vector<Eigen::Vector3d> path = com_path(estimate.com_m, estimate.com_velocity_m_per_s,
+                                                       gravity_magnitude * estimate.gravity.direction(), quadratic_drag_per_m, times_s);
+    for (std::size_t i = 0; i < valid.size(); ++i) sum += (model.project(path[i]) - valid[i]->centroid_px).squaredNorm();
     estimate.rms_centroid_px = std::sqrt(sum / static_cast<double>(valid.size()));
     return estimate;
 }
@@ -288,7 +326,8 @@ FitResult fit_rigid(const RigidBody& body, const formats::CameraModel& camera, d
 
     // 1. Trajectory of the COM and gravity from the centroid track.
     progress("trajectory", 0.0);
-    result.trajectory = estimate_trajectory(model, frames, settings.gravity_magnitude_m_per_s2);
+    result.trajectory = estimate_trajectory(model, frames, settings.gravity_magnitude_m_per_s2,
+                                            settings.simulation.effects.quadratic_drag_per_m);
     TrajectoryEstimate& trajectory = result.trajectory;
     log(format("trajectory: COM depth %.3f m, gravity tilt %.2f deg roll %.2f deg, centroid rms %.2f px",
                trajectory.com_m.z(), trajectory.gravity.tilt_rad * 180.0 / M_PI, trajectory.gravity.roll_rad * 180.0 / M_PI,
@@ -327,8 +366,10 @@ FitResult fit_rigid(const RigidBody& body, const formats::CameraModel& camera, d
     else if (guess && guess->origin_m)
         log("guess: a position without an orientation does not locate the centre of mass; estimating it from the images");
     auto com_at = [&](double t) {
-        return Eigen::Vector3d(trajectory.com_m + trajectory.com_velocity_m_per_s * t +
-                               0.5 * settings.gravity_magnitude_m_per_s2 * trajectory.gravity.direction() * t * t);
+        return com_path(trajectory.com_m, trajectory.com_velocity_m_per_s,
+                        settings.gravity_magnitude_m_per_s2 * trajectory.gravity.direction(),
+                        settings.simulation.effects.quadratic_drag_per_m, {t})
+            .front();
     };
     auto base_parameters = [&]() {
         FlightParameters p;

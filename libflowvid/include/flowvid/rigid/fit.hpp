@@ -110,9 +110,11 @@ struct FitResult {
 FitResult fit_rigid(const RigidBody& body, const formats::CameraModel& camera, double fps,
                     const std::vector<FrameObservation>& frames, const FitSettings& settings);
 
-// Step 1 on its own.
+// Step 1 on its own. With quadratic drag (FlightEffects::quadratic_drag_per_m)
+// the COM follows dv/dt = g - k |v| v instead of a parabola, as in simulate().
 TrajectoryEstimate estimate_trajectory(const SilhouetteModel& model, const std::vector<FrameObservation>& frames,
-                                       double gravity_magnitude_m_per_s2 = kStandardGravity_m_per_s2);
+                                       double gravity_magnitude_m_per_s2 = kStandardGravity_m_per_s2,
+                                       double quadratic_drag_per_m = 0.0);
 
 // Deterministic, nearly uniform rotations (super-Fibonacci spirals, Alexa 2022).
 std::vector<Eigen::Quaterniond> uniform_rotations(int count);
