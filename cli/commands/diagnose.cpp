@@ -63,6 +63,10 @@ nlohmann::json diagnosis_to_json(const gap::Diagnosis& d, const nlohmann::json& 
                       {"class", d.named_class},
                       {"message", d.message},
                       {"gap_closed", d.gap_closed ? number(*d.gap_closed) : nlohmann::json()}};
+    if (!d.control_description.empty())
+        out["discretisation_control"] = {{"refinement", d.control_description},
+                                         {"gap_closed", d.control_gap_closed ? number(*d.control_gap_closed) : nlohmann::json()},
+                                         {"discounted_effects", d.discounted}};
     if (d.named_refit) {
         out["verdict"]["parameters"] = effect_values_json(d.named_refit->effects);
         out["verdict"]["base_changes"] = base_changes_json(d.named_refit->base);
@@ -152,6 +156,7 @@ std::unique_ptr<gap::GapModel> cloth_gap_model(const std::vector<std::string>& c
     settings.fit.metric.alpha = options.silhouette_weight;
     settings.threads = thread_count(options.run.threads);
     settings.floor_resolution_step = options.floor_resolution_step;
+    settings.control_resolution_step = options.control_resolution_step;
     if (options.floor == "chaos") {  // the model's own steps, a 0.5 mm start jitter
         video::FloorSettings chaos;
         chaos.members = settings.floor.members;
@@ -166,6 +171,7 @@ std::unique_ptr<gap::GapModel> cloth_gap_model(const std::vector<std::string>& c
                      {"floor", options.floor},
                      {"floor_members", settings.floor.members},
                      {"floor_resolution_step", settings.floor_resolution_step},
+                     {"control_resolution_step", settings.control_resolution_step},
                      {"silhouette_weight", options.silhouette_weight}};
     return std::make_unique<gap::ClothGapModel>(std::move(trials), cloth::material_from_fabric(preset.parameters), settings);
 }
@@ -281,6 +287,11 @@ const RegisterCommand registration{Command{
             ->capture_default_str();
         app.add_option("--floor-resolution-step", options->cloth.floor_resolution_step,
                        "the floor also holds a run on a mesh this many rows and columns finer (0: none)")
+            ->check(CLI::Range(0, 64))
+            ->capture_default_str();
+        app.add_option("--control-resolution-step", options->cloth.control_resolution_step,
+                       "the discretisation control: the base on a mesh this many rows and columns finer; named effects "
+                       "must close 10 points more of the gap than it does (0: no control)")
             ->check(CLI::Range(0, 64))
             ->capture_default_str();
         app.add_option("--floor", options->cloth.floor,

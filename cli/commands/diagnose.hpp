@@ -25,6 +25,7 @@ struct DiagnoseClothOptions {
     ClothRunOptions run;  // the diagnoser's mesh (commands set kDiagnoserResolution)
     int frames = 30;      // compared frames from the first (later ones are mostly chaos)
     int floor_resolution_step = 0;  // the floor's finer-mesh member: rows and cols + this (0: none)
+    int control_resolution_step = 8;  // the discretisation control's mesh: rows and cols + this (0: none)
     int substeps_per_frame = 5;     // implicit integrators' steps per frame
     // "repeatability" (as eval cloth reports it) or "chaos" (the model's own
     // steps, a 0.5 mm start jitter: far tighter, so discretisation counts as a gap).

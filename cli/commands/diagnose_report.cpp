@@ -140,6 +140,15 @@ std::string verdict_box(const json& d) {
     }
     if (status == "named" || member(verdict, "gap_closed"))
         out << html::element("p", "Fraction of the held-out gap closed: " + html::format_percent(number(verdict, "gap_closed")) + ".");
+    if (member(d, "discretisation_control")) {
+        const json& control = d["discretisation_control"];
+        out << html::element("p",
+                             "Discretisation control: the base model on " + text(control, "refinement") + " closes " +
+                                 html::format_percent(number(control, "gap_closed")) +
+                                 " of the held-out gap (what the model's own mesh accounts for; a named effect must close "
+                                 "clearly more).",
+                             "note");
+    }
     out << "</div>\n";
     return out.str();
 }

@@ -260,10 +260,32 @@ std::vector<std::string> ClothGapModel::candidate_effects() const {
 }
 
 cloth::SwatchRun ClothGapModel::run_scenario(std::size_t trial, const ClothScenario& scenario, int threads) const {
+    return run_scenario(scenario, m_warm_starts[trial], threads);
+}
+
+cloth::SwatchRun ClothGapModel::run_scenario(const ClothScenario& scenario, const Eigen::VectorXd& warm_start, int threads) const {
     cloth::SwatchOptions options = scenario.options;
     options.simulation.threads = std::max(1, threads);
-    if (m_warm_starts[trial].size() > 0) options.initial_positions = m_warm_starts[trial];
+    if (warm_start.size() > 0) options.initial_positions = warm_start;
     return cloth::simulate_swatch(scenario.experiment, scenario.material, options);
+}
+
+std::optional<DiscretisationControl> ClothGapModel::discretisation_control(const std::vector<BaseParameterChange>& base) const {
+    if (m_settings.control_resolution_step <= 0) return std::nullopt;
+    cloth::ClothMaterial material = m_base;
+    for (const BaseParameterChange& change : base) video::set_material_parameter(material, change.key, change.after);
+    video::ClothFitSettings finer = m_settings.fit;
+    finer.base = material;
+    finer.swatch.rows += m_settings.control_resolution_step;
+    finer.swatch.cols += m_settings.control_resolution_step;
+    finer.swatch.simulation.threads = std::max(1, m_settings.threads);
+    // The finer mesh's own equilibrium (the model's warm starts are its mesh's).
+    std::vector<Eigen::VectorXd> starts;
+    for (const video::ClothTrial& trial : m_trials) starts.push_back(video::matching_equilibrium(trial, material, finer));
+    DiscretisationControl control;
+    control.description = "a " + std::to_string(finer.swatch.rows) + "x" + std::to_string(finer.swatch.cols) + " mesh";
+    control.residuals = evaluate_on(material, {}, finer.swatch, starts);
+    return control;
 }
 
 Residuals ClothGapModel::evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>& base) const {
@@ -273,6 +295,11 @@ Residuals ClothGapModel::evaluate(const EffectValues& effects, const std::vector
 }
 
 Residuals ClothGapModel::evaluate_material(const cloth::ClothMaterial& material, const EffectValues& effects) const {
+    return evaluate_on(material, effects, m_settings.fit.swatch, m_warm_starts);
+}
+
+Residuals ClothGapModel::evaluate_on(const cloth::ClothMaterial& material, const EffectValues& effects,
+                                     const cloth::SwatchOptions& swatch, const std::vector<Eigen::VectorXd>& warm_starts) const {
     Residuals out;
     std::vector<std::vector<FrameResidual>> per_trial(m_trials.size());
     std::vector<std::string> failures(m_trials.size());
@@ -281,8 +308,8 @@ Residuals ClothGapModel::evaluate_material(const cloth::ClothMaterial& material,
     const int per_simulation = std::max(1, threads / std::max(1, workers));
     auto one = [&](std::size_t t) {
         const video::ClothTrial& trial = m_trials[t];
-        const ClothScenario scenario = apply_cloth_effects(trial, material, m_settings.fit.swatch, effects);
-        const cloth::SwatchRun run = run_scenario(t, scenario, per_simulation);
+        const ClothScenario scenario = apply_cloth_effects(trial, material, swatch, effects);
+        const cloth::SwatchRun run = run_scenario(scenario, t < warm_starts.size() ? warm_starts[t] : Eigen::VectorXd(), per_simulation);
         const int usable = video::usable_frames(run);
         if (!run.simulation.report.ok()) failures[t] = trial.name + ": " + run.simulation.report.reason;
         video::StripeRenderer renderer(scenario.camera, trial.projector);

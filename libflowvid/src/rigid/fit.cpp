@@ -292,8 +292,11 @@ RigidState FitResult::state_at_frame(const RigidBody& body, int frame, const Sim
     return simulate(body, parameters, {(frame - reference_frame) / fps}, s).states.front();
 }
 
-FitResult fit_rigid(const RigidBody& body, const formats::CameraModel& camera, double fps,
-                    const std::vector<FrameObservation>& frames, const FitSettings& settings) {
+namespace {
+
+// One search and refinement with the settings' candidate and start counts.
+FitResult fit_rigid_once(const RigidBody& body, const formats::CameraModel& camera, double fps,
+                         const std::vector<FrameObservation>& frames, const FitSettings& settings) {
     const auto started = std::chrono::steady_clock::now();
     FitResult result;
     result.fps = fps;
@@ -541,6 +544,31 @@ FitResult fit_rigid(const RigidBody& body, const formats::CameraModel& camera, d
     }
     progress("done", 1.0);
     return finish();
+}
+
+}  // namespace
+
+FitResult fit_rigid(const RigidBody& body, const formats::CameraModel& camera, double fps,
+                    const std::vector<FrameObservation>& frames, const FitSettings& settings) {
+    FitResult first = fit_rigid_once(body, camera, fps, frames, settings);
+    const bool searched = !(settings.guess && settings.guess->orientation && settings.guess->angular_velocity_rad_per_s);
+    const double per_frame_px2 = first.final_cost_px2 / static_cast<double>(std::max<std::size_t>(frames.size(), 1));
+    const bool wider = settings.wide_candidates_per_frame > settings.candidates_per_frame;
+    if (!searched || !wider || first.report.status == OptimizerReport::Status::failed ||
+        first.report.status == OptimizerReport::Status::cancelled || !(per_frame_px2 > settings.wide_search_above_px2))
+        return first;
+    if (settings.log)
+        settings.log(format("E %.3g px^2 per frame after the search: searching again with %.0f orientations per frame", per_frame_px2,
+                            settings.wide_candidates_per_frame));
+    FitSettings wide = settings;
+    wide.candidates_per_frame = settings.wide_candidates_per_frame;
+    wide.starts = 2 * settings.starts;
+    FitResult second = fit_rigid_once(body, camera, fps, frames, wide);
+    const double seconds = first.seconds + second.seconds;
+    FitResult& better = second.report.status != OptimizerReport::Status::failed && second.final_cost_px2 < first.final_cost_px2 ? second : first;
+    better.seconds = seconds;
+    better.widened = &better == &second;
+    return better;
 }
 
 std::vector<metrics::Silhouette> predict_silhouettes(const RigidBody& body, const formats::CameraModel& camera,

@@ -161,6 +161,7 @@ RigidFitRecord make_rigid_fit_record(const FitResult& fit, const RigidBody& body
         {"candidate_orientations", fit.candidate_orientations},
         {"starts_scored", fit.starts_scored},
         {"starts_refined", fit.starts_refined},
+        {"widened_search", fit.widened},
         {"final_start_costs_px2", fit.start_costs_px2},
         {"iterations_last_window", fit.report.iterations},
     };

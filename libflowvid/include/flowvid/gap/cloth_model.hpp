@@ -41,6 +41,9 @@ struct ClothGapSettings {
     // and counting against it made every discretisation difference a gap.
     video::FloorSettings floor = video::reported_floor(4);
     int floor_resolution_step = 0; // a floor member on a mesh this much finer (0: none; it swamps the floor: docs/gap.md)
+    // The discretisation control (GapModel::discretisation_control): the base
+    // on a mesh this many rows and columns finer (0: none).
+    int control_resolution_step = 8;
     int threads = 1;
     // Base parameters a refit moves with the effect (keys of
     // video::set_material_parameter; ranges from the waving test's).
@@ -84,12 +87,17 @@ public:
     RefitResult refit(const EffectValues& start, int max_evaluations,
                       const std::vector<BaseParameterChange>& base_start = {}) const override;
     std::vector<RegionMap> localise(const EffectValues& effects) const override;
+    std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>& base) const override;
 
     const cloth::ClothMaterial& base() const { return m_base; }
 
 private:
     Residuals evaluate_material(const cloth::ClothMaterial& material, const EffectValues& effects) const;
+    // On any mesh: `swatch` and one warm start per trial (empty: none).
+    Residuals evaluate_on(const cloth::ClothMaterial& material, const EffectValues& effects, const cloth::SwatchOptions& swatch,
+                          const std::vector<Eigen::VectorXd>& warm_starts) const;
     cloth::SwatchRun run_scenario(std::size_t trial, const ClothScenario& scenario, int threads) const;
+    cloth::SwatchRun run_scenario(const ClothScenario& scenario, const Eigen::VectorXd& warm_start, int threads) const;
 
     std::vector<video::ClothTrial> m_trials;
     cloth::ClothMaterial m_base;

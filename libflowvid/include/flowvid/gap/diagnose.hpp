@@ -21,6 +21,9 @@
 //     the class.
 //  4. How far: the share of the held-out gap (base residual minus floor)
 //     closed, the fitted effect parameters and how the base parameters moved.
+//  5. The discretisation control: the base model on a finer discretisation
+//     (a finer mesh). Where it closes about as much as the named effects, the
+//     gap may be the model's own discretisation: "unexplained" instead.
 
 #include "flowvid/gap/model.hpp"
 
@@ -43,6 +46,11 @@ struct DiagnoseSettings {
     double max_delta_bic = -6.0;      // training-frame BIC against the previous model (< -6: strong evidence)
     double min_stability = 0.8;       // share of bootstrap resamples in which it stays best
     int bootstrap_resamples = 400;
+    // The discretisation control (GapModel::discretisation_control): named
+    // effects must close this much more of the held-out gap than the base
+    // model on a finer discretisation does, else the verdict is "unexplained".
+    bool discretisation_control = true;
+    double min_share_beyond_discretisation = 0.1;
     std::uint64_t seed = 1;
     std::vector<std::string> effects;  // candidates to consider (empty: all the model offers)
     // Stage name and fraction done; return false to cancel (diagnose then throws Cancelled).
@@ -93,6 +101,9 @@ struct Diagnosis {
     std::optional<double> gap_closed; // by the named effects together
     std::optional<RefitResult> named_refit;   // the named effects refitted together
     RefitResult null_refit;           // base parameters alone
+    std::string control_description;  // the discretisation control's refinement ("a 28x28 mesh"), when run
+    std::optional<double> control_gap_closed;   // the share of the held-out gap it closes
+    std::vector<std::string> discounted;        // effects that passed but did not beat the control
     std::vector<CandidateEvidence> candidates;  // ranked: refitted by held-out score, then by screening
     std::vector<RegionMap> maps;      // of the base model's residual
     Spectrum spectrum;

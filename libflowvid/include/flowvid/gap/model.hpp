@@ -8,6 +8,7 @@
 
 #include "flowvid/gap/effects.hpp"
 
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -57,6 +58,14 @@ struct BaseParameterChange {
     double after = 0.0;
 };
 
+// The base model on a finer discretisation than the diagnoser's (a finer
+// mesh): the share of the gap it closes is what the model's own
+// discretisation accounts for, which an effect has to beat to be named.
+struct DiscretisationControl {
+    std::string description;  // what was refined, for people ("a 28x28 mesh")
+    Residuals residuals;
+};
+
 struct RefitResult {
     EffectValues effects;                      // fitted values of the effects refitted
     std::vector<BaseParameterChange> base;     // base parameters refitted with them
@@ -98,6 +107,12 @@ public:
     // Where the residual of `effects` lies (over the object's own surface
     // coordinates and over the image), summed over every frame.
     virtual std::vector<RegionMap> localise(const EffectValues& effects) const = 0;
+    // The base model with `base`'s changes, no effect, on a finer
+    // discretisation; nullopt when the model has none to offer.
+    virtual std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>& base) const {
+        (void)base;
+        return std::nullopt;
+    }
 };
 
 }  // namespace flowvid::gap

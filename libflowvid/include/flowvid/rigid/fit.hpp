@@ -63,6 +63,12 @@ struct FitSettings {
     int orientation_samples = 2000;   // SO(3) grid per searched frame (about 12 degrees apart)
     int candidates_per_frame = 12;
     int starts = 8;                   // starts refined by the optimizer
+    // A fit left above this edge error per frame (px^2; a good one is ~0.06)
+    // searches again with this many candidates per frame and twice the starts,
+    // keeping the better: on a small, fast-tumbling silhouette one frame's 12
+    // best orientations can miss the true one.
+    double wide_search_above_px2 = 0.5;
+    int wide_candidates_per_frame = 120;
     int max_iterations = 40;          // per window (LM); hybrid: 5x this
     double gravity_magnitude_m_per_s2 = kStandardGravity_m_per_s2;
     double corner_radius_px = 1.5;    // see SilhouetteModel::set_corner_radius
@@ -99,6 +105,7 @@ struct FitResult {
     int candidate_orientations = 0;
     int starts_scored = 0;
     int starts_refined = 0;
+    bool widened = false;  // the wider search (FitSettings::wide_search_above_px2) gave this fit
     std::vector<double> start_costs_px2;  // final E of the starts that reached the last window, best first
     double seconds = 0.0;
 
