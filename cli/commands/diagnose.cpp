@@ -66,7 +66,8 @@ nlohmann::json diagnosis_to_json(const gap::Diagnosis& d, const nlohmann::json& 
     if (!d.control_description.empty())
         out["discretisation_control"] = {{"refinement", d.control_description},
                                          {"gap_closed", d.control_gap_closed ? number(*d.control_gap_closed) : nlohmann::json()},
-                                         {"discounted_effects", d.discounted}};
+                                         {"discounted_effects", d.discounted},
+                                         {"failure", d.control_failure.empty() ? nlohmann::json() : nlohmann::json(d.control_failure)}};
     if (d.named_refit) {
         out["verdict"]["parameters"] = effect_values_json(d.named_refit->effects);
         out["verdict"]["base_changes"] = base_changes_json(d.named_refit->base);

@@ -142,11 +142,15 @@ std::string verdict_box(const json& d) {
         out << html::element("p", "Fraction of the held-out gap closed: " + html::format_percent(number(verdict, "gap_closed")) + ".");
     if (member(d, "discretisation_control")) {
         const json& control = d["discretisation_control"];
+        const std::string failure = text(control, "failure");
         out << html::element("p",
-                             "Discretisation control: the base model on " + text(control, "refinement") + " closes " +
-                                 html::format_percent(number(control, "gap_closed")) +
-                                 " of the held-out gap (what the model's own mesh accounts for; a named effect must close "
-                                 "clearly more).",
+                             failure.empty()
+                                 ? "Discretisation control: the base model on " + text(control, "refinement") + " closes " +
+                                       html::format_percent(number(control, "gap_closed")) +
+                                       " of the held-out gap (what the model's own mesh accounts for; a named effect must "
+                                       "close clearly more)."
+                                 : "Discretisation control: the base model on " + text(control, "refinement") +
+                                       " could not be measured (" + failure + "); the verdict stands without it.",
                              "note");
     }
     out << "</div>\n";

@@ -334,6 +334,7 @@ Diagnosis diagnose(const GapModel& model, const DiagnoseSettings& settings) {
             ++d.evaluations;
             d.control_description = control->description;
             if (control->residuals.ok) d.control_gap_closed = (base_held_out - held_out_score(control->residuals)) / gap;
+            else d.control_failure = control->residuals.reason.empty() ? "the simulation failed" : control->residuals.reason;
         }
     }
     const double named_closed = (base_held_out - held_out_score(current)) / gap;

@@ -20,8 +20,8 @@ constexpr double kTrueLag_s = 0.1;
 // the effect's part vanishes at the true lag, the discretisation part on the finer mesh.
 class KnownGapModel : public GapModel {
 public:
-    KnownGapModel(double effect_weight, double discretisation_weight)
-        : m_effect(effect_weight), m_discretisation(discretisation_weight) {}
+    KnownGapModel(double effect_weight, double discretisation_weight, bool control_fails = false)
+        : m_effect(effect_weight), m_discretisation(discretisation_weight), m_control_fails(control_fails) {}
 
     std::string kind() const override { return "cloth"; }
     std::vector<std::string> trial_names() const override { return {"known"}; }
@@ -41,7 +41,12 @@ public:
     }
     std::vector<RegionMap> localise(const EffectValues&) const override { return {}; }
     std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>&) const override {
-        return DiscretisationControl{"a finer mesh", residuals(0.0, true)};
+        DiscretisationControl control{"a finer mesh", residuals(0.0, true)};
+        if (m_control_fails) {
+            control.residuals.ok = false;
+            control.residuals.reason = "the finer mesh went unstable";
+        }
+        return control;
     }
 
 private:
@@ -62,6 +67,7 @@ private:
         return out;
     }
     double m_effect, m_discretisation;
+    bool m_control_fails;
 };
 
 DiagnoseSettings quick() {
@@ -109,6 +115,16 @@ TEST(DiagnoseControl, DiscountsAnEffectThatAFinerMeshMatches) {
     const Diagnosis named = diagnose(model, off);
     EXPECT_EQ(named.status, "named") << named.message;
     EXPECT_FALSE(named.control_gap_closed);
+}
+
+// A control that cannot be measured changes nothing, and says why.
+TEST(DiagnoseControl, AFailedControlLeavesTheVerdictAndSaysWhy) {
+    const KnownGapModel model(4.0, 6.0, true);
+    const Diagnosis d = diagnose(model, quick());
+    EXPECT_EQ(d.status, "named") << d.message;
+    EXPECT_FALSE(d.control_gap_closed);
+    EXPECT_EQ(d.control_failure, "the finer mesh went unstable");
+    EXPECT_TRUE(d.discounted.empty());
 }
 
 }  // namespace

@@ -103,6 +103,7 @@ struct Diagnosis {
     RefitResult null_refit;           // base parameters alone
     std::string control_description;  // the discretisation control's refinement ("a 28x28 mesh"), when run
     std::optional<double> control_gap_closed;   // the share of the held-out gap it closes
+    std::string control_failure;      // why the control could not be measured (its simulation failed): no verdict change
     std::vector<std::string> discounted;        // effects that passed but did not beat the control
     std::vector<CandidateEvidence> candidates;  // ranked: refitted by held-out score, then by screening
     std::vector<RegionMap> maps;      // of the base model's residual
