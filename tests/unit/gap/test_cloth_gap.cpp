@@ -180,6 +180,15 @@ TEST(ClothGap, DiagnosisNamesAHiddenPinLagAndFindsNoGapWithoutIt) {
     EXPECT_GT(*d.gap_closed, 0.8);
 }
 
+// Footage finer than small_settings' model: 15x15 at 10 substeps a frame.
+ClothGapSettings finer_footage_settings() {
+    ClothGapSettings fine = small_settings();
+    fine.fit.swatch.rows = 15;
+    fine.fit.swatch.cols = 15;
+    fine.fit.swatch.simulation.implicit_substeps_per_frame = 10;
+    return fine;
+}
+
 // The share of the held-out gap that the true effect closes in a model on a
 // coarser mesh than the footage's.
 double true_effect_closes(const video::ClothTrial& footage, const EffectValues& truth, const ClothGapSettings& settings) {
@@ -192,10 +201,7 @@ double true_effect_closes(const video::ClothTrial& footage, const EffectValues& 
 // fold term hides how much of the gap the right effect closes.
 TEST(ClothGap, TheDiagnosisMetricLetsTheTrueEffectCloseMoreOfAFinerMeshGap) {
     if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
-    ClothGapSettings fine = small_settings();
-    fine.fit.swatch.rows = 15;
-    fine.fit.swatch.cols = 15;
-    fine.fit.swatch.simulation.implicit_substeps_per_frame = 10;
+    const ClothGapSettings fine = finer_footage_settings();
     const EffectValues truth = {{"pin_lag", Eigen::VectorXd::Constant(1, 0.1)}};
     const video::ClothTrial footage = synthetic_trial(truth, fine);
 
@@ -213,10 +219,7 @@ TEST(ClothGap, TheDiagnosisMetricLetsTheTrueEffectCloseMoreOfAFinerMeshGap) {
 // filmed on the model's own mesh, little (the lag is no discretisation).
 TEST(ClothGap, TheDiscretisationControlClosesAFinerMeshsGapButNotAnEffects) {
     if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
-    ClothGapSettings fine = small_settings();
-    fine.fit.swatch.rows = 15;
-    fine.fit.swatch.cols = 15;
-    fine.fit.swatch.simulation.implicit_substeps_per_frame = 10;
+    const ClothGapSettings fine = finer_footage_settings();
     ClothGapSettings settings = small_settings();
     settings.control_resolution_step = 5;
     auto control_closes = [&](const video::ClothTrial& footage) {

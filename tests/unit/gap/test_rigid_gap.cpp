@@ -320,20 +320,27 @@ TEST(RigidGapCase, WritesAReadableDeterministicCapture) {
 
 // ---- The model on a toss with air drag -----------------------------------------------
 
+// The gap model (2 threads) of a bench toss of rigid-toss-major's body with
+// `effects`, written to a scratch folder as bench gap makes it (`seed` is the
+// bench's: its seed * 1000003 + the case's index).
+static gap::RigidGapModel bench_toss_model(const std::string& scratch, const gap::EffectValues& effects, std::uint64_t seed) {
+    const formats::Capture tmpl = formats::read_capture(flowvid::testing::shared_path("captures/rigid-toss-major"));
+    const std::string folder = flowvid::testing::scratch_dir(scratch);
+    gap::write_rigid_case(folder, tmpl, effects, seed);
+    gap::RigidTrial trial;
+    trial.capture = formats::read_capture(folder);
+    gap::RigidGapSettings settings;
+    settings.threads = 2;
+    return gap::RigidGapModel({trial}, settings);
+}
+
 // The bench's strongest inertia error (bench gap --seed 41, case 2: log
 // ratios (-0.30, 0.23), 180x noise). Its profile has a valley on each side
 // of neutral; the refit's coarse grid over the two ratios finds the right
 // one (the compass search alone stopped at (0.34, 0.11), closing 9 %).
 TEST(RigidGapModel, RefitsAnInertiaErrorOnTheOtherSideOfNeutral) {
-    const formats::Capture tmpl = formats::read_capture(flowvid::testing::shared_path("captures/rigid-toss-major"));
     const Eigen::Vector2d truth(-0.3024273883055581, 0.23394093630324153);
-    const std::string folder = flowvid::testing::scratch_dir("rigid_gap_inertia");
-    gap::write_rigid_case(folder, tmpl, {{"inertia_error", truth}}, 41 * 1000003ULL + 1);
-    gap::RigidTrial trial;
-    trial.capture = formats::read_capture(folder);
-    gap::RigidGapSettings settings;
-    settings.threads = 2;
-    const gap::RigidGapModel model({trial}, settings);
+    const gap::RigidGapModel model = bench_toss_model("rigid_gap_inertia", {{"inertia_error", truth}}, 41 * 1000003ULL + 1);
     const gap::Residuals neutral = model.evaluate({});
     const gap::RefitResult refit = model.refit({{"inertia_error", Eigen::Vector2d(0.05, 0.05)}}, 40);
     const Eigen::VectorXd fitted = refit.effects.at("inertia_error");
@@ -352,15 +359,8 @@ TEST(RigidGapModel, RefitsAnInertiaErrorOnTheOtherSideOfNeutral) {
 // wrong valley (the true drag then closed 14 % of the held-out gap); with the
 // drag-aware start, all of it.
 TEST(RigidGapModel, FitsAStrongDragTossWithTheTrueDrag) {
-    const formats::Capture tmpl = formats::read_capture(flowvid::testing::shared_path("captures/rigid-toss-major"));
     const gap::EffectValues truth = {{"air_drag", Eigen::Vector2d(0.2576078783504332, 0.0)}};
-    const std::string folder = flowvid::testing::scratch_dir("rigid_gap_strong_drag");
-    gap::write_rigid_case(folder, tmpl, truth, 5 * 1000003ULL + 1);
-    gap::RigidTrial trial;
-    trial.capture = formats::read_capture(folder);
-    gap::RigidGapSettings settings;
-    settings.threads = 2;
-    const gap::RigidGapModel model({trial}, settings);
+    const gap::RigidGapModel model = bench_toss_model("rigid_gap_strong_drag", truth, 5 * 1000003ULL + 1);
     const gap::Residuals neutral = model.evaluate({});
     const gap::Residuals with_drag = model.evaluate(truth);
     ASSERT_TRUE(with_drag.ok) << with_drag.reason;
