@@ -147,6 +147,41 @@ double seconds_of(F&& f) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// The silhouette cost's nearest-piece search for every observed outline point
+// of a real frame at the true pose and 2 cm beside it: the scan (baseline) against
+// the grid (what edge_cost uses), the grid's build included.
+void nearest_piece_table() {
+    const Setup& s = setup();
+    const SilhouetteModel model(s.body, *s.capture.camera);
+    SilhouetteModel::Scratch scratch;
+    std::printf("\nNearest contour piece for every outline point (real frame 1), 200 repeats:\n");
+    std::printf("%-16s %8s %8s %12s %12s %8s %10s\n", "pose", "pieces", "points", "scan ms", "grid ms", "ratio", "same");
+    for (double offset_m : {0.0, 0.02}) {
+        Pose pose = Pose::of(s.truth.initial_state());
+        pose.com_m.x() += offset_m;
+        model.contour(pose, scratch);
+        std::vector<Segment2> segments;
+        for (const ContourPiece& p : scratch.pieces) segments.push_back({p.pixel_a, p.pixel_b});
+        const std::vector<Eigen::Vector2d>& points = s.real_half[0].edge_points_px;
+        constexpr int kRepeats = 200;
+        double checksum_scan = 0.0, checksum_grid = 0.0;
+        const double scan_s = seconds_of([&] {
+            for (int r = 0; r < kRepeats; ++r)
+                for (const Eigen::Vector2d& q : points) checksum_scan += nearest_segment_by_scan(segments, q).distance2_px2;
+        });
+        NearestSegmentGrid grid;
+        const double grid_s = seconds_of([&] {
+            for (int r = 0; r < kRepeats; ++r) {
+                grid.build(segments);
+                for (const Eigen::Vector2d& q : points) checksum_grid += grid.nearest(q).distance2_px2;
+            }
+        });
+        std::printf("%-16s %8zu %8zu %12.3f %12.3f %8.3f %10s\n", offset_m == 0.0 ? "true" : "2 cm off", segments.size(),
+                    points.size(), 1e3 * scan_s / kRepeats, 1e3 * grid_s / kRepeats, grid_s / scan_s,
+                    checksum_scan == checksum_grid ? "yes" : "NO");
+    }
+}
+
 void whole_fit_table() {
     const Setup& s = setup();
     std::printf("\nWhole fit, no guess, 40-frame synthetic toss (major axis), 480x360:\n");
@@ -232,6 +267,7 @@ int main(int argc, char** argv) {
     if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
     benchmark::RunSpecifiedBenchmarks();
     benchmark::Shutdown();
+    nearest_piece_table();
     whole_fit_table();
     optimizer_table();
     return 0;

@@ -100,6 +100,7 @@ SilhouetteModel::SilhouetteModel(const RigidBody& body, const formats::CameraMod
             m_edges[it->second].opposite.push_back(c);
         }
     }
+    m_closed = !m_edges.empty() && std::all_of(m_edges.begin(), m_edges.end(), [](const MeshEdge& e) { return e.faces.size() == 2; });
 }
 
 Eigen::Vector2d SilhouetteModel::project(const Eigen::Vector3d& p) const {
@@ -154,6 +155,9 @@ void SilhouetteModel::rasterize_region(const render::PixelRect& region, Scratch&
     render::RasterSettings settings;
     settings.region = region;
     settings.attributes = false;
+    // Every line of sight through a closed surface crosses a face turned
+    // towards the camera: those alone give the same coverage, at half the cost.
+    settings.cull_back_faces = m_closed;
     settings.near_m = kNearM;
     render::rasterize(render::MeshView{&s.camera_points, &m_triangles}, render::VertexSpace::camera, m_camera, settings,
                       s.framebuffer);
@@ -290,18 +294,13 @@ FrameCost SilhouetteModel::edge_cost(const Pose& pose, const FrameObservation& o
         thread_local std::vector<Nearest> nearest;
         nearest.assign(n, Nearest{});
         double total_weight = 0.0;
+        s.segments.resize(s.pieces.size());
+        for (std::size_t i = 0; i < s.pieces.size(); ++i) s.segments[i] = {s.pieces[i].pixel_a, s.pieces[i].pixel_b};
+        s.piece_grid.build(s.segments);
         for (std::size_t k = 0; k < n; ++k) {
-            const Eigen::Vector2d& o = observed.edge_points_px[k];
             Nearest& best = nearest[k];
-            best.d2 = std::numeric_limits<double>::infinity();
-            for (std::size_t i = 0; i < s.pieces.size(); ++i) {
-                const ContourPiece& p = s.pieces[i];
-                const Eigen::Vector2d ab = p.pixel_b - p.pixel_a;
-                const double len2 = ab.squaredNorm();
-                const double t = len2 > 0.0 ? std::clamp((o - p.pixel_a).dot(ab) / len2, 0.0, 1.0) : 0.0;
-                const double d2 = (o - (p.pixel_a + t * ab)).squaredNorm();
-                if (d2 < best.d2) best = {i, t, d2, 1.0};
-            }
+            const NearestSegment hit = s.piece_grid.nearest(observed.edge_points_px[k]);
+            best = {hit.index, hit.t, hit.distance2_px2, 1.0};
             const ContourPiece& p = s.pieces[best.piece];
             const double along = p.edge_s_a + best.t * (p.edge_s_b - p.edge_s_a);
             best.weight = corner_weight(std::min(along, 1.0 - along) * p.edge_length_px);

@@ -189,6 +189,43 @@ TEST(Rasterizer, RotatedCubeSilhouetteDepthAndBarycentrics) {
     EXPECT_EQ(render::rasterize(cube.vertices, cube.triangles, VertexSpace::world, camera, cull).silhouette(), fb.silhouette());
 }
 
+TEST(Rasterizer, CullingBackFacesKeepsANonConvexClosedMeshsSilhouette) {
+    // A torus (outward counter-clockwise faces) seen from many directions: its
+    // hole and the parts of its ring hidden behind others must survive culling.
+    const int rings = 24, sides = 12;
+    const double major = 0.12, minor = 0.045;
+    std::vector<Eigen::Vector3d> local;
+    std::vector<std::array<int, 3>> triangles;
+    for (int i = 0; i < rings; ++i)
+        for (int j = 0; j < sides; ++j) {
+            const double u = 2.0 * M_PI * i / rings, v = 2.0 * M_PI * j / sides;
+            local.emplace_back((major + minor * std::cos(v)) * std::cos(u), (major + minor * std::cos(v)) * std::sin(u),
+                               minor * std::sin(v));
+            const int a = i * sides + j, b = ((i + 1) % rings) * sides + j;
+            const int c = ((i + 1) % rings) * sides + (j + 1) % sides, d = i * sides + (j + 1) % sides;
+            triangles.push_back({a, b, c});
+            triangles.push_back({a, c, d});
+        }
+    const formats::CameraModel camera = test_camera();
+    std::mt19937 random(3);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    int covered = 0;
+    for (int k = 0; k < 40; ++k) {
+        const Eigen::Quaterniond q = Eigen::Quaterniond(normal(random), normal(random), normal(random), normal(random)).normalized();
+        const Eigen::Vector3d t(0.1 * normal(random), 0.1 * normal(random), 1.0 + 0.2 * std::abs(normal(random)));
+        std::vector<Eigen::Vector3d> vertices;
+        for (const Eigen::Vector3d& p : local) vertices.push_back(q * p + t);
+        RasterSettings all, culled;
+        all.attributes = culled.attributes = false;
+        culled.cull_back_faces = true;
+        const Framebuffer a = render::rasterize(vertices, triangles, VertexSpace::camera, camera, all);
+        const Framebuffer b = render::rasterize(vertices, triangles, VertexSpace::camera, camera, culled);
+        ASSERT_EQ(a.silhouette(), b.silhouette()) << "pose " << k;
+        covered += static_cast<int>(a.covered_area_px());
+    }
+    EXPECT_GT(covered, 40 * 1000);  // the torus fills a good part of each view
+}
+
 TEST(Rasterizer, SharedEdgesThroughPixelCentresAreCoveredExactlyOnce) {
     const formats::CameraModel camera = test_camera();
     // A square whose diagonal and sides pass exactly through pixel centres: a

@@ -24,6 +24,7 @@
 #include "flowvid/metrics/silhouette.hpp"
 #include "flowvid/render/rasterizer.hpp"
 #include "flowvid/rigid/dynamics.hpp"
+#include "flowvid/rigid/nearest_segment.hpp"
 
 #include <Eigen/Core>
 
@@ -103,6 +104,8 @@ public:
         std::vector<Eigen::Vector2d> pixels;
         std::vector<signed char> facing;
         std::vector<ContourPiece> pieces;
+        std::vector<Segment2> segments;  // the pieces in pixels, for the nearest-piece search
+        NearestSegmentGrid piece_grid;
     };
 
     SilhouetteModel(const RigidBody& body, const formats::CameraModel& camera);
@@ -152,6 +155,7 @@ private:
     std::vector<std::array<int, 3>> m_triangles;  // into m_vertices
     std::vector<MeshEdge> m_edges;
     bool m_distorted = false;
+    bool m_closed = false;  // every edge between two faces: coverage from front faces alone
     double m_corner_radius_px = 1.5;
 };
 
