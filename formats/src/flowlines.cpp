@@ -264,10 +264,14 @@ void check_flowline_set(const FlowLineSet& set, Diagnostics& diag, const FlowLin
     check_lines(set.inputs, false, inputs_broken);
     check_lines(set.outputs, true, outputs_broken);
 
-    for (std::size_t i = 0; i < set.inputs.size(); ++i)
+    for (std::size_t i = 0; i < set.inputs.size(); ++i) {
         if (!set.inputs[i].from.empty())
             diag.error(name(false, i, "from"), "an input line names a source line",
                        "remove \"from\": only output lines say which input line's texture they carry");
+        if (set.inputs[i].time_offset_frames != 0)
+            diag.error(name(false, i, "time_offset_frames"), "an input line has a time offset",
+                       "remove \"time_offset_frames\": only output lines are shown at an offset in time");
+    }
     for (std::size_t i = 0; i < set.outputs.size(); ++i) {
         const FlowLine& line = set.outputs[i];
         if (!is_valid_utf8(line.from)) {
@@ -340,12 +344,17 @@ bool parse_line(const JsonView& item, bool output, FlowLine& line) {
     }
     // Inputs accept the same keys so that a misplaced "from" or "keys" gets a
     // specific message from the semantic checks rather than "unknown key".
-    item.check_known_keys({"id", "from", "points", "keys"});
+    item.check_known_keys({"id", "from", "time_offset_frames", "points", "keys"});
     bool ok = true;
     if (std::optional<std::string> id = item.string("id")) line.id = *id;
     else line.id.clear();
     // A missing or empty "from" is reported by the semantic check, with the list of inputs.
     if (std::optional<std::string> from = item.string("from", false)) line.from = *from;
+    if (item.has("time_offset_frames")) {
+        std::optional<std::int64_t> offset = item.integer("time_offset_frames", -1000000000, 1000000000);
+        if (!offset) return false;
+        line.time_offset_frames = static_cast<int>(*offset);
+    }
     const bool has_points = item.has("points");
     const bool has_keys = item.has("keys");
     if (has_points && has_keys) {
@@ -466,6 +475,7 @@ nlohmann::json points_json(const std::vector<Eigen::Vector2d>& points) {
 nlohmann::json line_json(const FlowLine& line, bool output) {
     nlohmann::json entry = {{"id", line.id}};
     if (output) entry["from"] = line.from;
+    if (output && line.time_offset_frames != 0) entry["time_offset_frames"] = line.time_offset_frames;
     if (line.keys.empty()) {
         entry["points"] = points_json(line.points);
     } else {
@@ -492,6 +502,7 @@ std::string points_text(const std::vector<Eigen::Vector2d>& points) {
 std::string line_text(const FlowLine& line, bool output) {
     std::string text = "{\"id\": " + nlohmann::json(line.id).dump();
     if (output) text += ", \"from\": " + nlohmann::json(line.from).dump();
+    if (output && line.time_offset_frames != 0) text += ", \"time_offset_frames\": " + std::to_string(line.time_offset_frames);
     if (line.keys.empty()) return text + ", \"points\": " + points_text(line.points) + "}";
     text += ", \"keys\": [\n";
     for (std::size_t k = 0; k < line.keys.size(); ++k) {

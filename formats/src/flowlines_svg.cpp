@@ -13,6 +13,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <ostream>
@@ -1102,6 +1103,20 @@ private:
             m_diag.error(element + (field.empty() ? "" : ", attribute " + field), message, fix);
             imported.broken = true;
         };
+        if (const std::string* offset = event.attribute("data-time-offset-frames")) {
+            const std::string text = trim(*offset);
+            char* end = nullptr;
+            const long value = std::strtol(text.c_str(), &end, 10);
+            if (frame.role != Role::output) {
+                m_diag.warning(element + ", attribute data-time-offset-frames", "a time offset on an input line is ignored",
+                               "only output lines are shown at an offset in time: remove it");
+            } else if (text.empty() || *end != '\0' || value < -1000000000L || value > 1000000000L) {
+                refuse("data-time-offset-frames", "\"" + text + "\" is not a whole number of frames",
+                       "write an integer, e.g. data-time-offset-frames=\"12\", or remove the attribute");
+            } else {
+                imported.line.time_offset_frames = static_cast<int>(value);
+            }
+        }
         bool closed = false;
         if (local == "path") {
             const std::string* d = event.attribute("d");
@@ -1320,6 +1335,7 @@ private:
             }
             const std::string& element = (output ? m_outputs : m_inputs)[index].element;
             if (leaf == "from") return element + ", attribute data-from";
+            if (leaf == "time_offset_frames") return element + ", attribute data-time-offset-frames";
             if (leaf.rfind("points/", 0) == 0) return element + ", point " + leaf.substr(7);
             if (leaf.empty() || leaf == "points" || leaf == "id") return element;
             return element + ", " + leaf;
@@ -1423,6 +1439,8 @@ std::string flowline_set_to_svg(const FlowLineSet& set, const std::string& backg
         for (const FlowLine& line : lines) {
             svg += "    <path id=\"" + xml_escape(line.id) + "\"";
             if (output) svg += " data-from=\"" + xml_escape(line.from) + "\"";
+            if (output && line.time_offset_frames != 0)
+                svg += " data-time-offset-frames=\"" + std::to_string(line.time_offset_frames) + "\"";
             const std::vector<Eigen::Vector2d>& points = line.keys.empty() ? line.points : line.keys.front().points;
             svg += " d=\"" + path_data(points) + "\"";
             if (line.keys.empty()) {

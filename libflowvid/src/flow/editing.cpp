@@ -97,7 +97,8 @@ PairSamples pair_samples(const std::vector<Eigen::Vector2d>& a, const std::vecto
 
 Eigen::MatrixXd pair_error(const ParticleStreams& streams, const formats::FlowLine& line_a, const formats::FlowLine& line_b,
                            const std::vector<int>& candidates, const EditSettings& settings,
-                           const std::vector<ParticleStreams::FrameParticles>& frame_particles) {
+                           const std::vector<ParticleStreams::FrameParticles>& particles_a,
+                           const std::vector<ParticleStreams::FrameParticles>& particles_b) {
     const int y_count = static_cast<int>(candidates.size());
     const int patch = streams.patch_size();
     const int frames = std::max(1, settings.correspondence_frames);
@@ -125,9 +126,8 @@ Eigen::MatrixXd pair_error(const ParticleStreams& streams, const formats::FlowLi
             }
         }
         for (int y = 0; y < y_count; ++y) {
-            const ParticleStreams::FrameParticles& particles = frame_particles[static_cast<std::size_t>(t)];
-            streams.sample(points_a[static_cast<std::size_t>(y)], particles, sa);
-            streams.sample(points_b[static_cast<std::size_t>(y)], particles, sb);
+            streams.sample(points_a[static_cast<std::size_t>(y)], particles_a[static_cast<std::size_t>(t)], sa);
+            streams.sample(points_b[static_cast<std::size_t>(y)], particles_b[static_cast<std::size_t>(t)], sb);
             for (std::size_t k = 0; k < per_frame; ++k) {
                 const Eigen::Index col = static_cast<Eigen::Index>(static_cast<std::size_t>(t) * per_frame + k);
                 const double w1 = std::min(1.0f, sa.weight[k]), w2 = std::min(1.0f, sb.weight[k]);
@@ -166,13 +166,24 @@ int worker_count(int threads) {
 std::vector<Eigen::MatrixXd> overlap_errors(const ParticleStreams& streams, const std::vector<formats::FlowLine>& chain,
                                             const std::vector<int>& candidate_streams, const EditSettings& settings) {
     std::vector<Eigen::MatrixXd> out(chain.size() > 0 ? chain.size() - 1 : 0);
-    std::vector<ParticleStreams::FrameParticles> particles;
-    for (int t = 0; t < std::max(1, settings.correspondence_frames); ++t)
-        particles.push_back(streams.frame_particles(settings.first_frame + t));
+    const int frames = std::max(1, settings.correspondence_frames);
+    const auto particles_at = [&](int offset) {
+        std::vector<ParticleStreams::FrameParticles> particles;
+        for (int t = 0; t < frames; ++t) particles.push_back(streams.frame_particles(settings.first_frame + t + offset));
+        return particles;
+    };
+    // Lines without an offset (drawn ones) share one set; the others get theirs per pair.
+    const std::vector<ParticleStreams::FrameParticles> unshifted = particles_at(0);
     std::atomic<std::size_t> next{0};
     const auto work = [&] {
-        for (std::size_t i = next++; i < out.size(); i = next++)
-            out[i] = pair_error(streams, chain[i], chain[i + 1], candidate_streams, settings, particles);
+        for (std::size_t i = next++; i < out.size(); i = next++) {
+            const int offset_a = chain[i].time_offset_frames, offset_b = chain[i + 1].time_offset_frames;
+            std::vector<ParticleStreams::FrameParticles> shifted_a, shifted_b;
+            if (offset_a != 0) shifted_a = particles_at(offset_a);
+            if (offset_b != 0) shifted_b = particles_at(offset_b);
+            out[i] = pair_error(streams, chain[i], chain[i + 1], candidate_streams, settings,
+                                offset_a != 0 ? shifted_a : unshifted, offset_b != 0 ? shifted_b : unshifted);
+        }
     };
     std::vector<std::future<void>> jobs;
     for (int t = 0; t < worker_count(settings.threads); ++t) jobs.push_back(std::async(std::launch::async, work));
@@ -204,6 +215,16 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
         return out;
     };
 
+    // Offsets spread evenly over the period whatever the number of lines
+    // (fractional parts of multiples of the golden ratio), so that no two
+    // neighbours are close in time.
+    int interpolated_count = 0;
+    const auto next_time_offset = [&] {
+        if (!settings.offset_interpolated_lines) return 0;
+        const double golden = 0.6180339887498949;
+        const double fraction = std::fmod(golden * ++interpolated_count, 1.0);
+        return static_cast<int>(std::floor(fraction * streams.schedule().period_frames));
+    };
     for (const std::vector<int>& chain : sparse_chains) {
         // The dense chain: drawn lines with the interpolated ones between them.
         std::vector<DenseLine> dense;
@@ -221,6 +242,7 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
                 const formats::FlowLine& b = drawing.outputs[static_cast<std::size_t>(inter.b)];
                 DenseLine d2;
                 d2.output.line.id = interpolated_line_id(a.id, b.id, inter.weight);
+                d2.output.line.time_offset_frames = next_time_offset();
                 if (a.is_time_varying() || b.is_time_varying()) {
                     std::set<int> frames;
                     for (const auto& key : a.keys) frames.insert(key.frame);

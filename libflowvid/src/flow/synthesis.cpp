@@ -707,6 +707,7 @@ struct Synthesizer::Plan {
         int stream = -1;
         bool identity = false;
         bool keyed = false;
+        int time_offset_frames = 0;  // shows the particles of frame + this
         formats::FlowLine line;  // keyed lines: geometry per frame
         WarpTable warp;          // fixed, non-identity lines
     };
@@ -739,6 +740,7 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         line.stream = stream;
         const LineGeometry& in = m_streams->geometry(stream);
         line.keyed = geometry.is_time_varying();
+        line.time_offset_frames = geometry.time_offset_frames;
         if (!line.keyed) {
             // An output line drawn exactly over its input line is the input
             // line: render it exactly, without warping.
@@ -776,6 +778,7 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         for (const ParticleStreams::InputLine::Segment& seg : in.segments) {
             formats::FlowLine part;
             part.id = output.line.id + "/" + m_streams->schedule().lines[static_cast<std::size_t>(seg.stream)].line_id;
+            part.time_offset_frames = output.line.time_offset_frames;
             bool empty = false;
             if (!output.line.is_time_varying()) {
                 part.points = part_of(output.line.points, seg, empty);
@@ -812,7 +815,7 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
     std::vector<float> feather(static_cast<std::size_t>(patch));
     for (int i = 0; i < patch; ++i) feather[static_cast<std::size_t>(i)] = feather_weight(static_cast<float>(i), patch);
     for (const Plan::Line& line : m_plan->lines) {
-        m_streams->visible(line.stream, frame, visible);
+        m_streams->visible(line.stream, frame + line.time_offset_frames, visible);
         if (line.identity) {
             for (const auto& v : visible) splat_patch(acc, v, patch, feather);
             continue;
@@ -1077,7 +1080,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
     s.keyed_warps.resize(keyed);  // never reallocated below: splats point into it
     keyed = 0;
     for (const Plan::Line& line : m_plan->lines) {
-        m_streams->visible(line.stream, frame, s.visible);
+        m_streams->visible(line.stream, frame + line.time_offset_frames, s.visible);
         const WarpTable* warp = nullptr;
         if (line.keyed) {
             warp = &s.keyed_warps[keyed++];

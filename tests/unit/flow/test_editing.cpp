@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -297,6 +298,9 @@ TEST(FlowEditing, DensePlanRoundTripsThroughSvgAndJson) {
     edit.correspondence_frames = 2;
     const formats::FlowLineSet dense = plan_to_flowlines(drawing, plan_edit(drawing, streams, edit));
     ASSERT_GT(dense.outputs.size(), 2u);
+    // Interpolated lines carry their time offsets through both files.
+    EXPECT_TRUE(std::any_of(dense.outputs.begin(), dense.outputs.end(),
+                            [](const formats::FlowLine& l) { return l.time_offset_frames != 0; }));
     const std::string dir = flowvid::testing::scratch_dir("flow_editing");
     formats::write_flowlines_svg(dir + "/dense.svg", dense);
     const formats::FlowLineSet from_svg = formats::import_flowlines_svg(dir + "/dense.svg");
@@ -343,4 +347,105 @@ TEST(FlowEditing, LinesBetweenMovingLinesKeepOnePointCountPerLine) {
         EXPECT_NO_THROW(formats::points_at_frame(d.output.line, 3.0));
     }
     EXPECT_GT(interpolated, 0);
+}
+
+namespace {
+
+// One vertical input line at x = 20 whose particles (one entering per frame,
+// 10 frames from y = 10 to 110) are each one flat grey: (p + 1) / 14 for the
+// p-th, so that a pixel tells which particle it shows.
+std::shared_ptr<const ParticleStreams> one_grey_per_particle_streams() {
+    auto bank = std::make_shared<formats::ParticleBank>();
+    const int patch = 8, life = 10;
+    bank->patch_size_px = patch;
+    bank->clip_width_px = bank->clip_height_px = 120;
+    bank->clip_frame_count = 12 + life;
+    bank->lines.push_back({"in-0", 100.0f});
+    for (int p = 0; p < 12; ++p) {
+        formats::TrackedParticle particle;
+        particle.line_id = "in-0";
+        particle.start_frame = p;
+        const float grey = (p + 1) / 14.0f;
+        for (int a = 0; a < life; ++a) {
+            particle.arc_length_px.push_back(100.0f * a / (life - 1));
+            for (int k = 0; k < patch * patch; ++k) particle.texture_rgba.insert(particle.texture_rgba.end(), {grey, grey, grey, 1.0f});
+        }
+        bank->particles.push_back(std::move(particle));
+    }
+    SynthesisSettings settings;
+    settings.fade_frames = 0;
+    return std::make_shared<ParticleStreams>(bank, vertical_lines({20.0}, 10.0, 110.0), settings);
+}
+
+}  // namespace
+
+// The sequence is infinite and the same whatever range is rendered, so a line
+// shown at an offset in time is exactly the unshifted line some frames later.
+TEST(FlowEditing, ALineAtATimeOffsetShowsTheSequenceThatManyFramesLater) {
+    const auto streams = one_grey_per_particle_streams();
+    formats::FlowLine shifted = line("out", {{70.0, 10.0}, {66.0, 110.0}});
+    shifted.time_offset_frames = 5;
+    formats::FlowLine unshifted = shifted;
+    unshifted.time_offset_frames = 0;
+    const Synthesizer a(streams, {{shifted, "in-0"}}, Background(), SynthesisSettings{});
+    const Synthesizer b(streams, {{unshifted, "in-0"}}, Background(), SynthesisSettings{});
+    for (int frame : {1, 17, 40}) {
+        const RgbImage late = b.render(frame + 5), now = a.render(frame);
+        EXPECT_EQ(now.rgb, late.rgb) << "frame " << frame;
+        EXPECT_NE(a.render(frame).rgb, b.render(frame).rgb) << "frame " << frame;
+    }
+}
+
+// Interpolated lines that carry the same input must not show the same
+// particles side by side (regression: every such line replayed the input at
+// the same time, so the texture repeated every half patch across the flow:
+// streaks on the fire's wind edit, flat areas on the waterfall's new channel).
+TEST(FlowEditing, NeighbouringInterpolatedLinesShowDifferentParticles) {
+    const auto streams = one_grey_per_particle_streams();
+    formats::FlowLineSet drawing;
+    drawing.width = drawing.height = 120;
+    drawing.inputs.push_back(line("in-0", {{20.0, 10.0}, {20.0, 110.0}}));
+    drawing.outputs.push_back(line("left", {{60.0, 10.0}, {60.0, 110.0}}, "in-0"));
+    drawing.outputs.push_back(line("right", {{100.0, 10.0}, {100.0, 110.0}}, "in-0"));
+    // Mean grey difference between neighbouring dense lines' centre columns,
+    // where both are fully covered, over a few frames.
+    auto neighbour_difference = [&](bool offsets, EditPlan& plan) {
+        EditSettings edit;
+        edit.correspondence_frames = 2;
+        edit.offset_interpolated_lines = offsets;
+        plan = plan_edit(drawing, *streams, edit);
+        SynthesisSettings settings;
+        settings.fade_frames = 0;
+        const Synthesizer synth(streams, output_lines(plan), Background(), settings);
+        double sum = 0.0;
+        int count = 0;
+        for (int frame : {20, 23, 31}) {
+            std::vector<float> coverage;
+            const RgbImage image = synth.render(frame, &coverage);
+            for (int x = 60; x + 4 <= 100; x += 4)
+                for (int y = 30; y <= 90; ++y) {
+                    const std::size_t a = static_cast<std::size_t>(y) * 120 + x, b = a + 4;
+                    if (coverage[a] < 0.99f || coverage[b] < 0.99f) continue;
+                    sum += std::fabs(image.rgb[3 * a] - image.rgb[3 * b]);
+                    ++count;
+                }
+        }
+        EXPECT_GT(count, 500);
+        return count > 0 ? sum / count : 0.0;
+    };
+    EditPlan same_time, own_time;
+    const double replicated = neighbour_difference(false, same_time);
+    const double varied = neighbour_difference(true, own_time);
+    EXPECT_LT(replicated, 1e-4);  // the same particle, shifted across by the spacing
+    EXPECT_GT(varied, 0.05);      // greys 1/14 apart: different particles
+    // Drawn lines keep the input's time; interpolated neighbours differ in time.
+    ASSERT_EQ(own_time.lines.size(), 11u);
+    const int period = streams->schedule().period_frames;
+    for (std::size_t i = 0; i < own_time.lines.size(); ++i) {
+        const DenseLine& d = own_time.lines[i];
+        if (d.drawn) EXPECT_EQ(d.output.line.time_offset_frames, 0);
+        EXPECT_GE(d.output.line.time_offset_frames, 0);
+        EXPECT_LT(d.output.line.time_offset_frames, period);
+        if (i > 0) EXPECT_NE(d.output.line.time_offset_frames, own_time.lines[i - 1].output.line.time_offset_frames) << i;
+    }
 }

@@ -215,7 +215,7 @@ TEST(FlowLinesJson, MajorVersion2IsRefused) {
 }
 
 TEST(FlowLinesJson, NewerMinorVersionLoadsWithWarnings) {
-    const std::string path = test_data("formats/flowlines/version_1_1.flowlines.json");
+    const std::string path = test_data("formats/flowlines/version_1_9.flowlines.json");
     std::vector<Problem> warnings;
     const FlowLineSet set = read_flowline_set(path, &warnings);
     EXPECT_EQ(set.inputs[0].points[1], Eigen::Vector2d(12, 47.5));
@@ -340,6 +340,20 @@ TEST(FlowLinesJson, ValidateFileNeverThrows) {
     const std::vector<Problem> problems = validate_flowline_set_file(svg, Strictness::strict);
     ASSERT_FALSE(problems.empty());
     EXPECT_EQ(problems[0].file, svg);
+}
+
+
+TEST(FlowLinesJson, TimeOffsetsRoundTripAndAreRefusedOnInputs) {
+    const std::string dir = scratch_dir("flowlines_time_offset");
+    FlowLineSet set = awkward_set();
+    set.outputs[0].time_offset_frames = 7;
+    write_flowline_set(dir + "/set.flowlines.json", set);
+    EXPECT_NE(read_text(dir + "/set.flowlines.json").find("\"time_offset_frames\": 7"), std::string::npos);
+    EXPECT_EQ(read_flowline_set(dir + "/set.flowlines.json"), set);
+    FlowLineSet bad = awkward_set();
+    bad.inputs[0].time_offset_frames = 3;
+    const std::string messages = validation_messages([&] { write_flowline_set(dir + "/bad.flowlines.json", bad); });
+    EXPECT_TRUE(has_line_with(messages, dir + "/bad.flowlines.json", "/inputs/0/time_offset_frames", "time offset")) << messages;
 }
 
 }  // namespace

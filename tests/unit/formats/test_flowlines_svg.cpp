@@ -500,5 +500,24 @@ TEST(FlowLinesSvg, FailedWriteKeepsThePreviousFile) {
     EXPECT_EQ(read_text(path), before);
 }
 
+
+TEST(FlowLinesSvg, TimeOffsetsOfOutputLinesAreReadAndBadOnesNamed) {
+    const std::string head =
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"100\" height=\"80\">"
+        "<g id=\"input\"><path id=\"in-1\" d=\"M 10,0 L 10,70\"/></g><g id=\"output\">";
+    std::optional<FlowLineSet> set;
+    const std::vector<Problem> good = svg_problems(
+        head + "<path id=\"out-1\" data-from=\"in-1\" data-time-offset-frames=\" 12 \" d=\"M 30,0 L 30,70\"/></g></svg>",
+        "good.svg", &set);
+    EXPECT_EQ(joined(good, Problem::Severity::error), "");
+    ASSERT_TRUE(set.has_value());
+    EXPECT_EQ(set->outputs.at(0).time_offset_frames, 12);
+    const std::string bad = joined(
+        svg_problems(head + "<path id=\"out-1\" data-from=\"in-1\" data-time-offset-frames=\"1.5\" d=\"M 30,0 L 30,70\"/></g></svg>",
+                     "bad.svg"),
+        Problem::Severity::error);
+    EXPECT_TRUE(has_line_with(bad, {"bad.svg", "data-time-offset-frames", "whole number"})) << bad;
+}
+
 }  // namespace
 }  // namespace flowvid::formats

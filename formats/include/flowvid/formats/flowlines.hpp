@@ -23,7 +23,7 @@
 namespace flowvid::formats {
 
 inline constexpr const char* kFlowLinesFormatName = "flowvid.flowlines";
-inline constexpr FormatVersion kFlowLinesFormatVersion{1, 0};
+inline constexpr FormatVersion kFlowLinesFormatVersion{1, 1};
 inline constexpr const char* kFlowLinesPixelConvention = "opencv";
 
 // The polyline of a time-varying line at one output frame.
@@ -40,6 +40,10 @@ struct FlowLine {
     std::vector<Eigen::Vector2d> points;         // #P polyline, pixels, in flow direction
     std::vector<FlowLineKey> keys;               // time-varying line (output lines only)
     std::string from;                            // output lines: id of the input line whose texture it carries
+    // Output lines: output frame t shows the particles the infinite sequence
+    // has at frame t + this (lines carrying one input side by side then show
+    // different particles). 0 for drawn lines.
+    int time_offset_frames = 0;
     bool is_time_varying() const { return !keys.empty(); }
     bool operator==(const FlowLine&) const = default;
 };

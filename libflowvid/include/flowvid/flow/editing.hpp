@@ -34,6 +34,10 @@ struct EditSettings {
     int samples_along = 12;          // sample points along each neighbour pair (times 5 across)
     ArcMapping mapping = ArcMapping::equal;
     int threads = 0;                 // 0 = hardware concurrency
+    // Each interpolated line shows its input's particles at its own offset in
+    // time (golden-ratio steps through the period): without it, neighbours
+    // that carry the same input show the same particles side by side.
+    bool offset_interpolated_lines = true;
 };
 
 // The solution of eq. 3.1 along one chain.
@@ -49,8 +53,8 @@ ChainAssignment solve_chain(const std::vector<Eigen::MatrixXd>& pair_costs, cons
                             int candidate_count);
 
 // E(x-1, y', x, y) for every neighbour pair of `chain` (polylines or keyed
-// lines) and every pair of candidate streams, averaged over the settings'
-// frames. Pairs that never overlap cost 0.
+// lines, each at its time_offset_frames) and every pair of candidate streams,
+// averaged over the settings' frames. Pairs that never overlap cost 0.
 std::vector<Eigen::MatrixXd> overlap_errors(const ParticleStreams& streams, const std::vector<formats::FlowLine>& chain,
                                             const std::vector<int>& candidate_streams, const EditSettings& settings);
 
