@@ -43,6 +43,7 @@ struct RenderOptions {
     double max_gap_px = 0.0;
     bool no_interpolate = false;
     int correspondence_frames = 30;
+    std::string interpolated_inputs = "between";
     std::string dense_out;
 };
 
@@ -148,6 +149,9 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
             edit_settings.max_gap_px = options.max_gap_px;
             edit_settings.mapping = settings.mapping;
             edit_settings.correspondence_frames = options.correspondence_frames;
+            edit_settings.interpolated_inputs = options.interpolated_inputs == "any"
+                                                    ? flow::EditSettings::InterpolatedInputs::any
+                                                    : flow::EditSettings::InterpolatedInputs::between;
             edit_settings.threads = options.threads;
             Progress planning(global, "correspondence");
             const flow::EditPlan plan = flow::plan_edit(drawing, *streams, edit_settings, [&](const flow::EditProgress& p) {
@@ -280,6 +284,11 @@ const RegisterCommand edit_registration{Command{
         app.add_flag("--no-interpolate", options->no_interpolate, "render only the drawn output lines");
         app.add_option("--correspondence-frames", options->correspondence_frames,
                        "frames the overlap error is averaged over")
+            ->capture_default_str();
+        app.add_option("--interpolated-inputs", options->interpolated_inputs,
+                       "inputs an interpolated line may carry: between (those between its two drawn lines' inputs, "
+                       "across the flow) or any (every input line, as the thesis; favours flat, static texture)")
+            ->check(CLI::IsMember({"between", "any"}))
             ->capture_default_str();
         app.add_option("--dense-out", options->dense_out, "write the dense output lines with their inputs (*.flowlines.json)");
         return [options](const GlobalOptions& global) { return render(*options, global, true); };

@@ -225,9 +225,41 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
         const double fraction = std::fmod(golden * ++interpolated_count, 1.0);
         return static_cast<int>(std::floor(fraction * streams.schedule().period_frames));
     };
+    // Input lines ordered across the flow (their segments joined back into
+    // whole lines), for the inputs an interpolated line may take.
+    std::map<int, std::pair<std::size_t, std::size_t>> input_place;  // candidate -> (chain, position)
+    std::vector<std::vector<int>> input_chains;
+    if (settings.interpolated_inputs == EditSettings::InterpolatedInputs::between) {
+        std::vector<std::vector<Eigen::Vector2d>> whole;
+        for (const ParticleStreams::InputLine& in : streams.input_lines()) {
+            std::vector<Eigen::Vector2d> points;
+            for (const ParticleStreams::InputLine::Segment& seg : in.segments)
+                for (const Eigen::Vector2d& p : streams.geometry(seg.stream).points())
+                    if (points.empty() || (p - points.back()).norm() > 1e-9) points.push_back(p);
+            whole.push_back(points);
+        }
+        input_chains = neighbour_chains(whole, max_gap, settings.max_angle_deg);
+        for (std::size_t c = 0; c < input_chains.size(); ++c)
+            for (std::size_t k = 0; k < input_chains[c].size(); ++k) input_place[input_chains[c][k]] = {c, k};
+    }
+    // Candidates (indices into `candidates`, which are input line indices) between two drawn lines' inputs.
+    const auto inputs_between = [&](const std::string& from_a, const std::string& from_b) {
+        std::vector<int> out;
+        const auto a = input_place.find(streams.input_line_index(from_a));
+        const auto b = input_place.find(streams.input_line_index(from_b));
+        if (a == input_place.end() || b == input_place.end() || a->second.first != b->second.first) return out;  // any
+        const std::vector<int>& chain = input_chains[a->second.first];
+        const std::size_t lo = std::min(a->second.second, b->second.second), hi = std::max(a->second.second, b->second.second);
+        for (std::size_t k = lo; k <= hi; ++k)
+            for (std::size_t c = 0; c < candidates.size(); ++c)
+                if (candidates[c] == chain[k]) out.push_back(static_cast<int>(c));
+        return out;
+    };
+
     for (const std::vector<int>& chain : sparse_chains) {
         // The dense chain: drawn lines with the interpolated ones between them.
         std::vector<DenseLine> dense;
+        std::vector<std::vector<int>> interpolated_allowed;  // per dense line (drawn lines: unused)
         for (std::size_t k = 0; k < chain.size(); ++k) {
             const formats::FlowLine& line = drawing.outputs[static_cast<std::size_t>(chain[k])];
             DenseLine d;
@@ -235,6 +267,7 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
             d.output.from = line.from;
             d.drawn = true;
             dense.push_back(std::move(d));
+            interpolated_allowed.emplace_back();
             if (k + 1 == chain.size()) break;
             for (const InterpolatedLine& inter : between) {
                 if (inter.a != chain[k] || inter.b != chain[k + 1]) continue;
@@ -257,13 +290,15 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
                     d2.output.line.points = interpolated_points(a, b, inter.weight, settings.first_frame);
                 }
                 dense.push_back(std::move(d2));
+                interpolated_allowed.push_back(inputs_between(a.from, b.from));
             }
         }
         // Allowed inputs: drawn lines keep theirs.
         std::vector<std::vector<int>> allowed;
-        for (const DenseLine& d : dense) {
+        for (std::size_t x = 0; x < dense.size(); ++x) {
+            const DenseLine& d = dense[x];
             if (!d.drawn) {
-                allowed.push_back({});
+                allowed.push_back(interpolated_allowed[x]);
                 continue;
             }
             std::vector<int> ok;

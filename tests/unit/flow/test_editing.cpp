@@ -12,7 +12,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <random>
+#include <set>
 
 using namespace flowvid;
 using namespace flowvid::flow;
@@ -448,4 +450,33 @@ TEST(FlowEditing, NeighbouringInterpolatedLinesShowDifferentParticles) {
         EXPECT_LT(d.output.line.time_offset_frames, period);
         if (i > 0) EXPECT_NE(d.output.line.time_offset_frames, own_time.lines[i - 1].output.line.time_offset_frames) << i;
     }
+}
+
+// An input line far to the side whose grey lies between the drawn lines'
+// greys lowers eq. 3.1 if any input may be taken; the default keeps the
+// interpolated lines to the inputs between the drawn lines' own.
+TEST(FlowEditing, InterpolatedLinesTakeInputsBetweenTheirDrawnLinesInputs) {
+    const std::vector<double> xs = {20, 35, 50, 65, 80, 100};
+    const float greys[] = {0.1f, 0.3f, 0.5f, 0.7f, 0.9f, 0.2f};
+    auto bank = vertical_bank(xs, 10.0, 110.0, 10, [&](int l, double, double) { return greys[l]; }, 120, 120, 16);
+    const ParticleStreams streams(bank, vertical_lines(xs, 10.0, 110.0), SynthesisSettings{});
+    formats::FlowLineSet drawing;
+    drawing.width = drawing.height = 120;
+    for (std::size_t i = 0; i < xs.size(); ++i) drawing.inputs.push_back(line("in-" + std::to_string(i), {{xs[i], 10.0}, {xs[i], 110.0}}));
+    drawing.outputs.push_back(line("dark", {{36.0, 10.0}, {36.0, 110.0}}, "in-0"));
+    drawing.outputs.push_back(line("lighter", {{84.0, 10.0}, {84.0, 110.0}}, "in-1"));
+    EditSettings edit;
+    edit.spacing_px = 12.0;
+    edit.correspondence_frames = 4;
+    std::map<std::string, std::set<std::string>> taken;
+    for (auto inputs : {EditSettings::InterpolatedInputs::between, EditSettings::InterpolatedInputs::any}) {
+        edit.interpolated_inputs = inputs;
+        const EditPlan plan = plan_edit(drawing, streams, edit);
+        ASSERT_EQ(plan.lines.size(), 5u);
+        for (const DenseLine& d : plan.lines)
+            if (!d.drawn) taken[inputs == EditSettings::InterpolatedInputs::any ? "any" : "between"].insert(d.output.from);
+    }
+    ASSERT_FALSE(taken["between"].empty());
+    for (const std::string& from : taken["between"]) EXPECT_TRUE(from == "in-0" || from == "in-1") << from;
+    EXPECT_TRUE(taken["any"].count("in-5")) << "the far grey 0.2 halves the steps";
 }

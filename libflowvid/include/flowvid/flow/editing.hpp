@@ -38,6 +38,13 @@ struct EditSettings {
     // time (golden-ratio steps through the period): without it, neighbours
     // that carry the same input show the same particles side by side.
     bool offset_interpolated_lines = true;
+    // Which input lines an interpolated line may carry. between: those lying
+    // between (inclusive) the inputs of the two drawn lines it is interpolated
+    // from, across the flow (every input when those two are not neighbours
+    // in one chain of inputs). any: every input line (the thesis's Y), which
+    // lets eq. 3.1 favour flat, static texture (a line over bare ground).
+    enum class InterpolatedInputs { between, any };
+    InterpolatedInputs interpolated_inputs = InterpolatedInputs::between;
 };
 
 // The solution of eq. 3.1 along one chain.
