@@ -195,8 +195,10 @@ def video(options):
         api.run_flowvid_tool("convert", options.inputs, inputs)
     lines = os.path.join(out, "particles.flowlines.json")
     baked = api.bake_flowlines(emitter, camera, 1, options.frames, lines, inputs=inputs, scene=scene)
+    # The particles carry foam over darker water and rock: coverage 2 blends
+    # the texture in instead of ending it in a hard edge (flowvid edit --help).
     first = api.synthesize(options.bank, lines, 1, options.frames, os.path.join(out, "synthesized"),
-                           extra=("--capture", options.clip))
+                           extra=("--capture", options.clip, "--coverage", "2"))
     image = api.load_image_sequence(first, 1, options.frames)
     api.show_on_camera_plane(camera, image, 1, options.frames, scene=scene)
     started = time.monotonic()
