@@ -13,7 +13,6 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <map>
 #include <ostream>
@@ -1105,16 +1104,16 @@ private:
         };
         if (const std::string* offset = event.attribute("data-time-offset-frames")) {
             const std::string text = trim(*offset);
-            char* end = nullptr;
-            const long value = std::strtol(text.c_str(), &end, 10);
+            std::size_t end = 0;
+            const std::optional<double> value = read_number(text, end);
             if (frame.role != Role::output) {
                 m_diag.warning(element + ", attribute data-time-offset-frames", "a time offset on an input line is ignored",
                                "only output lines are shown at an offset in time: remove it");
-            } else if (text.empty() || *end != '\0' || value < -1000000000L || value > 1000000000L) {
+            } else if (!value || end != text.size() || *value != std::floor(*value) || std::abs(*value) > 1e9) {
                 refuse("data-time-offset-frames", "\"" + text + "\" is not a whole number of frames",
                        "write an integer, e.g. data-time-offset-frames=\"12\", or remove the attribute");
             } else {
-                imported.line.time_offset_frames = static_cast<int>(value);
+                imported.line.time_offset_frames = static_cast<int>(*value);
             }
         }
         bool closed = false;

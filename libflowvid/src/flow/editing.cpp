@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <future>
 #include <limits>
@@ -172,21 +171,26 @@ std::vector<Eigen::MatrixXd> overlap_errors(const ParticleStreams& streams, cons
         for (int t = 0; t < frames; ++t) particles.push_back(streams.frame_particles(settings.first_frame + t + offset));
         return particles;
     };
-    // Lines without an offset (drawn ones) share one set; the others get theirs per pair.
+    // Lines without an offset (drawn ones) share one set. Each worker takes a
+    // run of consecutive pairs, so that a shifted line's set, needed by the
+    // pair on either side of it, is made once and handed on.
     const std::vector<ParticleStreams::FrameParticles> unshifted = particles_at(0);
-    std::atomic<std::size_t> next{0};
-    const auto work = [&] {
-        for (std::size_t i = next++; i < out.size(); i = next++) {
+    const auto work = [&](std::size_t first, std::size_t last) {
+        std::vector<ParticleStreams::FrameParticles> shifted_a, shifted_b;  // of chain[i], chain[i + 1]
+        for (std::size_t i = first; i < last; ++i) {
             const int offset_a = chain[i].time_offset_frames, offset_b = chain[i + 1].time_offset_frames;
-            std::vector<ParticleStreams::FrameParticles> shifted_a, shifted_b;
-            if (offset_a != 0) shifted_a = particles_at(offset_a);
+            if (i == first && offset_a != 0) shifted_a = particles_at(offset_a);
+            shifted_b.clear();
             if (offset_b != 0) shifted_b = particles_at(offset_b);
             out[i] = pair_error(streams, chain[i], chain[i + 1], candidate_streams, settings,
                                 offset_a != 0 ? shifted_a : unshifted, offset_b != 0 ? shifted_b : unshifted);
+            shifted_a = std::move(shifted_b);
         }
     };
+    const std::size_t workers = std::min<std::size_t>(static_cast<std::size_t>(worker_count(settings.threads)), out.size());
     std::vector<std::future<void>> jobs;
-    for (int t = 0; t < worker_count(settings.threads); ++t) jobs.push_back(std::async(std::launch::async, work));
+    for (std::size_t w = 0; w < workers; ++w)
+        jobs.push_back(std::async(std::launch::async, work, w * out.size() / workers, (w + 1) * out.size() / workers));
     for (auto& job : jobs) job.get();
     return out;
 }

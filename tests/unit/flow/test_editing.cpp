@@ -69,6 +69,14 @@ std::vector<std::vector<Eigen::Vector2d>> vertical_lines(const std::vector<doubl
     return out;
 }
 
+// A 120 x 120 drawing whose inputs are the vertical lines in-0, in-1, ... at xs, from y = 10 to 110.
+formats::FlowLineSet vertical_drawing(const std::vector<double>& xs) {
+    formats::FlowLineSet d;
+    d.width = d.height = 120;
+    for (std::size_t i = 0; i < xs.size(); ++i) d.inputs.push_back(line("in-" + std::to_string(i), {{xs[i], 10.0}, {xs[i], 110.0}}));
+    return d;
+}
+
 double brute_force(const std::vector<Eigen::MatrixXd>& e, const std::vector<std::vector<int>>& allowed, int y_count,
                    std::vector<int>& best_choice) {
     const std::size_t x_count = allowed.size();
@@ -130,9 +138,7 @@ TEST(FlowEditing, PicksTheKnownBestAssignmentOnAConstructedCase) {
     auto bank = vertical_bank(xs, 10.0, 110.0, 10, [](int l, double, double) { return 0.1f + 0.2f * l; }, 120, 120, 16);
     SynthesisSettings settings;
     const ParticleStreams streams(bank, vertical_lines(xs, 10.0, 110.0), settings);
-    formats::FlowLineSet drawing;
-    drawing.width = drawing.height = 120;
-    for (std::size_t i = 0; i < xs.size(); ++i) drawing.inputs.push_back(line("in-" + std::to_string(i), {{xs[i], 10.0}, {xs[i], 110.0}}));
+    formats::FlowLineSet drawing = vertical_drawing(xs);
     drawing.outputs.push_back(line("dark", {{36.0, 10.0}, {36.0, 110.0}}, "in-0"));
     drawing.outputs.push_back(line("bright", {{84.0, 10.0}, {84.0, 110.0}}, "in-4"));
     EditSettings edit;
@@ -280,12 +286,7 @@ struct ThreeVerticalInputs {
     std::vector<double> xs = {20, 35, 50};
     ParticleStreams streams{vertical_bank(xs, 10.0, 110.0, 10, [](int l, double, double) { return 0.2f + 0.3f * l; }),
                             vertical_lines(xs, 10.0, 110.0), SynthesisSettings{}};
-    formats::FlowLineSet drawing = [this] {
-        formats::FlowLineSet d;
-        d.width = d.height = 120;
-        for (std::size_t i = 0; i < xs.size(); ++i) d.inputs.push_back(line("in-" + std::to_string(i), {{xs[i], 10.0}, {xs[i], 110.0}}));
-        return d;
-    }();
+    formats::FlowLineSet drawing = vertical_drawing(xs);
 };
 
 }  // namespace
@@ -404,9 +405,7 @@ TEST(FlowEditing, ALineAtATimeOffsetShowsTheSequenceThatManyFramesLater) {
 // streaks on the fire's wind edit, flat areas on the waterfall's new channel).
 TEST(FlowEditing, NeighbouringInterpolatedLinesShowDifferentParticles) {
     const auto streams = one_grey_per_particle_streams();
-    formats::FlowLineSet drawing;
-    drawing.width = drawing.height = 120;
-    drawing.inputs.push_back(line("in-0", {{20.0, 10.0}, {20.0, 110.0}}));
+    formats::FlowLineSet drawing = vertical_drawing({20.0});
     drawing.outputs.push_back(line("left", {{60.0, 10.0}, {60.0, 110.0}}, "in-0"));
     drawing.outputs.push_back(line("right", {{100.0, 10.0}, {100.0, 110.0}}, "in-0"));
     // Mean grey difference between neighbouring dense lines' centre columns,
@@ -445,10 +444,14 @@ TEST(FlowEditing, NeighbouringInterpolatedLinesShowDifferentParticles) {
     const int period = streams->schedule().period_frames;
     for (std::size_t i = 0; i < own_time.lines.size(); ++i) {
         const DenseLine& d = own_time.lines[i];
-        if (d.drawn) EXPECT_EQ(d.output.line.time_offset_frames, 0);
+        if (d.drawn) {
+            EXPECT_EQ(d.output.line.time_offset_frames, 0);
+        }
         EXPECT_GE(d.output.line.time_offset_frames, 0);
         EXPECT_LT(d.output.line.time_offset_frames, period);
-        if (i > 0) EXPECT_NE(d.output.line.time_offset_frames, own_time.lines[i - 1].output.line.time_offset_frames) << i;
+        if (i > 0) {
+            EXPECT_NE(d.output.line.time_offset_frames, own_time.lines[i - 1].output.line.time_offset_frames) << i;
+        }
     }
 }
 
@@ -460,9 +463,7 @@ TEST(FlowEditing, InterpolatedLinesTakeInputsBetweenTheirDrawnLinesInputs) {
     const float greys[] = {0.1f, 0.3f, 0.5f, 0.7f, 0.9f, 0.2f};
     auto bank = vertical_bank(xs, 10.0, 110.0, 10, [&](int l, double, double) { return greys[l]; }, 120, 120, 16);
     const ParticleStreams streams(bank, vertical_lines(xs, 10.0, 110.0), SynthesisSettings{});
-    formats::FlowLineSet drawing;
-    drawing.width = drawing.height = 120;
-    for (std::size_t i = 0; i < xs.size(); ++i) drawing.inputs.push_back(line("in-" + std::to_string(i), {{xs[i], 10.0}, {xs[i], 110.0}}));
+    formats::FlowLineSet drawing = vertical_drawing(xs);
     drawing.outputs.push_back(line("dark", {{36.0, 10.0}, {36.0, 110.0}}, "in-0"));
     drawing.outputs.push_back(line("lighter", {{84.0, 10.0}, {84.0, 110.0}}, "in-1"));
     EditSettings edit;
