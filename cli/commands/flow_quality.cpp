@@ -9,6 +9,7 @@
 #include "flowvid/flow/quality.hpp"
 #include "flowvid/flow/synthesis.hpp"
 #include "flowvid/formats/any_file.hpp"
+#include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/formats/flowlines.hpp"
 #include "flowvid/formats/particle_bank.hpp"
 
@@ -32,6 +33,11 @@ struct QualityOptions {
     int cycle = 32;
     int threads = 0;
     bool json = false;
+    std::string series_csv;
+    double coverage = 0.5;
+    int fade_frames = -1;
+    int wrap_fade_frames = -1;
+    std::string blend = "detail";
 };
 
 formats::FlowLineSet read_lines(const std::string& path, std::vector<Problem>& warnings) {
@@ -53,6 +59,37 @@ nlohmann::json report_json(const flow::QualityReport& r) {
             {"clip_transition_p95", r.clip_p95},
             {"clip_transition_p99", r.clip_p99},
             {"transitions", r.transitions}};
+}
+
+// One row per output frame: each method's transition into that frame and its
+// high-frequency energy; the clip's own columns are empty past its length.
+void write_series_csv(const std::string& path, const flow::Comparison& result) {
+    formats::write_file_atomically(path, [&](std::ostream& out) {
+        out << "frame,clip_transition,clip_hf_energy";
+        for (const flow::MethodQuality& m : result.methods) {
+            std::string name = m.method;
+            for (char& c : name)
+                if (c == ' ') c = '_';
+            out << ',' << name << "_transition," << name << "_hf_energy";
+        }
+        out << '\n';
+        out.precision(10);
+        const auto cell = [&out](const std::vector<double>& values, int i) {
+            out << ',';
+            if (i >= 0 && i < static_cast<int>(values.size())) out << values[static_cast<std::size_t>(i)];
+        };
+        // Row t (1-based frame): the transition from frame t-1 to t, and frame t's energy.
+        for (int t = 1; t <= result.output_frames; ++t) {
+            out << t;
+            cell(result.clip_series.transitions, t - 2);
+            cell(result.clip_series.hf_energy, t - 1);
+            for (const flow::MethodQuality& m : result.methods) {
+                cell(m.series.transitions, t - 2);
+                cell(m.series.hf_energy, t - 1);
+            }
+            out << '\n';
+        }
+    });
 }
 
 int run_quality(const QualityOptions& options, const GlobalOptions& global) {
@@ -81,6 +118,10 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     settings.particles = options.particles;
     settings.first_start_frame = options.first_start;
     settings.seed = options.seed;
+    settings.coverage_weight = options.coverage;
+    settings.fade_frames = options.fade_frames;
+    settings.wrap_fade_frames = options.wrap_fade_frames;
+    settings.preserve_detail = options.blend == "detail";
     auto streams = std::make_shared<flow::ParticleStreams>(
         bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
     for (const std::string& w : streams->schedule().warnings) log_message("warning: " + w);
@@ -120,6 +161,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
         return kExitInterrupted;
     }
     progress.done();
+    if (!options.series_csv.empty()) write_series_csv(options.series_csv, result);
 
     const flow::Schedule& schedule = streams->schedule();
     int missing = 0;  // slots without a particle of their start frame (left empty by default)
@@ -179,6 +221,7 @@ const RegisterCommand registration{Command{
             "Examples:\n"
             "  flowvid track --capture ../shared/captures/video-waterfall-cascade --densify 12 --out w.bank.exr\n"
             "  flowvid quality --bank w.bank.exr\n"
+            "  flowvid quality --bank w.bank.exr --series w.quality.csv   # per-frame curves to plot\n"
             "  flowvid quality --bank fire.bank.exr --capture ../shared/captures/video-fire-pot --json");
         app.add_option("--bank", options->bank, "particle bank written by flowvid track (.exr)")->required();
         app.add_option("--capture,--clip", options->capture, "the source clip (default: the one recorded in the bank)");
@@ -188,10 +231,19 @@ const RegisterCommand registration{Command{
         app.add_option("--particles", options->particles, "K particles per line (0 = as many as fit), as in synth");
         app.add_option("--first-start", options->first_start, "input start frame of the first particle, as in synth");
         app.add_option("--seed", options->seed, "chooses the K-particle window, as in synth");
+        app.add_option("--coverage", options->coverage, "as in synth")->capture_default_str();
+        app.add_option("--fade-frames", options->fade_frames, "as in synth");
+        app.add_option("--wrap-fade-frames", options->wrap_fade_frames, "as in synth");
+        app.add_option("--blend", options->blend, "as in synth")
+            ->check(CLI::IsMember({"detail", "plain"}))
+            ->capture_default_str();
         app.add_option("--band", options->band_px, "measure within PX of the tracked lines (0 = a quarter patch)");
         app.add_option("--cycle", options->cycle, "flow-map layer life in frames")->capture_default_str();
         app.add_option("--threads", options->threads, "frames rendered at once (0 = all cores)");
         app.add_flag("--json", options->json, "print the measures as JSON");
+        app.add_option("--series", options->series_csv,
+                       "also write per-frame transitions and HF energy of the clip and each method (CSV): where a "
+                       "seam or a pulse happens");
         return [options](const GlobalOptions& global) { return run_quality(*options, global); };
     }}};
 

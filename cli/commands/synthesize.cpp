@@ -36,6 +36,8 @@ struct RenderOptions {
     int threads = 0;
     double coverage = 0.5;
     int fade_frames = -1;
+    int wrap_fade_frames = -1;
+    std::string blend = "detail";
     bool json = false;
     // edit
     std::string mapping = "equal";
@@ -115,6 +117,8 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     settings.mapping = flow::arc_mapping_from_string(options.mapping);
     settings.coverage_weight = options.coverage;
     settings.fade_frames = options.fade_frames;
+    settings.wrap_fade_frames = options.wrap_fade_frames;
+    settings.preserve_detail = options.blend == "detail";
     auto streams = std::make_shared<flow::ParticleStreams>(
         bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
     for (const std::string& w : streams->schedule().warnings) log_message("warning: " + w);
@@ -233,6 +237,14 @@ void add_common(CLI::App& app, RenderOptions& o) {
     app.add_option("--coverage", o.coverage, "accumulated feather weight at which texture fully hides the background")
         ->capture_default_str();
     app.add_option("--fade-frames", o.fade_frames, "particles fade in and out over N frames (-1 = automatic)");
+    app.add_option("--wrap-fade-frames", o.wrap_fade_frames,
+                   "the first particle of each period (where the diagonal order wraps) fades in over N frames "
+                   "(-1 = automatic)");
+    app.add_option("--blend", o.blend,
+                   "where patches of different input frames overlap: detail (keep fine detail's contrast) or plain "
+                   "(weighted mean)")
+        ->check(CLI::IsMember({"detail", "plain"}))
+        ->capture_default_str();
     app.add_option("--threads", o.threads, "frames rendered at once (0 = all cores)");
     app.add_flag("--json", o.json, "print the summary as JSON");
 }

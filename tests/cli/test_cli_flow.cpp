@@ -11,6 +11,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <unistd.h>
@@ -209,4 +211,92 @@ TEST(CliFlow, QualityPrintsOursAgainstBothBaselines) {
     const CliResult missing = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", own_dir("cli_flow_q") + "/nothing"});
     EXPECT_NE(missing.exit_code, 0);
     EXPECT_TRUE(mentions(missing.err, "nothing")) << missing.err;
+}
+
+// Reads a CSV of numbers (empty cells: NaN) with its header.
+struct Csv {
+    std::vector<std::string> header;
+    std::vector<std::vector<double>> rows;
+    int column(const std::string& name) const {
+        for (std::size_t i = 0; i < header.size(); ++i)
+            if (header[i] == name) return static_cast<int>(i);
+        return -1;
+    }
+};
+Csv read_csv(const std::string& path) {
+    Csv csv;
+    std::ifstream in(path);
+    std::string line;
+    const auto cells = [](const std::string& text) {
+        std::vector<std::string> out(1);
+        for (char c : text)
+            if (c == ',') out.emplace_back();
+            else out.back() += c;
+        return out;
+    };
+    if (std::getline(in, line)) csv.header = cells(line);
+    while (std::getline(in, line)) {
+        std::vector<double> row;
+        for (const std::string& c : cells(line)) row.push_back(c.empty() ? std::nan("") : std::stod(c));
+        csv.rows.push_back(row);
+    }
+    return csv;
+}
+
+TEST(CliFlow, QualitySeriesShowsWhereTheLoopJumpsAndReproducesTheMeasures) {
+    const std::string dir = own_dir("cli_flow_series");
+    const std::string series = dir + "/series.csv";
+    const CliResult run = run_flowvid(
+        {"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60", "--json", "--series", series});
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    const nlohmann::json j = nlohmann::json::parse(run.out);
+    const Csv csv = read_csv(series);
+    ASSERT_EQ(csv.rows.size(), 60u);
+    const int clip_tr = csv.column("clip_transition"), loop_tr = csv.column("loop_transition");
+    const int ours_tr = csv.column("ours_transition"), ours_hf = csv.column("ours_hf_energy");
+    ASSERT_GE(clip_tr, 0);
+    ASSERT_GE(loop_tr, 0);
+    ASSERT_GE(ours_tr, 0);
+    ASSERT_GE(ours_hf, 0);
+    ASSERT_GE(csv.column("flow_map_hf_energy"), 0);
+    // Row t holds the transition into frame t: none into frame 1; the clip's
+    // 40 frames give 39; the loop replays them, then jumps into frame 41.
+    EXPECT_TRUE(std::isnan(csv.rows[0][static_cast<std::size_t>(ours_tr)]));
+    int largest_loop_row = -1;
+    double largest_loop = -1.0;
+    for (int t = 2; t <= 60; ++t) {
+        const auto& row = csv.rows[static_cast<std::size_t>(t - 1)];
+        const double loop = row[static_cast<std::size_t>(loop_tr)];
+        if (t <= 40) EXPECT_NEAR(loop, row[static_cast<std::size_t>(clip_tr)], 1e-6) << "frame " << t;  // two luma paths
+        else EXPECT_TRUE(std::isnan(row[static_cast<std::size_t>(clip_tr)])) << "frame " << t;
+        if (loop > largest_loop) largest_loop = loop, largest_loop_row = t;
+    }
+    EXPECT_EQ(largest_loop_row, 41);
+    // The table's seam max and pulsing follow from the series.
+    std::vector<double> clip_transitions, ours_hf_energy;
+    double ours_largest = 0.0;
+    for (const auto& row : csv.rows) {
+        if (!std::isnan(row[static_cast<std::size_t>(clip_tr)])) clip_transitions.push_back(row[static_cast<std::size_t>(clip_tr)]);
+        if (!std::isnan(row[static_cast<std::size_t>(ours_tr)]))
+            ours_largest = std::max(ours_largest, row[static_cast<std::size_t>(ours_tr)]);
+        ours_hf_energy.push_back(row[static_cast<std::size_t>(ours_hf)]);
+    }
+    std::sort(clip_transitions.begin(), clip_transitions.end());
+    const double r = 0.95 * (clip_transitions.size() - 1);
+    const std::size_t i = static_cast<std::size_t>(r);
+    const double p95 = clip_transitions[i] + (r - i) * (clip_transitions[i + 1] - clip_transitions[i]);
+    const auto& ours = j.at("methods").at("ours");
+    EXPECT_NEAR(ours_largest / p95, ours.at("seam_max_ratio").get<double>(), 1e-5);
+    double mean = 0.0, var = 0.0;
+    for (double e : ours_hf_energy) mean += e / ours_hf_energy.size();
+    for (double e : ours_hf_energy) var += (e - mean) * (e - mean) / (ours_hf_energy.size() - 1);
+    EXPECT_NEAR(std::sqrt(var) / mean, ours.at("pulsing").get<double>(), 1e-5);
+
+    // Synthesis options reach the measured synthesis: plain blending of this
+    // uniform flow's overlapping groups measures differently.
+    const CliResult plain = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60",
+                                         "--json", "--blend", "plain"});
+    ASSERT_EQ(plain.exit_code, 0) << plain.err;
+    const nlohmann::json p = nlohmann::json::parse(plain.out);
+    EXPECT_NE(p.at("methods").at("ours").at("hf_power_ratio").get<double>(), ours.at("hf_power_ratio").get<double>());
 }

@@ -309,9 +309,14 @@ Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams&
     const double half_width = settings.band_half_width_px > 0.0 ? settings.band_half_width_px : patch / 4.0;
     const std::vector<std::uint8_t> mask = line_band_mask(lines, width, height, half_width);
     for (std::uint8_t m : mask) out.mask_pixels += m;
-    out.methods.push_back({"ours", measure_quality(clip_luma, ours, width, height, mask, settings.quality)});
-    out.methods.push_back({"loop", measure_quality(clip_luma, loop, width, height, mask, settings.quality)});
-    out.methods.push_back({"flow map", measure_quality(clip_luma, flowmap, width, height, mask, settings.quality)});
+    out.clip_series = sequence_stats(clip_luma, width, height, mask);
+    const auto add = [&](const char* method, const std::vector<std::vector<float>>& frames) {
+        out.methods.push_back({method, measure_quality(clip_luma, frames, width, height, mask, settings.quality),
+                               sequence_stats(frames, width, height, mask)});
+    };
+    add("ours", ours);
+    add("loop", loop);
+    add("flow map", flowmap);
     return out;
 }
 

@@ -126,12 +126,14 @@ struct ComparisonSettings {
 struct MethodQuality {
     std::string method;  // "ours", "loop", "flow map"
     QualityReport report;
+    SequenceStats series;  // per frame, in the mask: where a seam or a pulse happens
 };
 
 struct Comparison {
     int output_frames = 0;
     std::size_t mask_pixels = 0;
     std::vector<MethodQuality> methods;  // ours, loop, flow map
+    SequenceStats clip_series;
 };
 
 // Renders `output_frames` of `synth` (frames 1..N), of the naive loop of
