@@ -181,6 +181,10 @@ struct WarpEntry {
     int pixel = 0;
     float qx = 0.0f, qy = 0.0f;  // input-frame position
     float fade = 1.0f;
+    // Weight of the background carried from around the input line: a patch's
+    // feather across the line (zero half a patch to the side), falling to
+    // zero over half a patch beyond either end.
+    float carry = 0.0f;
 };
 struct WarpTable {
     double s_min = 0.0;                  // arc of bucket 0 (input line)
@@ -264,6 +268,10 @@ WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, 
             // instead of being cut.
             entry.fade = s_out > length_out ? static_cast<float>(std::clamp(1.0 - (s_out - length_out) / reach_out, 0.0, 1.0)) : 1.0f;
             if (entry.fade <= 0.0f) continue;
+            const double beyond = std::max(-s_out, s_out - length_out);  // > 0 past an end
+            const double along = std::clamp(1.0 - std::max(0.0, beyond) / (0.5 * patch), 0.0, 1.0);
+            const double across = std::cos(M_PI * static_cast<double>(best_n[k]) / patch);
+            entry.carry = std::abs(best_n[k]) < 0.5 * patch ? static_cast<float>(along * across * across) : 0.0f;
             entries.emplace_back(static_cast<float>(s_in), entry);
         }
     table.s_min = -table.reach_in - 1.0;
@@ -311,6 +319,35 @@ void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStream
         d[2] += w * c[2];
         d[3] += w * alpha;
         if (acc.groups) acc.add_group(static_cast<std::size_t>(e.pixel), w * alpha, particle.input_frame);
+    }
+}
+
+// Composites over `out` the background found around each warped line's
+// input line: `source` (the frame's background) sampled at the warp's input
+// positions, weighted by WarpEntry::carry and shown fully where the weights
+// reach `full` (smoothstep, as particles). `sums` is scratch (4 per pixel).
+void carry_background(const std::vector<const WarpTable*>& tables, const RgbImage& source, float full,
+                      std::vector<float>& sums, RgbImage& out) {
+    if (tables.empty()) return;
+    const std::size_t pixels = static_cast<std::size_t>(out.width) * out.height;
+    sums.assign(pixels * 4, 0.0f);
+    for (const WarpTable* table : tables)
+        for (const WarpEntry& e : table->entries) {
+            if (e.carry <= 0.0f) continue;
+            float c[3];
+            sample_bilinear(source, e.qx, e.qy, c);
+            float* d = sums.data() + static_cast<std::size_t>(e.pixel) * 4;
+            d[0] += e.carry * c[0];
+            d[1] += e.carry * c[1];
+            d[2] += e.carry * c[2];
+            d[3] += e.carry;
+        }
+    for (std::size_t i = 0; i < pixels; ++i) {
+        const float* d = sums.data() + 4 * i;
+        if (d[3] <= 1e-6f) continue;
+        const float c = static_cast<float>(smoothstep01(d[3] / full));
+        float* o = out.rgb.data() + 3 * i;
+        for (int k = 0; k < 3; ++k) o[k] = o[k] * (1.0f - c) + d[k] / d[3] * c;
     }
 }
 
@@ -517,7 +554,7 @@ ParticleStreams::ParticleStreams(std::shared_ptr<const formats::ParticleBank> ba
         }
         auto it = std::find_if(m_inputs.begin(), m_inputs.end(), [&](const InputLine& l) { return l.id == base; });
         if (it == m_inputs.end()) {
-            m_inputs.push_back(InputLine{base, 0.0, {}});
+            m_inputs.push_back(InputLine{base, 0.0, {}, {}});
             it = std::prev(m_inputs.end());
         }
         it->segments.push_back({static_cast<int>(k), from, to});
@@ -528,7 +565,8 @@ ParticleStreams::ParticleStreams(std::shared_ptr<const formats::ParticleBank> ba
                   [](const InputLine::Segment& a, const InputLine::Segment& b) { return a.from_px < b.from_px; });
         if (drawing) {
             try {
-                line.length_px = formats::polyline_length(input_line_points(*drawing, line.id, ""));
+                line.points = input_line_points(*drawing, line.id, "");
+                line.length_px = formats::polyline_length(line.points);
             } catch (const std::exception&) {
                 // keep the tracked extent
             }
@@ -712,8 +750,25 @@ struct Synthesizer::Plan {
         WarpTable warp;          // fixed, non-identity lines
     };
     std::vector<Line> lines;
+    // SynthesisSettings::carry_background: each warped output line as a
+    // whole, mapped onto its whole input line (segments and the gaps between
+    // them alike).
+    struct CarryLine {
+        formats::FlowLine line;  // keyed lines: geometry per frame
+        std::shared_ptr<const LineGeometry> input;
+        WarpTable warp;          // fixed lines
+    };
+    std::vector<CarryLine> carry_lines;
+    RgbImage carried_plate;  // fixed carry lines over a median plate: the composite, made once
     int width = 0;
     int height = 0;
+};
+
+struct Synthesizer::CarryBuffers {
+    std::vector<WarpTable> keyed_warps;
+    std::vector<const WarpTable*> tables;
+    RgbImage source;  // the frame's background, sampled while `out` changes
+    std::vector<float> sums;
 };
 
 Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::vector<OutputLine> outputs,
@@ -725,6 +780,11 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
     m_plan->width = bank.clip_width_px;
     m_plan->height = bank.clip_height_px;
     m_warnings = m_streams->schedule().warnings;
+    using Carry = SynthesisSettings::CarryBackground;
+    m_carry_background = m_background.mode() != BackgroundMode::none &&
+                         (settings.carry_background == Carry::on ||
+                          (settings.carry_background == Carry::automatic &&
+                           bank.dynamics == formats::ParticleDynamics::stationary));
     const int patch = bank.patch_size_px;
     if (outputs.empty()) {
         for (std::size_t i = 0; i < m_streams->schedule().lines.size(); ++i) {
@@ -752,9 +812,21 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         line.line = std::move(geometry);
         m_plan->lines.push_back(std::move(line));
     };
+    const auto add_carry = [&](const formats::FlowLine& output_line, std::vector<Eigen::Vector2d> input_points) {
+        if (!m_carry_background || input_points.size() < 2) return;
+        if (!output_line.is_time_varying() && same_points(output_line.points, input_points)) return;
+        Plan::CarryLine carry;
+        carry.line = output_line;
+        carry.input = std::make_shared<const LineGeometry>(std::move(input_points), patch / 3.0);
+        if (!output_line.is_time_varying())
+            carry.warp = build_warp(LineGeometry(output_line.points, patch / 3.0), *carry.input, settings.mapping, patch,
+                                    m_plan->width, m_plan->height);
+        m_plan->carry_lines.push_back(std::move(carry));
+    };
     for (OutputLine& output : outputs) {
         const int stream = m_streams->stream_index(output.from);
         if (stream >= 0) {
+            add_carry(output.line, m_streams->geometry(stream).points());
             add(std::move(output.line), stream);
             continue;
         }
@@ -767,6 +839,7 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         // A line tracked in segments: each segment goes to the matching part
         // of the output line (equal arc length, or scaled to the output's length).
         const ParticleStreams::InputLine& in = m_streams->input_lines()[static_cast<std::size_t>(group)];
+        add_carry(output.line, in.points);
         const auto part_of = [&](const std::vector<Eigen::Vector2d>& points, const ParticleStreams::InputLine::Segment& seg,
                                  bool& empty) {
             const double length = formats::polyline_length(points);
@@ -795,9 +868,47 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
             if (!empty) add(std::move(part), seg.stream);
         }
     }
+    // Fixed lines over a still plate carry the same background every frame:
+    // composite it once.
+    const bool all_fixed = std::none_of(m_plan->carry_lines.begin(), m_plan->carry_lines.end(),
+                                        [](const Plan::CarryLine& l) { return l.line.is_time_varying(); });
+    if (!m_plan->carry_lines.empty() && all_fixed && m_background.mode() == BackgroundMode::median) {
+        CarryBuffers buffers;
+        RgbImage composite;
+        m_background.fill(1, m_plan->width, m_plan->height, composite);
+        carry_background_into(1, composite, buffers);  // before carried_plate is set: composites
+        m_plan->carried_plate = std::move(composite);
+    }
 }
 
 Synthesizer::~Synthesizer() = default;
+
+
+void Synthesizer::carry_background_into(int frame, RgbImage& out, CarryBuffers& b) const {
+    if (m_plan->carry_lines.empty()) return;
+    if (!m_plan->carried_plate.empty()) {
+        out = m_plan->carried_plate;
+        return;
+    }
+    const int w = m_plan->width, h = m_plan->height, patch = m_streams->patch_size();
+    std::size_t keyed = 0;
+    for (const Plan::CarryLine& line : m_plan->carry_lines) keyed += line.line.is_time_varying() ? 1 : 0;
+    b.keyed_warps.resize(keyed);  // never reallocated below: `tables` points into it
+    b.tables.clear();
+    keyed = 0;
+    for (const Plan::CarryLine& line : m_plan->carry_lines) {
+        if (!line.line.is_time_varying()) {
+            b.tables.push_back(&line.warp);
+            continue;
+        }
+        b.keyed_warps[keyed] = build_warp(LineGeometry(formats::points_at_frame(line.line, frame), patch / 3.0),
+                                          *line.input, m_settings.mapping, patch, w, h);
+        b.tables.push_back(&b.keyed_warps[keyed++]);
+    }
+    b.source = out;
+    carry_background(b.tables, b.source, static_cast<float>(std::max(1e-6, m_settings.coverage_weight)), b.sums, out);
+}
+
 
 int Synthesizer::width() const { return m_plan->width; }
 int Synthesizer::height() const { return m_plan->height; }
@@ -830,6 +941,8 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
     }
     RgbImage out;
     m_background.fill(frame, w, h, out);
+    CarryBuffers carry;
+    carry_background_into(frame, out, carry);
     if (coverage) coverage->assign(static_cast<std::size_t>(w) * h, 0.0f);
     const float full = static_cast<float>(std::max(1e-6, m_settings.coverage_weight));
     const std::size_t pixels = static_cast<std::size_t>(w) * h;
@@ -1060,7 +1173,10 @@ void ring_row_sums(RenderBuffers& s, int y, int r) {
 
 }  // namespace
 
-struct Synthesizer::Scratch : RenderBuffers {};
+struct Synthesizer::Scratch : RenderBuffers {
+    CarryBuffers carry;
+};
+
 
 void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* coverage, Scratch& s) const {
     const int w = m_plan->width, h = m_plan->height;
@@ -1117,6 +1233,8 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
             if (p.row_lo < p.row_hi) s.splats.push_back(p);
         }
     }
+
+    carry_background_into(frame, out, s.carry);
 
     // Steps: band k = rows [k B, (k + 1) B) needs rows up to hi_k = (k + 1) B + R;
     // step k accumulates rows [hi_(k-1), hi_k).

@@ -481,3 +481,104 @@ TEST(FlowEditing, InterpolatedLinesTakeInputsBetweenTheirDrawnLinesInputs) {
     for (const std::string& from : taken["between"]) EXPECT_TRUE(from == "in-0" || from == "in-1") << from;
     EXPECT_TRUE(taken["any"].count("in-5")) << "the far grey 0.2 halves the steps";
 }
+
+namespace {
+
+// A plate whose red channel is x / 120 and green y / 120: a carried pixel's
+// colour tells which input-frame position it was read from.
+RgbImage position_plate() {
+    RgbImage plate(120, 120);
+    for (int y = 0; y < 120; ++y)
+        for (int x = 0; x < 120; ++x) {
+            float* p = plate.pixel(x, y);
+            p[0] = x / 120.0f;
+            p[1] = y / 120.0f;
+            p[2] = 0.5f;
+        }
+    return plate;
+}
+
+}  // namespace
+
+TEST(FlowEditing, ANewLineCarriesTheBackgroundAroundItsInputLineWhereParticlesLeaveGaps) {
+    // in-0 is drawn from y = 10 to 90 at x = 20, but tracked only on its
+    // first 40 px (the segment in-0[0.0:40.0]); the output line lies 50 px
+    // to the right.
+    auto bank = ramp_bank();
+    bank->lines[0].id = "in-0[0.0:40.0]";
+    for (auto& p : bank->particles) p.line_id = "in-0[0.0:40.0]";
+    formats::FlowLineSet drawing;
+    drawing.width = drawing.height = 120;
+    drawing.inputs.push_back(line("in-0", {{20.0, 10.0}, {20.0, 90.0}}));
+    const RgbImage plate = position_plate();
+
+    const auto render = [&](SynthesisSettings::CarryBackground carry, formats::ParticleDynamics dynamics, bool reference,
+                            std::vector<float>* coverage) {
+        bank->dynamics = dynamics;
+        SynthesisSettings settings;
+        settings.carry_background = carry;
+        settings.reference_rendering = reference;
+        auto streams = std::make_shared<ParticleStreams>(bank, vertical_lines({20.0}, 10.0, 50.0), settings, &drawing);
+        const Synthesizer synth(streams, {{line("out", {{70.0, 10.0}, {70.0, 90.0}}), "in-0"}}, Background::plate(plate),
+                                settings);
+        return synth.render(20, coverage);
+    };
+    using Carry = SynthesisSettings::CarryBackground;
+    const auto stationary = formats::ParticleDynamics::stationary;
+    std::vector<float> coverage_on, coverage_off;
+    const RgbImage on = render(Carry::on, stationary, false, &coverage_on);
+    const RgbImage off = render(Carry::off, stationary, false, &coverage_off);
+
+    // Beyond the tracked segment (output arc 55..70) no particle covers the
+    // line: without carrying, the output's own plate shows (red = 70/120);
+    // carried, the plate around the input line at the same arc length and
+    // lateral offset (red = (20 + n)/120, green unchanged).
+    for (int y : {65, 72, 80})
+        for (int n : {-1, 0, 1}) {
+            ASSERT_LT(coverage_on[static_cast<std::size_t>(y) * 120 + 70 + n], 0.01f) << y;
+            EXPECT_NEAR(off.pixel(70 + n, y)[0], (70.0 + n) / 120.0, 1e-5);
+            EXPECT_NEAR(on.pixel(70 + n, y)[0], (20.0 + n) / 120.0, 2e-3) << "y " << y << " n " << n;
+            EXPECT_NEAR(on.pixel(70 + n, y)[1], y / 120.0, 2e-3) << "y " << y << " n " << n;
+        }
+    // Off to the side (beyond half a patch) and past the line's end nothing is carried.
+    EXPECT_NEAR(on.pixel(80, 72)[0], 80.0 / 120.0, 1e-5);
+    EXPECT_NEAR(on.pixel(70, 100)[0], 70.0 / 120.0, 1e-5);
+    // Where particles cover the line fully they show, whatever lies below.
+    int covered = 0;
+    for (int y = 20; y < 50; ++y) {
+        const std::size_t i = static_cast<std::size_t>(y) * 120 + 70;
+        if (coverage_on[i] < 0.999f) continue;
+        ++covered;
+        for (int k = 0; k < 3; ++k) EXPECT_NEAR(on.pixel(70, y)[k], off.pixel(70, y)[k], 1e-6) << y;
+    }
+    EXPECT_GT(covered, 5);
+
+    // The whole-frame reference renderer gives the same frame.
+    const RgbImage reference = render(Carry::on, stationary, true, nullptr);
+    float largest = 0.0f;
+    for (std::size_t i = 0; i < on.rgb.size(); ++i) largest = std::max(largest, std::fabs(on.rgb[i] - reference.rgb[i]));
+    EXPECT_LT(largest, 1e-5f);
+
+    // A keyed line (composited every frame) standing where the fixed one is
+    // (whose carried background is composited once) gives the same frame.
+    {
+        bank->dynamics = stationary;
+        SynthesisSettings settings;
+        settings.carry_background = Carry::on;
+        auto streams = std::make_shared<ParticleStreams>(bank, vertical_lines({20.0}, 10.0, 50.0), settings, &drawing);
+        formats::FlowLine keyed;
+        keyed.id = "out";
+        keyed.keys = {{1, {{70.0, 10.0}, {70.0, 90.0}}}, {40, {{70.0, 10.0}, {70.0, 90.0}}}};
+        const Synthesizer synth(streams, {{keyed, "in-0"}}, Background::plate(plate), settings);
+        const RgbImage moving = synth.render(20);
+        float worst = 0.0f;
+        for (std::size_t i = 0; i < on.rgb.size(); ++i) worst = std::max(worst, std::fabs(on.rgb[i] - moving.rgb[i]));
+        EXPECT_LT(worst, 1e-6f);
+    }
+
+    // Automatic: carried for a stationary bank, not for a non-stationary one
+    // (a fire's plate is the scene without flames).
+    EXPECT_EQ(render(Carry::automatic, stationary, false, nullptr).rgb, on.rgb);
+    EXPECT_EQ(render(Carry::automatic, formats::ParticleDynamics::non_stationary, false, nullptr).rgb,
+              render(Carry::off, formats::ParticleDynamics::non_stationary, false, nullptr).rgb);
+}

@@ -86,6 +86,18 @@ struct SynthesisSettings {
     // for uncorrelated detail, applied only across groups: copies of the same
     // input frame are identical and blend exactly as before).
     bool preserve_detail = true;
+    // Along an output line other than its input line (edits), first show the
+    // background found around the input line, carried through the same
+    // tangent-frame mapping as the particles (feathered across the line like
+    // a patch), then the particles over it. Where the input line's particles
+    // leave gaps (segments nothing crossed within the clip, empty slots), the
+    // output line then shows what plain synthesis shows there on the input
+    // line, not the output's own background. automatic = on for stationary
+    // banks (a waterfall's plate is its water's mean look), off for
+    // non-stationary ones (a fire's plate is the scene without flames).
+    // Nothing is carried with no background (BackgroundMode::none).
+    enum class CarryBackground { automatic, on, off };
+    CarryBackground carry_background = CarryBackground::automatic;
     // Testing: render with the straightforward whole-frame accumulation
     // (several full-size buffers per frame) instead of the banded renderer,
     // which reproduces it to float rounding. Slower; same frames.
@@ -159,6 +171,7 @@ public:
         std::string id;
         double length_px = 0.0;
         std::vector<Segment> segments;  // by arc
+        std::vector<Eigen::Vector2d> points;  // the whole line as drawn; empty without the drawing
     };
     const std::vector<InputLine>& input_lines() const { return m_inputs; }
     int input_line_index(const std::string& id) const;
@@ -256,11 +269,16 @@ public:
 private:
     struct Plan;
     struct Scratch;  // a rendering thread's working buffers, reused from frame to frame
+    struct CarryBuffers;
     void render_into(int frame, RgbImage& out, std::vector<float>* coverage, Scratch& scratch) const;
+    // Composites the background carried along warped output lines over `out`
+    // (the frame's background), before the particles.
+    void carry_background_into(int frame, RgbImage& out, CarryBuffers& buffers) const;
     RgbImage render_reference(int frame, std::vector<float>* coverage) const;
     std::shared_ptr<const ParticleStreams> m_streams;
     std::unique_ptr<Plan> m_plan;
     Background m_background;
+    bool m_carry_background = false;  // resolved SynthesisSettings::carry_background
     SynthesisSettings m_settings;
     std::vector<std::string> m_warnings;
 };
