@@ -46,7 +46,7 @@ struct RenderOptions {
     bool no_interpolate = false;
     int correspondence_frames = 30;
     std::string interpolated_inputs = "between";
-    std::string carry_background = "auto";
+    bool carry_background = false;
     std::string dense_out;
 };
 
@@ -120,10 +120,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     settings.fade_frames = options.fade_frames;
     settings.wrap_fade_frames = options.wrap_fade_frames;
     settings.preserve_detail = options.blend == "detail";
-    using Carry = flow::SynthesisSettings::CarryBackground;
-    settings.carry_background = options.carry_background == "on"    ? Carry::on
-                                : options.carry_background == "off" ? Carry::off
-                                                                    : Carry::automatic;
+    settings.carry_background = options.carry_background;
     auto streams = std::make_shared<flow::ParticleStreams>(
         bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
     for (const std::string& w : streams->schedule().warnings) log_message("warning: " + w);
@@ -289,9 +286,9 @@ const RegisterCommand edit_registration{Command{
             "Texture is warped along each output line through the tangent frames, with equal arc lengths\n"
             "or arc lengths scaled to the output line's length (--mapping, thesis fig. 3.17).\n"
             "Output lines with keys (*.flowlines.json) move over time, e.g. lines from a simulation.\n"
-            "Under the particles, a new line carries the background found around its input line\n"
-            "(--carry-background; by default for stationary flows), so where the input line's particles\n"
-            "leave gaps (parts nothing crossed within the clip) it shows what synth shows there.\n"
+            "Lines moved off the flow show their particles over the output's own background, which\n"
+            "shows through where the input line's particles leave gaps (parts nothing crossed within\n"
+            "the clip); --carry-background fills those with the background around the input line.\n"
             "Texture carried over a background unlike its own (water over rock) ends in a hard edge at\n"
             "the default --coverage 0.5; --coverage 2 blends it in.\n\n"
             "Examples:\n"
@@ -314,11 +311,9 @@ const RegisterCommand edit_registration{Command{
                        "across the flow) or any (every input line, as the thesis; favours flat, static texture)")
             ->check(CLI::IsMember({"between", "any"}))
             ->capture_default_str();
-        app.add_option("--carry-background", options->carry_background,
-                       "show the background around each input line under its particles along new lines: auto (for "
-                       "stationary banks: a waterfall's plate is its water; not a fire's), on, off")
-            ->check(CLI::IsMember({"auto", "on", "off"}))
-            ->capture_default_str();
+        app.add_flag("--carry-background", options->carry_background,
+                     "under the particles of a line moved off the flow, show the background around its input line "
+                     "(smoothed): fills the gaps its particles leave (for water; not for fire)");
         app.add_option("--dense-out", options->dense_out, "write the dense output lines with their inputs (*.flowlines.json)");
         return [options](const GlobalOptions& global) { return render(*options, global, true); };
     }}};

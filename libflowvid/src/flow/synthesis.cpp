@@ -322,12 +322,47 @@ void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStream
     }
 }
 
+// `image` smoothed by a box of (2 radius + 1)^2 pixels, twice (a tent),
+// shrinking the box at the borders.
+RgbImage smoothed(const RgbImage& image, int radius) {
+    RgbImage a = image, b(image.width, image.height);
+    const auto pass = [radius](const RgbImage& in, RgbImage& out, bool along_x) {
+        const int n = along_x ? in.width : in.height, lines = along_x ? in.height : in.width;
+        for (int l = 0; l < lines; ++l) {
+            const auto at = [&](const RgbImage& im, int i) -> std::size_t {
+                return (along_x ? static_cast<std::size_t>(l) * im.width + i : static_cast<std::size_t>(i) * im.width + l) * 3;
+            };
+            double sum[3] = {0.0, 0.0, 0.0};
+            int count = 0;
+            for (int i = 0; i < std::min(n, radius); ++i, ++count)
+                for (int k = 0; k < 3; ++k) sum[k] += in.rgb[at(in, i) + k];
+            for (int i = 0; i < n; ++i) {
+                if (i + radius < n) {
+                    for (int k = 0; k < 3; ++k) sum[k] += in.rgb[at(in, i + radius) + k];
+                    ++count;
+                }
+                if (i - radius - 1 >= 0) {
+                    for (int k = 0; k < 3; ++k) sum[k] -= in.rgb[at(in, i - radius - 1) + k];
+                    --count;
+                }
+                for (int k = 0; k < 3; ++k) out.rgb[at(out, i) + k] = static_cast<float>(sum[k] / count);
+            }
+        }
+    };
+    for (int repeat = 0; repeat < 2; ++repeat) {
+        pass(a, b, true);
+        pass(b, a, false);
+    }
+    return a;
+}
+
 // Composites over `out` the background found around each warped line's
 // input line: `source` (the frame's background) sampled at the warp's input
 // positions, weighted by WarpEntry::carry and shown fully where the weights
-// reach `full` (smoothstep, as particles). `sums` is scratch (4 per pixel).
+// reach `full` (smoothstep, as particles), times `allowed` per pixel. `sums`
+// is scratch (4 per pixel).
 void carry_background(const std::vector<const WarpTable*>& tables, const RgbImage& source, float full,
-                      std::vector<float>& sums, RgbImage& out) {
+                      const std::vector<float>& allowed, std::vector<float>& sums, RgbImage& out) {
     if (tables.empty()) return;
     const std::size_t pixels = static_cast<std::size_t>(out.width) * out.height;
     sums.assign(pixels * 4, 0.0f);
@@ -345,7 +380,7 @@ void carry_background(const std::vector<const WarpTable*>& tables, const RgbImag
     for (std::size_t i = 0; i < pixels; ++i) {
         const float* d = sums.data() + 4 * i;
         if (d[3] <= 1e-6f) continue;
-        const float c = static_cast<float>(smoothstep01(d[3] / full));
+        const float c = static_cast<float>(smoothstep01(d[3] / full)) * allowed[i];
         float* o = out.rgb.data() + 3 * i;
         for (int k = 0; k < 3; ++k) o[k] = o[k] * (1.0f - c) + d[k] / d[3] * c;
     }
@@ -759,7 +794,13 @@ struct Synthesizer::Plan {
         WarpTable warp;          // fixed lines
     };
     std::vector<CarryLine> carry_lines;
+    // Per pixel, how much of the carried background may show: 0 on the
+    // flow's own region (within half a patch of an input line or of a line
+    // between neighbouring ones: the output's own background there already is
+    // the flow's), rising to 1 a patch away from it.
+    std::vector<float> carry_allowed;
     RgbImage carried_plate;  // fixed carry lines over a median plate: the composite, made once
+    RgbImage carry_source;   // the median plate smoothed: what is carried (empty: per frame)
     int width = 0;
     int height = 0;
 };
@@ -780,11 +821,7 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
     m_plan->width = bank.clip_width_px;
     m_plan->height = bank.clip_height_px;
     m_warnings = m_streams->schedule().warnings;
-    using Carry = SynthesisSettings::CarryBackground;
-    m_carry_background = m_background.mode() != BackgroundMode::none &&
-                         (settings.carry_background == Carry::on ||
-                          (settings.carry_background == Carry::automatic &&
-                           bank.dynamics == formats::ParticleDynamics::stationary));
+    m_carry_background = settings.carry_background && m_background.mode() != BackgroundMode::none;
     const int patch = bank.patch_size_px;
     if (outputs.empty()) {
         for (std::size_t i = 0; i < m_streams->schedule().lines.size(); ++i) {
@@ -870,14 +907,53 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
     }
     // Fixed lines over a still plate carry the same background every frame:
     // composite it once.
+    if (!m_plan->carry_lines.empty()) {
+        const int w = m_plan->width, h = m_plan->height;
+        std::vector<float> distance(static_cast<std::size_t>(w) * h, static_cast<float>(patch));
+        const auto near_polyline = [&](const std::vector<Eigen::Vector2d>& pts) {
+            for (std::size_t i = 0; i + 1 < pts.size(); ++i) {
+                const Eigen::Vector2d a = pts[i], d = pts[i + 1] - pts[i];
+                const double len2 = d.squaredNorm();
+                const int x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), pts[i + 1].x()) - patch)));
+                const int x1 = std::min(w - 1, static_cast<int>(std::ceil(std::max(a.x(), pts[i + 1].x()) + patch)));
+                const int y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), pts[i + 1].y()) - patch)));
+                const int y1 = std::min(h - 1, static_cast<int>(std::ceil(std::max(a.y(), pts[i + 1].y()) + patch)));
+                for (int y = y0; y <= y1; ++y)
+                    for (int x = x0; x <= x1; ++x) {
+                        const Eigen::Vector2d q(x, y);
+                        const double t = len2 > 0.0 ? std::clamp((q - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+                        float& best = distance[static_cast<std::size_t>(y) * w + x];
+                        best = std::min(best, static_cast<float>((q - (a + t * d)).norm()));
+                    }
+            }
+        };
+        // The flow's region: its input lines and the area between neighbouring
+        // ones (lines interpolated as edits interpolate output lines).
+        std::vector<std::vector<Eigen::Vector2d>> flow_lines;
+        for (const ParticleStreams::InputLine& in : m_streams->input_lines())
+            if (in.points.size() >= 2) flow_lines.push_back(in.points);
+            else
+                for (const auto& seg : in.segments) flow_lines.push_back(m_streams->geometry(seg.stream).points());
+        const auto chains = neighbour_chains(flow_lines, 6.0 * patch);
+        for (const InterpolatedLine& between : interpolate_between(flow_lines, chains, 0.5 * patch))
+            near_polyline(blend_polylines(flow_lines[static_cast<std::size_t>(between.a)],
+                                          flow_lines[static_cast<std::size_t>(between.b)], between.weight, 32));
+        for (const auto& line : flow_lines) near_polyline(line);
+        m_plan->carry_allowed.resize(distance.size());
+        for (std::size_t i = 0; i < distance.size(); ++i)
+            m_plan->carry_allowed[i] = static_cast<float>(smoothstep01(2.0 * distance[i] / patch - 1.0));
+    }
     const bool all_fixed = std::none_of(m_plan->carry_lines.begin(), m_plan->carry_lines.end(),
                                         [](const Plan::CarryLine& l) { return l.line.is_time_varying(); });
-    if (!m_plan->carry_lines.empty() && all_fixed && m_background.mode() == BackgroundMode::median) {
-        CarryBuffers buffers;
-        RgbImage composite;
-        m_background.fill(1, m_plan->width, m_plan->height, composite);
-        carry_background_into(1, composite, buffers);  // before carried_plate is set: composites
-        m_plan->carried_plate = std::move(composite);
+    if (!m_plan->carry_lines.empty() && m_background.mode() == BackgroundMode::median) {
+        RgbImage plate;
+        m_background.fill(1, m_plan->width, m_plan->height, plate);
+        m_plan->carry_source = smoothed(plate, std::max(1, patch / 2));
+        if (all_fixed) {
+            CarryBuffers buffers;
+            carry_background_into(1, plate, buffers);  // before carried_plate is set: composites
+            m_plan->carried_plate = std::move(plate);
+        }
     }
 }
 
@@ -905,8 +981,9 @@ void Synthesizer::carry_background_into(int frame, RgbImage& out, CarryBuffers& 
                                           *line.input, m_settings.mapping, patch, w, h);
         b.tables.push_back(&b.keyed_warps[keyed++]);
     }
-    b.source = out;
-    carry_background(b.tables, b.source, static_cast<float>(std::max(1e-6, m_settings.coverage_weight)), b.sums, out);
+    if (m_plan->carry_source.empty()) b.source = smoothed(out, std::max(1, patch / 2));
+    carry_background(b.tables, m_plan->carry_source.empty() ? b.source : m_plan->carry_source,
+                     static_cast<float>(std::max(1e-6, m_settings.coverage_weight)), m_plan->carry_allowed, b.sums, out);
 }
 
 

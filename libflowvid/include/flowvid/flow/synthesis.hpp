@@ -87,17 +87,18 @@ struct SynthesisSettings {
     // input frame are identical and blend exactly as before).
     bool preserve_detail = true;
     // Along an output line other than its input line (edits), first show the
-    // background found around the input line, carried through the same
-    // tangent-frame mapping as the particles (feathered across the line like
-    // a patch), then the particles over it. Where the input line's particles
-    // leave gaps (segments nothing crossed within the clip, empty slots), the
-    // output line then shows what plain synthesis shows there on the input
-    // line, not the output's own background. automatic = on for stationary
-    // banks (a waterfall's plate is its water's mean look), off for
-    // non-stationary ones (a fire's plate is the scene without flames).
-    // Nothing is carried with no background (BackgroundMode::none).
-    enum class CarryBackground { automatic, on, off };
-    CarryBackground carry_background = CarryBackground::automatic;
+    // background found around the input line (the whole drawn line, smoothed
+    // over half a patch), carried through the same tangent-frame mapping as
+    // the particles and feathered across the line like a patch, then the
+    // particles over it. Where the input line's particles leave gaps
+    // (segments nothing crossed within the clip, empty slots), a new line then
+    // shows the flow's look instead of the output's own background. Nothing
+    // is carried onto the flow's own region (near an input line or between
+    // neighbouring ones), whose background already is the flow's, nor over
+    // BackgroundMode::none. Off by default: it also carries whatever the input
+    // line crosses (a rock ledge), and a fire's plate is the scene without
+    // flames.
+    bool carry_background = false;
     // Testing: render with the straightforward whole-frame accumulation
     // (several full-size buffers per frame) instead of the banded renderer,
     // which reproduces it to float rounding. Slower; same frames.
