@@ -303,7 +303,7 @@ void print_quality(const char* clip, const std::vector<QualityRow>& rows) {
     if (!rows.empty()) std::printf("clip's own spike (largest / median transition): %.2f\n", rows.front().report.clip_seam_spike);
 }
 
-void quality_on(const std::string& name, formats::ParticleDynamics dynamics, double densify_px) {
+void quality_on(const std::string& name, formats::ParticleDynamics dynamics, int patch_px, double densify_px) {
     const std::string capture_dir = std::string(FLOWVID_SHARED_DIR) + "/captures/" + name;
     if (!std::filesystem::exists(capture_dir)) {
         std::printf("(skipped: %s not found)\n", capture_dir.c_str());
@@ -314,8 +314,10 @@ void quality_on(const std::string& name, formats::ParticleDynamics dynamics, dou
     CaptureFrames frames(capture);
     TrackingSettings tracking;
     tracking.dynamics = dynamics;
+    tracking.patch_size_px = patch_px;
     const auto start = std::chrono::steady_clock::now();
-    const TrackingResult tracked = track_particles(frames, densify_input_lines(drawing, densify_px, 144.0), tracking);
+    const TrackingResult tracked =
+        track_particles(frames, densify_input_lines(drawing, densify_px, 6.0 * patch_px), tracking);
     const double track_seconds = seconds_since(start);
     auto bank = std::make_shared<formats::ParticleBank>(tracked.bank);
     CaptureFrames again(capture);
@@ -331,9 +333,9 @@ void quality_on(const std::string& name, formats::ParticleDynamics dynamics, dou
     for (const auto& l : streams->schedule().lines) substituted += static_cast<std::size_t>(l.substituted);
     char title[512];
     std::snprintf(title, sizeof title,
-                  "%s (%s, densify %.0f px): tracked %zu segments in %.1f s, %zu particles; K = %d, step %d, period %d "
-                  "frames, %zu of %zu slots empty; %d output frames",
-                  name.c_str(), formats::to_string(dynamics), densify_px, tracked.report.lines.size(), track_seconds,
+                  "%s (%s, patch %d px, densify %.0f px): tracked %zu segments in %.1f s, %zu particles; K = %d, step %d, "
+                  "period %d frames, %zu of %zu slots empty; %d output frames",
+                  name.c_str(), formats::to_string(dynamics), patch_px, densify_px, tracked.report.lines.size(), track_seconds,
                   bank->particles.size(), streams->schedule().particles_per_line, streams->schedule().start_every,
                   streams->schedule().period_frames, substituted,
                   streams->schedule().lines.size() * static_cast<std::size_t>(streams->schedule().particles_per_line), frames_out);
@@ -361,8 +363,9 @@ void quality_table() {
                 "(self d: the clip's patches to other frames >= 5 apart); HF ratio = output / clip HF energy;\n"
                 "complementary: spike = largest / own median transition, motion = output / clip median transition\n"
                 "(the same table as `flowvid quality --bank BANK`)\n");
-    quality_on("video-waterfall-cascade", formats::ParticleDynamics::stationary, 12.0);
-    quality_on("video-fire-pot", formats::ParticleDynamics::non_stationary, 0.0);
+    // The recipes of docs/flow.md: flames need patches twice as large and lines between the drawn ones.
+    quality_on("video-waterfall-cascade", formats::ParticleDynamics::stationary, 24, 12.0);
+    quality_on("video-fire-pot", formats::ParticleDynamics::non_stationary, 48, 24.0);
 }
 
 }  // namespace

@@ -192,7 +192,10 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
     const fs::path out = fs::path(options.out) / "video";
     fs::create_directories(out);
     const std::string bank = (out / "waterfall.bank.exr").string();
-    int status = run_flowvid({"track", "--capture", clip.string(), "--out", bank, "--json"}, out / "track.json", global);
+    // --densify 12: the drawn lines are up to 67 px apart, and synthesis
+    // covers about a patch around each line (docs/flow.md, the recipe for water).
+    int status = run_flowvid({"track", "--capture", clip.string(), "--densify", "12", "--out", bank, "--json"},
+                             out / "track.json", global);
     if (status == kExitOk)
         status = run_flowvid({"synth", "--bank", bank, "--loop", "--out", (out / "loop.mp4").string(), "--json"},
                              out / "loop.json", global);

@@ -79,6 +79,24 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
     settings.threads = options.threads;
     const double max_gap = options.max_gap_px > 0.0 ? options.max_gap_px : 6.0 * options.patch;
     const std::vector<formats::FlowLine> lines = flow::densify_input_lines(drawing, options.densify_px, max_gap);
+    // Synthesis covers about a patch around each line: neighbours much
+    // further apart leave the background showing between them (the fire's
+    // six drawn lines, ~100 px apart with 24 px patches, show mostly plate).
+    {
+        std::vector<std::vector<Eigen::Vector2d>> polylines;
+        for (const formats::FlowLine& l : lines) polylines.push_back(l.points);
+        const auto wide = flow::wide_neighbours(polylines, max_gap, 2.0 * options.patch);
+        if (!wide.empty()) {
+            char widest[64];
+            std::snprintf(widest, sizeof widest, "%.0f px", wide.front().mean_gap_px);
+            log_message("warning: " + std::to_string(wide.size()) + " pair(s) of neighbouring lines are more than 2 patches (" +
+                        std::to_string(2 * options.patch) + " px) apart (widest: " +
+                        lines[static_cast<std::size_t>(wide.front().a)].id + " and " +
+                        lines[static_cast<std::size_t>(wide.front().b)].id + ", " + widest +
+                        "): synthesis shows the background between them; draw lines closer, add --densify " +
+                        std::to_string(options.patch / 2) + " (half a patch), or use a larger --patch");
+        }
+    }
 
     Progress progress(global, "track");
     std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs
@@ -166,15 +184,17 @@ const RegisterCommand registration{Command{
             "--max-path-frames are cut into segments it can (ids like in-3[0.0:41.5]); stretches nothing\n"
             "crosses within the clip (rocks a line runs over) are left out and listed. Only particles\n"
             "that complete their path are kept. --densify adds lines between neighbouring drawn lines\n"
-            "(ids like in-1~in-2@0.500); synth and edit rebuild all of these from the same drawing.\n\n"
+            "(ids like in-1~in-2@0.500); synth and edit rebuild all of these from the same drawing.\n"
+            "Synthesis covers about a patch around each line: track warns when neighbouring lines are more\n"
+            "than 2 patches apart (water: --densify 12 with 24 px patches; flames: --patch 48 --densify 24).\n\n"
             "CLIP is a video.flow capture folder (its flowlines.svg is used unless --flowlines is given),\n"
             "a video file, or an image pattern such as frames/%06d.png.\n\n"
             "Exit codes: 0 bank written, 1 no particle completed its path, 2 usage, 3 invalid input,\n"
             "4 I/O error, 130 interrupted.\n\n"
             "Examples:\n"
-            "  flowvid track --capture ../shared/captures/video-waterfall-cascade --out waterfall.bank.exr\n"
+            "  flowvid track --capture ../shared/captures/video-waterfall-cascade --densify 12 --out waterfall.bank.exr\n"
             "  flowvid track --capture clip.mp4 --flowlines lines.svg --patch 16 --densify 12 --out bank.exr\n"
-            "  flowvid track --capture fire/ --dynamics non-stationary --patch 48 --out fire.bank.exr --json");
+            "  flowvid track --capture fire/ --dynamics non-stationary --patch 48 --densify 24 --out fire.bank.exr --json");
         app.add_option("--capture,--clip", options->capture, "capture folder, video file or image pattern")->required();
         app.add_option("--flowlines", options->flowlines, "input flow lines (SVG or *.flowlines.json); default: the capture's");
         app.add_option("--out", options->out, "bank to write (.exr)")->required();

@@ -109,6 +109,35 @@ TEST(CliFlow, TracksAParticleBankThatValidates) {
     EXPECT_EQ(valid.exit_code, 0) << valid.out << valid.err;
 }
 
+TEST(CliFlow, TrackWarnsWhenNeighbouringLinesLeaveTheBackgroundBetweenThem) {
+    // Two lines 36 px apart inside the textured band; 8 px patches cover
+    // about 8 px around each.
+    const std::string dir = own_dir("cli_flow_sparse");
+    write_text(dir + "/sparse.svg", R"(<svg xmlns="http://www.w3.org/2000/svg" width="96" height="80">
+  <g id="input"><path id="left" d="M 30,-4 L 30,84"/><path id="right" d="M 66,-4 L 66,84"/></g>
+</svg>)");
+    const auto track = [&](std::vector<std::string> extra) {
+        std::vector<std::string> args = {"track", "--capture", tiny_capture(), "--flowlines", dir + "/sparse.svg",
+                                         "--frames", "12", "--out", dir + "/bank.exr"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return run_flowvid(args);
+    };
+    const CliResult sparse = track({"--patch", "8"});
+    EXPECT_EQ(sparse.exit_code, 0) << sparse.err;
+    EXPECT_TRUE(mentions(sparse.err, "warning: 1 pair(s) of neighbouring lines are more than 2 patches (16 px) apart"))
+        << sparse.err;
+    EXPECT_TRUE(mentions(sparse.err, "left and right, 36 px")) << sparse.err;
+    EXPECT_TRUE(mentions(sparse.err, "--densify 4")) << sparse.err;
+    // Densified to half a patch, neighbours are 4 px apart: no warning.
+    const CliResult dense = track({"--patch", "8", "--densify", "4"});
+    EXPECT_EQ(dense.exit_code, 0) << dense.err;
+    EXPECT_FALSE(mentions(dense.err, "neighbouring lines")) << dense.err;
+    // A larger patch covers the gap: 36 px is less than 2 patches of 24.
+    const CliResult larger = track({"--patch", "24"});
+    EXPECT_EQ(larger.exit_code, 0) << larger.err;
+    EXPECT_FALSE(mentions(larger.err, "neighbouring lines")) << larger.err;
+}
+
 TEST(CliFlow, SynthRangesJoinSeamlesslyAndLoop) {
     const std::string dir = own_dir("cli_flow_synth");
     // An output folder that cannot be made (a file is in the way): I/O error naming it.

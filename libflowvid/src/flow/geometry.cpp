@@ -193,6 +193,18 @@ std::vector<std::vector<int>> neighbour_chains(const std::vector<std::vector<Eig
     return chains;
 }
 
+std::vector<WideNeighbours> wide_neighbours(const std::vector<std::vector<Eigen::Vector2d>>& lines, double max_gap_px,
+                                            double min_gap_px, double max_angle_deg) {
+    std::vector<WideNeighbours> out;
+    for (const std::vector<int>& chain : neighbour_chains(lines, max_gap_px, max_angle_deg))
+        for (std::size_t k = 0; k + 1 < chain.size(); ++k) {
+            const double gap = line_gap(lines[static_cast<std::size_t>(chain[k])], lines[static_cast<std::size_t>(chain[k + 1])]).mean_px;
+            if (gap > min_gap_px) out.push_back({chain[k], chain[k + 1], gap});
+        }
+    std::sort(out.begin(), out.end(), [](const WideNeighbours& x, const WideNeighbours& y) { return x.mean_gap_px > y.mean_gap_px; });
+    return out;
+}
+
 std::vector<InterpolatedLine> interpolate_between(const std::vector<std::vector<Eigen::Vector2d>>& lines,
                                                   const std::vector<std::vector<int>>& chains, double spacing_px) {
     std::vector<InterpolatedLine> out;

@@ -794,10 +794,9 @@ struct Synthesizer::Plan {
         WarpTable warp;          // fixed lines
     };
     std::vector<CarryLine> carry_lines;
-    // Per pixel, how much of the carried background may show: 0 on the
-    // flow's own region (within half a patch of an input line or of a line
-    // between neighbouring ones: the output's own background there already is
-    // the flow's), rising to 1 a patch away from it.
+    // Per pixel, how much of the carried background may show
+    // (carry_allowed_map): none on the flow's own region, whose background
+    // already is the flow's.
     std::vector<float> carry_allowed;
     RgbImage carried_plate;  // fixed carry lines over a median plate: the composite, made once
     RgbImage carry_source;   // the median plate smoothed: what is carried (empty: per frame)
@@ -811,6 +810,49 @@ struct Synthesizer::CarryBuffers {
     RgbImage source;  // the frame's background, sampled while `out` changes
     std::vector<float> sums;
 };
+
+namespace {
+
+// SynthesisSettings::carry_background: per pixel, how much carried background
+// may show: 0 within half a patch of the flow's own region (its input lines
+// and lines interpolated between neighbouring ones, as edits interpolate
+// output lines), rising to 1 a patch away.
+std::vector<float> carry_allowed_map(const ParticleStreams& streams, int w, int h, int patch) {
+    std::vector<float> distance(static_cast<std::size_t>(w) * h, static_cast<float>(patch));
+    const auto near_polyline = [&](const std::vector<Eigen::Vector2d>& pts) {
+        for (std::size_t i = 0; i + 1 < pts.size(); ++i) {
+            const Eigen::Vector2d a = pts[i], d = pts[i + 1] - pts[i];
+            const double len2 = d.squaredNorm();
+            const int x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), pts[i + 1].x()) - patch)));
+            const int x1 = std::min(w - 1, static_cast<int>(std::ceil(std::max(a.x(), pts[i + 1].x()) + patch)));
+            const int y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), pts[i + 1].y()) - patch)));
+            const int y1 = std::min(h - 1, static_cast<int>(std::ceil(std::max(a.y(), pts[i + 1].y()) + patch)));
+            for (int y = y0; y <= y1; ++y)
+                for (int x = x0; x <= x1; ++x) {
+                    const Eigen::Vector2d q(x, y);
+                    const double t = len2 > 0.0 ? std::clamp((q - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+                    float& best = distance[static_cast<std::size_t>(y) * w + x];
+                    best = std::min(best, static_cast<float>((q - (a + t * d)).norm()));
+                }
+        }
+    };
+    std::vector<std::vector<Eigen::Vector2d>> flow_lines;
+    for (const ParticleStreams::InputLine& in : streams.input_lines())
+        if (in.points.size() >= 2) flow_lines.push_back(in.points);
+        else
+            for (const auto& seg : in.segments) flow_lines.push_back(streams.geometry(seg.stream).points());
+    const auto chains = neighbour_chains(flow_lines, 6.0 * patch);
+    for (const InterpolatedLine& between : interpolate_between(flow_lines, chains, 0.5 * patch))
+        near_polyline(blend_polylines(flow_lines[static_cast<std::size_t>(between.a)],
+                                      flow_lines[static_cast<std::size_t>(between.b)], between.weight, 32));
+    for (const auto& line : flow_lines) near_polyline(line);
+    std::vector<float> allowed(distance.size());
+    for (std::size_t i = 0; i < distance.size(); ++i)
+        allowed[i] = static_cast<float>(smoothstep01(2.0 * distance[i] / patch - 1.0));
+    return allowed;
+}
+
+}  // namespace
 
 Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::vector<OutputLine> outputs,
                          Background background, const SynthesisSettings& settings)
@@ -905,44 +947,10 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
             if (!empty) add(std::move(part), seg.stream);
         }
     }
+    if (!m_plan->carry_lines.empty())
+        m_plan->carry_allowed = carry_allowed_map(*m_streams, m_plan->width, m_plan->height, patch);
     // Fixed lines over a still plate carry the same background every frame:
     // composite it once.
-    if (!m_plan->carry_lines.empty()) {
-        const int w = m_plan->width, h = m_plan->height;
-        std::vector<float> distance(static_cast<std::size_t>(w) * h, static_cast<float>(patch));
-        const auto near_polyline = [&](const std::vector<Eigen::Vector2d>& pts) {
-            for (std::size_t i = 0; i + 1 < pts.size(); ++i) {
-                const Eigen::Vector2d a = pts[i], d = pts[i + 1] - pts[i];
-                const double len2 = d.squaredNorm();
-                const int x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), pts[i + 1].x()) - patch)));
-                const int x1 = std::min(w - 1, static_cast<int>(std::ceil(std::max(a.x(), pts[i + 1].x()) + patch)));
-                const int y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), pts[i + 1].y()) - patch)));
-                const int y1 = std::min(h - 1, static_cast<int>(std::ceil(std::max(a.y(), pts[i + 1].y()) + patch)));
-                for (int y = y0; y <= y1; ++y)
-                    for (int x = x0; x <= x1; ++x) {
-                        const Eigen::Vector2d q(x, y);
-                        const double t = len2 > 0.0 ? std::clamp((q - a).dot(d) / len2, 0.0, 1.0) : 0.0;
-                        float& best = distance[static_cast<std::size_t>(y) * w + x];
-                        best = std::min(best, static_cast<float>((q - (a + t * d)).norm()));
-                    }
-            }
-        };
-        // The flow's region: its input lines and the area between neighbouring
-        // ones (lines interpolated as edits interpolate output lines).
-        std::vector<std::vector<Eigen::Vector2d>> flow_lines;
-        for (const ParticleStreams::InputLine& in : m_streams->input_lines())
-            if (in.points.size() >= 2) flow_lines.push_back(in.points);
-            else
-                for (const auto& seg : in.segments) flow_lines.push_back(m_streams->geometry(seg.stream).points());
-        const auto chains = neighbour_chains(flow_lines, 6.0 * patch);
-        for (const InterpolatedLine& between : interpolate_between(flow_lines, chains, 0.5 * patch))
-            near_polyline(blend_polylines(flow_lines[static_cast<std::size_t>(between.a)],
-                                          flow_lines[static_cast<std::size_t>(between.b)], between.weight, 32));
-        for (const auto& line : flow_lines) near_polyline(line);
-        m_plan->carry_allowed.resize(distance.size());
-        for (std::size_t i = 0; i < distance.size(); ++i)
-            m_plan->carry_allowed[i] = static_cast<float>(smoothstep01(2.0 * distance[i] / patch - 1.0));
-    }
     const bool all_fixed = std::none_of(m_plan->carry_lines.begin(), m_plan->carry_lines.end(),
                                         [](const Plan::CarryLine& l) { return l.line.is_time_varying(); });
     if (!m_plan->carry_lines.empty() && m_background.mode() == BackgroundMode::median) {
@@ -958,7 +966,6 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
 }
 
 Synthesizer::~Synthesizer() = default;
-
 
 void Synthesizer::carry_background_into(int frame, RgbImage& out, CarryBuffers& b) const {
     if (m_plan->carry_lines.empty()) return;

@@ -70,6 +70,17 @@ LineGap line_gap(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen:
 std::vector<std::vector<int>> neighbour_chains(const std::vector<std::vector<Eigen::Vector2d>>& lines, double max_gap_px,
                                                double max_angle_deg = 45.0);
 
+// Consecutive lines of a chain (neighbour_chains) whose mean gap exceeds
+// min_gap_px: synthesis covers about a patch around each line, so between
+// such neighbours the background shows. Widest first.
+struct WideNeighbours {
+    int a = 0;  // indices into `lines`
+    int b = 0;
+    double mean_gap_px = 0.0;
+};
+std::vector<WideNeighbours> wide_neighbours(const std::vector<std::vector<Eigen::Vector2d>>& lines, double max_gap_px,
+                                            double min_gap_px, double max_angle_deg = 45.0);
+
 // A line of the dense set between two neighbours of a chain.
 struct InterpolatedLine {
     int a = 0;           // index of the first neighbour in the input list
