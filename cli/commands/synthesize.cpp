@@ -293,6 +293,8 @@ const RegisterCommand edit_registration{Command{
             "the default --coverage 0.5; --coverage 2 blends it in.\n\n"
             "Examples:\n"
             "  flowvid edit --bank waterfall.bank.exr --flowlines edit.svg --frames 250 --out edit/%06d.png\n"
+            "  flowvid edit --bank waterfall.bank.exr --flowlines new-channel.svg --carry-background --coverage 2 \\\n"
+            "      --frames 250 --out channel.mp4\n"
             "  flowvid edit --bank smoke.bank.exr --flowlines wind.flowlines.json --mapping scaled --frames 1:100 \\\n"
             "      --out smoke.mp4 --dense-out dense.flowlines.json");
         add_common(app, *options);
