@@ -38,6 +38,7 @@ struct QualityOptions {
     int fade_frames = -1;
     int wrap_fade_frames = -1;
     std::string blend = "detail";
+    double overlap_sharpness = 4.0;
 };
 
 formats::FlowLineSet read_lines(const std::string& path, std::vector<Problem>& warnings) {
@@ -122,6 +123,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     settings.fade_frames = options.fade_frames;
     settings.wrap_fade_frames = options.wrap_fade_frames;
     settings.preserve_detail = options.blend == "detail";
+    settings.overlap_sharpness = options.overlap_sharpness;
     auto streams = std::make_shared<flow::ParticleStreams>(
         bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
     for (const std::string& w : streams->schedule().warnings) log_message("warning: " + w);
@@ -236,6 +238,9 @@ const RegisterCommand registration{Command{
         app.add_option("--wrap-fade-frames", options->wrap_fade_frames, "as in synth");
         app.add_option("--blend", options->blend, "as in synth")
             ->check(CLI::IsMember({"detail", "plain"}))
+            ->capture_default_str();
+        app.add_option("--overlap-sharpness", options->overlap_sharpness, "as in synth")
+            ->check(CLI::Range(1.0, 64.0))
             ->capture_default_str();
         app.add_option("--band", options->band_px, "measure within PX of the tracked lines (0 = a quarter patch)");
         app.add_option("--cycle", options->cycle, "flow-map layer life in frames")->capture_default_str();

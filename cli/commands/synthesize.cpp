@@ -38,6 +38,7 @@ struct RenderOptions {
     int fade_frames = -1;
     int wrap_fade_frames = -1;
     std::string blend = "detail";
+    double overlap_sharpness = 4.0;
     bool json = false;
     // edit
     std::string mapping = "equal";
@@ -120,6 +121,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     settings.fade_frames = options.fade_frames;
     settings.wrap_fade_frames = options.wrap_fade_frames;
     settings.preserve_detail = options.blend == "detail";
+    settings.overlap_sharpness = options.overlap_sharpness;
     settings.carry_background = options.carry_background;
     auto streams = std::make_shared<flow::ParticleStreams>(
         bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
@@ -246,6 +248,11 @@ void add_common(CLI::App& app, RenderOptions& o) {
                    "where patches of different input frames overlap: detail (keep fine detail's contrast) or plain "
                    "(weighted mean)")
         ->check(CLI::IsMember({"detail", "plain"}))
+        ->capture_default_str();
+    app.add_option("--overlap-sharpness", o.overlap_sharpness,
+                   "where patches of different input frames overlap, each group's weight is raised to this power "
+                   "before mixing: 1 = in proportion (a double exposure), larger = the heavier shows, soft seam")
+        ->check(CLI::Range(1.0, 64.0))
         ->capture_default_str();
     app.add_option("--threads", o.threads, "frames rendered at once (0 = all cores)");
     app.add_flag("--json", o.json, "print the summary as JSON");

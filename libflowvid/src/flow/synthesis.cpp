@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <condition_variable>
 #include <exception>
 #include <limits>
@@ -34,6 +35,31 @@ constexpr int kDetailRadiusPx = 2;
 double smoothstep01(double x) {
     const double t = std::clamp(x, 0.0, 1.0);
     return t * t * (3.0 - 2.0 * t);
+}
+
+// SynthesisSettings::overlap_sharpness at one pixel where groups of patches
+// showing different input frames overlap: the pixel's colour (rgbw,
+// premultiplied sum; its total weight is kept) becomes the groups' colours
+// weighted by W_g^exponent, and the group weights become those powers (the
+// detail gain then follows them). group_rgb: each group's sum of weight x
+// colour (the two groups, the rest; 3 floats each).
+void sharpen_groups(float* rgbw, float& w0, float& w1, float& w2, const float* group_rgb, float exponent) {
+    if (!(w1 > 0.0f) || rgbw[3] <= 1e-6f) return;
+    float* weights[3] = {&w0, &w1, &w2};
+    float num[3] = {0.0f, 0.0f, 0.0f}, den = 0.0f;
+    for (int g = 0; g < 3; ++g) {
+        const float w = *weights[g];
+        if (w <= 1e-9f) {
+            *weights[g] = 0.0f;
+            continue;
+        }
+        const float powered = std::pow(w, exponent);
+        for (int k = 0; k < 3; ++k) num[k] += powered * (group_rgb[3 * g + k] / w);
+        den += powered;
+        *weights[g] = powered;
+    }
+    if (den <= 0.0f) return;
+    for (int k = 0; k < 3; ++k) rgbw[k] = num[k] / den * rgbw[3];
 }
 
 // Bicubic (Catmull-Rom) sample of a premultiplied RGBA patch at patch
@@ -99,30 +125,40 @@ struct Accumulator {
     std::vector<float> rgbw;          // 4 per pixel
     std::vector<int> group_id;        // 2 per pixel, -1 = none yet
     std::vector<float> group_weight;  // 3 per pixel: the two groups, the rest
+    bool colours = false;
+    std::vector<float> group_rgb;     // with colours, 9 per pixel: each group's sum of weight x colour
 
-    void reset(int w, int h, bool with_groups) {
+    void reset(int w, int h, bool with_groups, bool with_colours) {
         width = w;
         height = h;
         groups = with_groups;
+        colours = with_groups && with_colours;
         const std::size_t pixels = static_cast<std::size_t>(w) * h;
         rgbw.assign(pixels * 4, 0.0f);
         if (groups) {
             group_id.assign(pixels * 2, -1);
             group_weight.assign(pixels * 3, 0.0f);
         }
+        if (colours) group_rgb.assign(pixels * 9, 0.0f);
     }
-    void add_group(std::size_t pixel, float wa, int group) {
+    void add_group(std::size_t pixel, float wa, int group, const float* wrgb) {
         int* g = group_id.data() + pixel * 2;
         float* gw = group_weight.data() + pixel * 3;
-        if (g[0] == group) gw[0] += wa;
+        int slot = 2;
+        if (g[0] == group) slot = 0;
         else if (g[0] < 0) {
             g[0] = group;
-            gw[0] = wa;
-        } else if (g[1] == group) gw[1] += wa;
+            gw[0] = 0.0f;
+            slot = 0;
+        } else if (g[1] == group) slot = 1;
         else if (g[1] < 0) {
             g[1] = group;
-            gw[1] = wa;
-        } else gw[2] += wa;
+            gw[1] = 0.0f;
+            slot = 1;
+        }
+        gw[slot] += wa;
+        if (colours)
+            for (int k = 0; k < 3; ++k) group_rgb[pixel * 9 + static_cast<std::size_t>(slot) * 3 + k] += wrgb[k];
     }
 };
 
@@ -170,8 +206,10 @@ void splat_patch(Accumulator& acc, const ParticleStreams::Visible& v, int patch,
         }
         if (acc.groups)
             for (int j = j_lo; j < j_hi; ++j) {
-                const float wa = fy * feather[static_cast<std::size_t>(j)] * src[static_cast<std::size_t>(j) * 4 + 3];
-                acc.add_group(row + static_cast<std::size_t>(j), wa, v.input_frame);
+                const float w = fy * feather[static_cast<std::size_t>(j)];
+                const float* t = src + static_cast<std::size_t>(j) * 4;
+                const float wrgb[3] = {w * t[0], w * t[1], w * t[2]};
+                acc.add_group(row + static_cast<std::size_t>(j), w * t[3], v.input_frame, wrgb);
             }
     }
 }
@@ -318,7 +356,10 @@ void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStream
         d[1] += w * c[1];
         d[2] += w * c[2];
         d[3] += w * alpha;
-        if (acc.groups) acc.add_group(static_cast<std::size_t>(e.pixel), w * alpha, particle.input_frame);
+        if (acc.groups) {
+            const float wrgb[3] = {w * c[0], w * c[1], w * c[2]};
+            acc.add_group(static_cast<std::size_t>(e.pixel), w * alpha, particle.input_frame, wrgb);
+        }
     }
 }
 
@@ -1004,8 +1045,9 @@ RgbImage Synthesizer::render(int frame) const { return render(frame, nullptr); }
 RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) const {
     const int w = m_plan->width, h = m_plan->height;
     const int patch = m_streams->patch_size();
+    const bool detail = m_settings.preserve_detail, sharpen = m_settings.overlap_sharpness != 1.0;
     Accumulator acc;
-    acc.reset(w, h, m_settings.preserve_detail);
+    acc.reset(w, h, detail || sharpen, sharpen);
     std::vector<ParticleStreams::Visible> visible;
     std::vector<float> feather(static_cast<std::size_t>(patch));
     for (int i = 0; i < patch; ++i) feather[static_cast<std::size_t>(i)] = feather_weight(static_cast<float>(i), patch);
@@ -1030,13 +1072,19 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
     if (coverage) coverage->assign(static_cast<std::size_t>(w) * h, 0.0f);
     const float full = static_cast<float>(std::max(1e-6, m_settings.coverage_weight));
     const std::size_t pixels = static_cast<std::size_t>(w) * h;
+    if (sharpen)
+        for (std::size_t i = 0; i < pixels; ++i) {
+            float* gw = acc.group_weight.data() + 3 * i;
+            sharpen_groups(acc.rgbw.data() + 4 * i, gw[0], gw[1], gw[2], acc.group_rgb.data() + 9 * i,
+                           static_cast<float>(m_settings.overlap_sharpness));
+        }
     // Detail preservation: where groups of different input frames mix, the
     // detail around the local mean (a normalised box mean of the blend, fine
     // scale: larger structures of nearby frames are alike and blend as they
     // are) is rescaled by sum(W) / sqrt(sum(W_g^2)), 1 for a single group.
     std::vector<float> gain;
     std::vector<float> rows;
-    if (acc.groups) {
+    if (detail) {
         int y0 = h, y1 = -1;
         gain.assign(pixels, 1.0f);
         for (std::size_t i = 0; i < pixels; ++i) {
@@ -1123,7 +1171,11 @@ struct RenderBuffers {
     // (-1 = none yet) and the weights of those two and of the rest.
     std::vector<int> group0, group1;
     std::vector<float> weight0, weight1, weight_rest;
-    std::vector<float> row_sums;  // ring, with groups: horizontal box sums of rgbw
+    // Ring, with overlap sharpening: each group's sum of weight x colour
+    // (the two groups, the rest; 9 floats per pixel).
+    bool colours = false;
+    std::vector<float> group_rgb;
+    std::vector<float> row_sums;  // ring, with the detail gain: horizontal box sums of rgbw
 
     std::size_t ring_pixel(int y, int x) const {
         return static_cast<std::size_t>(y % ring_rows) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
@@ -1134,7 +1186,7 @@ using Splat = RenderBuffers::Splat;
 
 // Accumulator::add_group on the ring's pixels [pixel, pixel + n), branch-free
 // (weights start at 0, so taking a free slot and adding to it are one case).
-inline void add_to_groups(RenderBuffers& s, std::size_t pixel, int n, const float* wa, int group) {
+inline void add_to_groups(RenderBuffers& s, std::size_t pixel, int n, const float* wa, const float* wrgb, int group) {
     int* g0 = s.group0.data() + pixel;
     int* g1 = s.group1.data() + pixel;
     float* w0 = s.weight0.data() + pixel;
@@ -1148,6 +1200,12 @@ inline void add_to_groups(RenderBuffers& s, std::size_t pixel, int n, const floa
         w0[j] += first ? wa[j] : 0.0f;
         w1[j] += second ? wa[j] : 0.0f;
         w2[j] += first || second ? 0.0f : wa[j];
+    }
+    if (!s.colours) return;
+    for (int j = 0; j < n; ++j) {
+        const int slot = g0[j] == group ? 0 : g1[j] == group ? 1 : 2;
+        float* c = s.group_rgb.data() + (pixel + static_cast<std::size_t>(j)) * 9 + static_cast<std::size_t>(slot) * 3;
+        for (int k = 0; k < 3; ++k) c[k] += wrgb[3 * j + k];
     }
 }
 
@@ -1176,7 +1234,7 @@ void splat_patch_rows(RenderBuffers& s, bool groups, const Splat& p, int patch, 
             }
             continue;
         }
-        float wa[64];  // alpha weight per column, in chunks
+        float wa[64], wrgb[64 * 3];  // alpha weight and weighted colour per column, in chunks
         for (int j = 0; j < n; ++j) {
             const float w = fy * feather[j_lo + j];
             const float* t = src + static_cast<std::size_t>(j) * 4;
@@ -1189,7 +1247,13 @@ void splat_patch_rows(RenderBuffers& s, bool groups, const Splat& p, int patch, 
         for (int j0 = 0; j0 < n; j0 += 64) {
             const int m = std::min(64, n - j0);
             for (int j = 0; j < m; ++j) wa[j] = fy * feather[j_lo + j0 + j] * src[static_cast<std::size_t>(j0 + j) * 4 + 3];
-            add_to_groups(s, row + static_cast<std::size_t>(j0), m, wa, p.input_frame);
+            if (s.colours)
+                for (int j = 0; j < m; ++j) {
+                    const float w = fy * feather[j_lo + j0 + j];
+                    const float* t = src + static_cast<std::size_t>(j0 + j) * 4;
+                    for (int k = 0; k < 3; ++k) wrgb[3 * j + k] = w * t[k];
+                }
+            add_to_groups(s, row + static_cast<std::size_t>(j0), m, wa, wrgb, p.input_frame);
         }
     }
 }
@@ -1223,7 +1287,8 @@ void splat_warped_rows(RenderBuffers& s, bool groups, const Splat& p, int patch,
             d[3] += w * alpha;
             if (groups) {
                 const float wa = w * alpha;
-                add_to_groups(s, pixel, 1, &wa, p.input_frame);
+                const float wrgb[3] = {w * c[0], w * c[1], w * c[2]};
+                add_to_groups(s, pixel, 1, &wa, wrgb, p.input_frame);
             }
         }
     }
@@ -1265,7 +1330,9 @@ struct Synthesizer::Scratch : RenderBuffers {
 void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* coverage, Scratch& s) const {
     const int w = m_plan->width, h = m_plan->height;
     const int patch = m_streams->patch_size();
-    const bool groups = m_settings.preserve_detail;
+    // Groups of patches by input frame: for the detail gain and for overlap sharpening.
+    const bool detail = m_settings.preserve_detail, sharpen = m_settings.overlap_sharpness != 1.0;
+    const bool groups = detail || sharpen;
     m_background.fill(frame, w, h, out);
     if (coverage) coverage->assign(static_cast<std::size_t>(w) * h, 0.0f);
     if (w <= 0 || h <= 0) return;
@@ -1322,7 +1389,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
 
     // Steps: band k = rows [k B, (k + 1) B) needs rows up to hi_k = (k + 1) B + R;
     // step k accumulates rows [hi_(k-1), hi_k).
-    const int radius = groups ? kDetailRadiusPx : 0;
+    const int radius = detail ? kDetailRadiusPx : 0;
     const int bands = (h + kBandRows - 1) / kBandRows;
     const auto step_hi = [&](int k) { return std::min(h, (k + 1) * kBandRows + radius); };
     const auto step_of = [&](int y) { return std::clamp(y < radius ? 0 : (y - radius) / kBandRows, 0, bands - 1); };
@@ -1345,11 +1412,13 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
     s.ring_rows = std::min(h, kBandRows + 2 * radius);
     const std::size_t ring_pixels = static_cast<std::size_t>(s.ring_rows) * w;
     s.rgbw.resize(ring_pixels * 4);
+    s.colours = sharpen;
     if (groups) {
         for (auto* v : {&s.group0, &s.group1}) v->resize(ring_pixels);
         for (auto* v : {&s.weight0, &s.weight1, &s.weight_rest}) v->resize(ring_pixels);
-        s.row_sums.resize(ring_pixels * 4);
     }
+    if (sharpen) s.group_rgb.resize(ring_pixels * 9);
+    if (detail) s.row_sums.resize(ring_pixels * 4);
 
     const float full = static_cast<float>(std::max(1e-6, m_settings.coverage_weight));
     int lo = 0;
@@ -1363,6 +1432,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
                 for (auto* v : {&s.weight0, &s.weight1, &s.weight_rest})
                     std::fill_n(v->data() + row, static_cast<std::size_t>(w), 0.0f);
             }
+            if (sharpen) std::fill_n(s.group_rgb.data() + row * 9, static_cast<std::size_t>(w) * 9, 0.0f);
         }
         for (int i = s.step_start[static_cast<std::size_t>(k)]; i < s.step_start[static_cast<std::size_t>(k) + 1]; ++i) {
             const Splat& p = s.splats[static_cast<std::size_t>(s.step_splats[static_cast<std::size_t>(i)])];
@@ -1371,7 +1441,16 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
             if (p.warp) splat_warped_rows(s, groups, p, patch, a, b);
             else splat_patch_rows(s, groups, p, patch, a, b);
         }
-        if (groups)
+        if (sharpen)
+            for (int y = lo; y < hi; ++y) {
+                const std::size_t row = s.ring_pixel(y, 0);
+                for (int x = 0; x < w; ++x) {
+                    const std::size_t i = row + static_cast<std::size_t>(x);
+                    sharpen_groups(s.rgbw.data() + i * 4, s.weight0[i], s.weight1[i], s.weight_rest[i],
+                                   s.group_rgb.data() + i * 9, static_cast<float>(m_settings.overlap_sharpness));
+                }
+            }
+        if (detail)
             for (int y = lo; y < hi; ++y) ring_row_sums(s, y, kDetailRadiusPx);
         lo = hi;
 
@@ -1387,7 +1466,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
             // The row sums the local mean adds, in row order.
             const float* sums[2 * kDetailRadiusPx + 1];
             int sum_rows = 0;
-            if (groups)
+            if (detail)
                 for (int yy = std::max(0, y - kDetailRadiusPx); yy <= std::min(h - 1, y + kDetailRadiusPx); ++yy)
                     sums[sum_rows++] = s.row_sums.data() + s.ring_pixel(yy, 0) * 4;
             for (int x = 0; x < w; ++x) {
@@ -1396,7 +1475,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
                 const float c = static_cast<float>(smoothstep01(a[3] / full));
                 const float inv = 1.0f / a[3];
                 float tex[3] = {a[0] * inv, a[1] * inv, a[2] * inv};
-                if (groups && w1[x] > 0.0f) {
+                if (detail && w1[x] > 0.0f) {
                     const float gw[3] = {w0[x], w1[x], w2[x]};
                     const float squares = gw[0] * gw[0] + gw[1] * gw[1] + gw[2] * gw[2];
                     const float total = gw[0] + gw[1] + gw[2];

@@ -453,37 +453,45 @@ float max_difference(const std::vector<float>& a, const std::vector<float>& b) {
 TEST(FlowSynthesis, BandedRenderingEqualsTheWholeFramePass) {
     const OverlapScene scene = overlap_scene();
     for (bool warped : {false, true})
-        for (bool preserve : {true, false}) {
-            SynthesisSettings settings;
-            settings.preserve_detail = preserve;
-            auto streams = std::make_shared<ParticleStreams>(scene.bank, scene.inputs, settings);
-            const std::vector<OutputLine> outputs = warped ? overlap_outputs(scene) : std::vector<OutputLine>{};
-            const Synthesizer banded(streams, outputs, Background::plate(scene.plate), settings);
-            SynthesisSettings reference_settings = settings;
-            reference_settings.reference_rendering = true;
-            const Synthesizer reference(streams, outputs, Background::plate(scene.plate), reference_settings);
-            float worst = 0.0f, worst_coverage = 0.0f, textured = 0.0f;
-            for (int frame = 1; frame <= 2 * banded.period_frames() + 3; ++frame) {
-                std::vector<float> coverage, reference_coverage;
-                const RgbImage a = banded.render(frame, &coverage);
-                const RgbImage b = reference.render(frame, &reference_coverage);
-                worst = std::max(worst, max_difference(a.rgb, b.rgb));
-                worst_coverage = std::max(worst_coverage, max_difference(coverage, reference_coverage));
-                textured = std::max(textured, max_difference(a.rgb, scene.plate.rgb));
+        for (bool preserve : {true, false})
+            for (double sharpness : {1.0, 4.0}) {
+                SynthesisSettings settings;
+                settings.preserve_detail = preserve;
+                settings.overlap_sharpness = sharpness;
+                auto streams = std::make_shared<ParticleStreams>(scene.bank, scene.inputs, settings);
+                const std::vector<OutputLine> outputs = warped ? overlap_outputs(scene) : std::vector<OutputLine>{};
+                const Synthesizer banded(streams, outputs, Background::plate(scene.plate), settings);
+                SynthesisSettings reference_settings = settings;
+                reference_settings.reference_rendering = true;
+                const Synthesizer reference(streams, outputs, Background::plate(scene.plate), reference_settings);
+                float worst = 0.0f, worst_coverage = 0.0f, textured = 0.0f;
+                for (int frame = 1; frame <= 2 * banded.period_frames() + 3; ++frame) {
+                    std::vector<float> coverage, reference_coverage;
+                    const RgbImage a = banded.render(frame, &coverage);
+                    const RgbImage b = reference.render(frame, &reference_coverage);
+                    worst = std::max(worst, max_difference(a.rgb, b.rgb));
+                    worst_coverage = std::max(worst_coverage, max_difference(coverage, reference_coverage));
+                    textured = std::max(textured, max_difference(a.rgb, scene.plate.rgb));
+                }
+                SCOPED_TRACE(std::string(warped ? "warped and keyed lines" : "identity lines") +
+                             (preserve ? ", detail preserved" : ", plain blending") + ", overlap sharpness " +
+                             std::to_string(sharpness));
+                EXPECT_LE(worst, 1e-4f);
+                EXPECT_LE(worst_coverage, 1e-4f);
+                EXPECT_GT(textured, 0.2f);  // the frames are not just the plate
             }
-            SCOPED_TRACE(std::string(warped ? "warped and keyed lines" : "identity lines") +
-                         (preserve ? ", detail preserved" : ", plain blending"));
-            EXPECT_LE(worst, 1e-4f);
-            EXPECT_LE(worst_coverage, 1e-4f);
-            EXPECT_GT(textured, 0.2f);  // the frames are not just the plate
-        }
-    // The comparison covers detail preservation at work: it changes the frames.
-    SynthesisSettings plain;
+    // The comparison covers detail preservation and overlap sharpening at
+    // work: each changes the frames.
+    SynthesisSettings plain, detail, mixed;
     plain.preserve_detail = false;
+    mixed.preserve_detail = false;
+    mixed.overlap_sharpness = 1.0;
     auto streams = std::make_shared<ParticleStreams>(scene.bank, scene.inputs, SynthesisSettings{});
-    const Synthesizer preserved(streams, {}, Background::plate(scene.plate), SynthesisSettings{});
     const Synthesizer blended(streams, {}, Background::plate(scene.plate), plain);
+    const Synthesizer preserved(streams, {}, Background::plate(scene.plate), detail);
+    const Synthesizer unsharpened(streams, {}, Background::plate(scene.plate), mixed);
     EXPECT_GT(max_difference(preserved.render(4).rgb, blended.render(4).rgb), 0.05f);
+    EXPECT_GT(max_difference(unsharpened.render(4).rgb, blended.render(4).rgb), 0.05f);
 }
 
 TEST(FlowSynthesis, FramesDoNotDependOnTheThreadCount) {

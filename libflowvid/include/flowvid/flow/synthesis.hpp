@@ -86,6 +86,15 @@ struct SynthesisSettings {
     // for uncorrelated detail, applied only across groups: copies of the same
     // input frame are identical and blend exactly as before).
     bool preserve_detail = true;
+    // Where patches showing different input frames overlap, each group's
+    // weight W_g is raised to this power before they are mixed (colour =
+    // sum W_g^p C_g / sum W_g^p; coverage unchanged). 1 mixes them in
+    // proportion to their weights, so two unlike frames show at once, each
+    // faintly (a double exposure: on the fire's wrap, bright flame at a tenth
+    // of its weight over the dark pot reads as grey-green smears). Larger
+    // values let the heavier group show, with a soft seam where the weights
+    // are close. The detail gain above then follows the powered weights.
+    double overlap_sharpness = 4.0;
     // Along an output line other than its input line (edits), first show the
     // background found around the input line (the whole drawn line, smoothed
     // over half a patch), carried through the same tangent-frame mapping as
