@@ -41,11 +41,18 @@ double smoothstep01(double x) {
 // showing different input frames overlap: the pixel's colour (rgbw,
 // premultiplied sum; its total weight is kept) becomes the groups' colours
 // weighted by W_g^exponent, and the group weights become those powers (the
-// detail gain then follows them). group_rgb: each group's sum of weight x
-// colour (the two groups, the rest; 3 floats each).
+// detail gain then follows them). group_rgb: the sums of weight x colour of
+// the second group and of the rest (floats 3..8; the first group's is the
+// total's remainder, so a pixel of one group costs no colour sums).
 void sharpen_groups(float* rgbw, float& w0, float& w1, float& w2, const float* group_rgb, float exponent) {
     if (!(w1 > 0.0f) || rgbw[3] <= 1e-6f) return;
     float* weights[3] = {&w0, &w1, &w2};
+    float sums[9];
+    for (int k = 0; k < 3; ++k) {
+        sums[3 + k] = group_rgb[3 + k];
+        sums[6 + k] = group_rgb[6 + k];
+        sums[k] = rgbw[k] - sums[3 + k] - sums[6 + k];
+    }
     float num[3] = {0.0f, 0.0f, 0.0f}, den = 0.0f;
     for (int g = 0; g < 3; ++g) {
         const float w = *weights[g];
@@ -54,7 +61,7 @@ void sharpen_groups(float* rgbw, float& w0, float& w1, float& w2, const float* g
             continue;
         }
         const float powered = std::pow(w, exponent);
-        for (int k = 0; k < 3; ++k) num[k] += powered * (group_rgb[3 * g + k] / w);
+        for (int k = 0; k < 3; ++k) num[k] += powered * (sums[3 * g + k] / w);
         den += powered;
         *weights[g] = powered;
     }
@@ -157,7 +164,7 @@ struct Accumulator {
             slot = 1;
         }
         gw[slot] += wa;
-        if (colours)
+        if (colours && slot > 0)  // the first group's colour is the total's remainder
             for (int k = 0; k < 3; ++k) group_rgb[pixel * 9 + static_cast<std::size_t>(slot) * 3 + k] += wrgb[k];
     }
 };
@@ -1204,6 +1211,7 @@ inline void add_to_groups(RenderBuffers& s, std::size_t pixel, int n, const floa
     if (!s.colours) return;
     for (int j = 0; j < n; ++j) {
         const int slot = g0[j] == group ? 0 : g1[j] == group ? 1 : 2;
+        if (slot == 0) continue;  // the first group's colour is the total's remainder
         float* c = s.group_rgb.data() + (pixel + static_cast<std::size_t>(j)) * 9 + static_cast<std::size_t>(slot) * 3;
         for (int k = 0; k < 3; ++k) c[k] += wrgb[3 * j + k];
     }
