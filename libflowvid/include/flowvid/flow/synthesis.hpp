@@ -20,9 +20,10 @@
 // from (flow/sampling.hpp, patch_origin): plain synthesis copies clip pixels
 // without resampling blur. Particles fade in and out over a few frames at the
 // ends of their life.
-// Colour = sum(w * rgb) / sum(w) with premultiplied alpha; the background
-// shows through where the accumulated weight sum(w) is below
-// `coverage_weight` (smoothstep).
+// Colour = sum(w * rgb) / sum(w) with premultiplied alpha, where patches of
+// different input frames meet sharpened towards the heavier
+// (SynthesisSettings::overlap_sharpness); the background shows through where
+// the accumulated weight sum(w) is below `coverage_weight` (smoothstep).
 // On an output line other than the input line, every pixel near the line is
 // mapped to the input frame through the tangent frames: pixel q projects to
 // arc s_out and lateral offset n on the output line; s_in = s_out (equal arc
