@@ -177,7 +177,15 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                               {"start_every", schedule.start_every},
                               {"period_frames", schedule.period_frames},
                               {"lines", schedule.lines.size()},
-                              {"missing_slots", missing}};
+                              {"missing_slots", missing},
+                              // What the measured synthesis was rendered with, so figures can be traced.
+                              {"synthesis",
+                               {{"blend", options.blend},
+                                {"overlap_sharpness", options.overlap_sharpness},
+                                {"coverage", options.coverage},
+                                {"fade_frames", options.fade_frames},
+                                {"wrap_fade_frames", options.wrap_fade_frames},
+                                {"first_start_frame", schedule.first_start_frame}}}};
     nlohmann::json methods = nlohmann::json::object();
     for (const flow::MethodQuality& m : result.methods) methods[m.method] = report_json(m.report);
     summary["methods"] = methods;

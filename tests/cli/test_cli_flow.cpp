@@ -330,6 +330,9 @@ TEST(CliFlow, QualitySeriesShowsWhereTheLoopJumpsAndReproducesTheMeasures) {
         const CliResult other = run_flowvid(args);
         ASSERT_EQ(other.exit_code, 0) << other.err;
         const nlohmann::json o = nlohmann::json::parse(other.out);
+        // The report says what the synthesis was rendered with.
+        if (option[0] == "--blend") EXPECT_EQ(o.at("synthesis").at("blend"), "plain");
+        else EXPECT_EQ(o.at("synthesis").at("overlap_sharpness").get<double>(), 1.0);
         EXPECT_NE(o.at("methods").at("ours").at("hf_power_ratio").get<double>(), ours.at("hf_power_ratio").get<double>())
             << option[0];
     }
