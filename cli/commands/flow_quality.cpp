@@ -97,7 +97,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     std::vector<Problem> warnings;
     auto bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(options.bank, &warnings));
     print_problems(warnings);
-    const std::string capture_path = options.capture.empty() ? bank->source_clip : options.capture;
+    const std::string capture_path = options.capture.empty() ? formats::resolve_source_clip(options.bank, *bank) : options.capture;
     std::error_code ec;
     if (capture_path.empty() || !std::filesystem::exists(capture_path, ec)) {
         log_message("error: " + options.bank + ": the measures need the source clip (" +

@@ -88,7 +88,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     print_problems(warnings);
 
     // The clip: for the background and, by default, the flow lines.
-    std::string capture_path = options.capture.empty() ? bank->source_clip : options.capture;
+    std::string capture_path = options.capture.empty() ? formats::resolve_source_clip(options.bank, *bank) : options.capture;
     std::optional<formats::Capture> capture;
     std::error_code ec;
     if (!capture_path.empty() && std::filesystem::exists(capture_path, ec)) capture = flow::open_clip(capture_path, bank->fps);

@@ -101,7 +101,7 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
     Progress progress(global, "track");
     std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs
     interrupt.emplace();
-    const flow::TrackingResult result = flow::track_particles(frames, lines, settings, [&](const flow::TrackingProgress& p) {
+    flow::TrackingResult result = flow::track_particles(frames, lines, settings, [&](const flow::TrackingProgress& p) {
         progress.update(static_cast<double>(p.frame) / std::max(1, p.frame_count),
                         "frame " + std::to_string(p.frame) + "/" + std::to_string(p.frame_count));
         return !interrupt->requested();
@@ -161,6 +161,7 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
                     " frames (fix: check that the lines follow the flow, lower --max-path-frames, or raise --max-speed)");
         return kExitFailure;
     }
+    result.bank.source_clip = formats::source_clip_for_bank(options.out, result.bank.source_clip);
     formats::write_particle_bank(options.out, result.bank);
     if (!options.dense_out.empty()) {
         formats::FlowLineSet dense = drawing;

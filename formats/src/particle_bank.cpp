@@ -22,6 +22,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
@@ -774,6 +775,29 @@ ParticleBank read_particle_bank(const std::string& path, std::vector<Problem>* w
     diagnostics.throw_if_errors();
     if (warnings) *warnings = diagnostics.warnings();
     return *bank;
+}
+
+std::string source_clip_for_bank(const std::string& bank_path, const std::string& clip_path) {
+    namespace fs = std::filesystem;
+    if (clip_path.empty()) return clip_path;
+    std::error_code ec;
+    const fs::path clip = fs::absolute(clip_path, ec);
+    if (ec) return clip_path;
+    const fs::path folder = fs::absolute(bank_path, ec).parent_path();
+    if (ec) return clip.string();
+    const fs::path relative = clip.lexically_normal().lexically_relative(folder.lexically_normal());
+    return relative.empty() ? clip.string() : relative.string();
+}
+
+std::string resolve_source_clip(const std::string& bank_path, const ParticleBank& bank) {
+    namespace fs = std::filesystem;
+    if (bank.source_clip.empty()) return {};
+    const fs::path recorded(bank.source_clip);
+    if (recorded.is_absolute()) return bank.source_clip;
+    std::error_code ec;
+    const fs::path beside = fs::path(bank_path).parent_path() / recorded;
+    if (fs::exists(beside, ec)) return beside.lexically_normal().string();
+    return bank.source_clip;
 }
 
 void write_particle_bank(const std::string& path, const ParticleBank& bank) {

@@ -12,7 +12,8 @@ struct CliResult {
     std::string err;  // stderr
 };
 
-// Arguments are quoted for the shell; stdout and stderr are captured separately.
-CliResult run_flowvid(const std::vector<std::string>& arguments);
+// Arguments are quoted for the shell; stdout and stderr are captured
+// separately. `working_dir`: where it runs (empty: the test's own).
+CliResult run_flowvid(const std::vector<std::string>& arguments, const std::string& working_dir = {});
 
 }  // namespace flowvid::testing

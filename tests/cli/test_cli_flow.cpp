@@ -138,6 +138,23 @@ TEST(CliFlow, TrackWarnsWhenNeighbouringLinesLeaveTheBackgroundBetweenThem) {
     EXPECT_FALSE(mentions(larger.err, "neighbouring lines")) << larger.err;
 }
 
+TEST(CliFlow, ABankFindsItsClipFromAnyWorkingDirectory) {
+    // Tracked with paths relative to one folder; rendered from another.
+    const std::string dir = own_dir("cli_flow_relative");
+    fs::create_directories(dir + "/project/banks");
+    fs::create_symlink(tiny_capture(), dir + "/project/waterfall");
+    const CliResult tracked =
+        run_flowvid({"track", "--capture", "waterfall", "--frames", "12", "--out", "banks/w.bank.exr"}, dir + "/project");
+    ASSERT_EQ(tracked.exit_code, 0) << tracked.err;
+    const CliResult info = run_flowvid({"info", dir + "/project/banks/w.bank.exr", "--json"});
+    ASSERT_EQ(info.exit_code, 0) << info.err;
+    EXPECT_TRUE(mentions(info.out, "../waterfall")) << info.out;  // relative to the bank's folder
+    const CliResult synth = run_flowvid(
+        {"synth", "--bank", dir + "/project/banks/w.bank.exr", "--frames", "2", "--out", dir + "/out/%04d.png"});
+    EXPECT_EQ(synth.exit_code, 0) << synth.err;
+    EXPECT_TRUE(fs::exists(dir + "/out/0002.png"));
+}
+
 TEST(CliFlow, SynthRangesJoinSeamlesslyAndLoop) {
     const std::string dir = own_dir("cli_flow_synth");
     // An output folder that cannot be made (a file is in the way): I/O error naming it.

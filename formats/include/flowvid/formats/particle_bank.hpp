@@ -71,7 +71,8 @@ struct ParticleBank {
     int clip_width_px = 0;     // size of the source clip's frames
     int clip_height_px = 0;
     int clip_frame_count = 0;  // frames of the source clip covered by the bank (atlas columns)
-    std::string source_clip;   // informative: the capture folder or clip the bank was tracked in
+    std::string source_clip;   // informative: the capture folder or clip the bank was tracked in;
+                               // relative to the bank file's folder (source_clip_for_bank)
     ParticleDynamics dynamics = ParticleDynamics::stationary;
     std::vector<BankFlowLine> lines;
     std::vector<TrackedParticle> particles;  // in file order (atlas rows)
@@ -90,6 +91,16 @@ ParticleBank read_particle_bank(const std::string& path, std::vector<Problem>* w
 // Validates, then writes atomically. Throws ValidationError when the bank is
 // not valid, leaving any previous file untouched; IoError when writing fails.
 void write_particle_bank(const std::string& path, const ParticleBank& bank);
+
+// source_clip as a bank written to `bank_path` records it: relative to the
+// bank file's folder, so the bank finds its clip from any working directory
+// and when both move together.
+std::string source_clip_for_bank(const std::string& bank_path, const std::string& clip_path);
+// The clip a bank read from `bank_path` names: an absolute source_clip as
+// is; a relative one against the bank's folder when that exists, else
+// against the working directory (banks written before 2026-11-23 recorded
+// it so). Empty when the bank records none.
+std::string resolve_source_clip(const std::string& bank_path, const ParticleBank& bank);
 // Every problem of a file, for `flowvid validate` and the fuzz targets (never
 // throws on bad content). Strict: unknown flowvid.* attributes and extra
 // channels are errors rather than warnings.
