@@ -22,7 +22,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
