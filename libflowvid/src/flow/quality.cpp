@@ -1,5 +1,7 @@
 #include "flowvid/flow/quality.hpp"
 
+#include "flowvid/flow/geometry.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -11,23 +13,9 @@ namespace flowvid::flow {
 
 std::vector<std::uint8_t> line_band_mask(const std::vector<std::vector<Eigen::Vector2d>>& lines, int width, int height,
                                          double half_width_px) {
-    std::vector<std::uint8_t> mask(static_cast<std::size_t>(width) * height, 0);
-    for (const auto& line : lines) {
-        for (std::size_t i = 0; i + 1 < line.size(); ++i) {
-            const Eigen::Vector2d a = line[i], d = line[i + 1] - line[i];
-            const double len2 = d.squaredNorm();
-            const int x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), line[i + 1].x()) - half_width_px)));
-            const int x1 = std::min(width - 1, static_cast<int>(std::ceil(std::max(a.x(), line[i + 1].x()) + half_width_px)));
-            const int y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), line[i + 1].y()) - half_width_px)));
-            const int y1 = std::min(height - 1, static_cast<int>(std::ceil(std::max(a.y(), line[i + 1].y()) + half_width_px)));
-            for (int y = y0; y <= y1; ++y)
-                for (int x = x0; x <= x1; ++x) {
-                    const Eigen::Vector2d q(x, y);
-                    const double t = len2 > 0.0 ? std::clamp((q - a).dot(d) / len2, 0.0, 1.0) : 0.0;
-                    if ((q - (a + t * d)).norm() <= half_width_px) mask[static_cast<std::size_t>(y) * width + x] = 1;
-                }
-        }
-    }
+    const std::vector<double> distance = distance_to_polylines(lines, width, height, half_width_px);
+    std::vector<std::uint8_t> mask(distance.size(), 0);
+    for (std::size_t i = 0; i < distance.size(); ++i) mask[i] = distance[i] <= half_width_px ? 1 : 0;
     return mask;
 }
 
@@ -137,14 +125,12 @@ double nearest_patch_distance(const std::vector<std::vector<float>>& queries_fro
     return counted ? total / counted : 0.0;
 }
 
-}  // namespace
-
-QualityReport measure_quality(const std::vector<std::vector<float>>& clip_luma,
-                              const std::vector<std::vector<float>>& output_luma, int width, int height,
-                              const std::vector<std::uint8_t>& mask, const QualitySettings& settings) {
+// measure_quality with the per-frame statistics of both sequences already made.
+QualityReport quality_from_stats(const SequenceStats& clip, const SequenceStats& out,
+                                 const std::vector<std::vector<float>>& clip_luma,
+                                 const std::vector<std::vector<float>>& output_luma, int width, int height,
+                                 const std::vector<std::uint8_t>& mask, const QualitySettings& settings) {
     QualityReport r;
-    const SequenceStats clip = sequence_stats(clip_luma, width, height, mask);
-    const SequenceStats out = sequence_stats(output_luma, width, height, mask);
     r.clip_p95 = percentile(clip.transitions, 0.95);
     r.clip_p99 = percentile(clip.transitions, 0.99);
     r.clip_max = clip.transitions.empty() ? 0.0 : *std::max_element(clip.transitions.begin(), clip.transitions.end());
@@ -167,6 +153,15 @@ QualityReport measure_quality(const std::vector<std::vector<float>>& clip_luma,
     r.patch_distance = nearest_patch_distance(output_luma, clip_luma, false, width, height, mask, settings, settings.seed);
     r.clip_self_distance = nearest_patch_distance(clip_luma, clip_luma, true, width, height, mask, settings, settings.seed + 1);
     return r;
+}
+
+}  // namespace
+
+QualityReport measure_quality(const std::vector<std::vector<float>>& clip_luma,
+                              const std::vector<std::vector<float>>& output_luma, int width, int height,
+                              const std::vector<std::uint8_t>& mask, const QualitySettings& settings) {
+    return quality_from_stats(sequence_stats(clip_luma, width, height, mask), sequence_stats(output_luma, width, height, mask),
+                              clip_luma, output_luma, width, height, mask, settings);
 }
 
 RgbImage naive_loop_frame(const ClipFrames& clip, int frame) {
@@ -311,8 +306,10 @@ Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams&
     for (std::uint8_t m : mask) out.mask_pixels += m;
     out.clip_series = sequence_stats(clip_luma, width, height, mask);
     const auto add = [&](const char* method, const std::vector<std::vector<float>>& frames) {
-        out.methods.push_back({method, measure_quality(clip_luma, frames, width, height, mask, settings.quality),
-                               sequence_stats(frames, width, height, mask)});
+        SequenceStats series = sequence_stats(frames, width, height, mask);
+        QualityReport report =
+            quality_from_stats(out.clip_series, series, clip_luma, frames, width, height, mask, settings.quality);
+        out.methods.push_back({method, std::move(report), std::move(series)});
     };
     add("ours", ours);
     add("loop", loop);

@@ -866,37 +866,20 @@ namespace {
 // and lines interpolated between neighbouring ones, as edits interpolate
 // output lines), rising to 1 a patch away.
 std::vector<float> carry_allowed_map(const ParticleStreams& streams, int w, int h, int patch) {
-    std::vector<float> distance(static_cast<std::size_t>(w) * h, static_cast<float>(patch));
-    const auto near_polyline = [&](const std::vector<Eigen::Vector2d>& pts) {
-        for (std::size_t i = 0; i + 1 < pts.size(); ++i) {
-            const Eigen::Vector2d a = pts[i], d = pts[i + 1] - pts[i];
-            const double len2 = d.squaredNorm();
-            const int x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), pts[i + 1].x()) - patch)));
-            const int x1 = std::min(w - 1, static_cast<int>(std::ceil(std::max(a.x(), pts[i + 1].x()) + patch)));
-            const int y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), pts[i + 1].y()) - patch)));
-            const int y1 = std::min(h - 1, static_cast<int>(std::ceil(std::max(a.y(), pts[i + 1].y()) + patch)));
-            for (int y = y0; y <= y1; ++y)
-                for (int x = x0; x <= x1; ++x) {
-                    const Eigen::Vector2d q(x, y);
-                    const double t = len2 > 0.0 ? std::clamp((q - a).dot(d) / len2, 0.0, 1.0) : 0.0;
-                    float& best = distance[static_cast<std::size_t>(y) * w + x];
-                    best = std::min(best, static_cast<float>((q - (a + t * d)).norm()));
-                }
-        }
-    };
     std::vector<std::vector<Eigen::Vector2d>> flow_lines;
     for (const ParticleStreams::InputLine& in : streams.input_lines())
         if (in.points.size() >= 2) flow_lines.push_back(in.points);
         else
             for (const auto& seg : in.segments) flow_lines.push_back(streams.geometry(seg.stream).points());
+    std::vector<std::vector<Eigen::Vector2d>> region = flow_lines;
     const auto chains = neighbour_chains(flow_lines, 6.0 * patch);
     for (const InterpolatedLine& between : interpolate_between(flow_lines, chains, 0.5 * patch))
-        near_polyline(blend_polylines(flow_lines[static_cast<std::size_t>(between.a)],
-                                      flow_lines[static_cast<std::size_t>(between.b)], between.weight, 32));
-    for (const auto& line : flow_lines) near_polyline(line);
+        region.push_back(blend_polylines(flow_lines[static_cast<std::size_t>(between.a)],
+                                         flow_lines[static_cast<std::size_t>(between.b)], between.weight, 32));
+    const std::vector<double> distance = distance_to_polylines(region, w, h, patch);
     std::vector<float> allowed(distance.size());
     for (std::size_t i = 0; i < distance.size(); ++i)
-        allowed[i] = static_cast<float>(smoothstep01(2.0 * distance[i] / patch - 1.0));
+        allowed[i] = static_cast<float>(smoothstep01(2.0 * std::min(distance[i], static_cast<double>(patch)) / patch - 1.0));
     return allowed;
 }
 

@@ -70,6 +70,12 @@ LineGap line_gap(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen:
 std::vector<std::vector<int>> neighbour_chains(const std::vector<std::vector<Eigen::Vector2d>>& lines, double max_gap_px,
                                                double max_angle_deg = 45.0);
 
+// Per pixel of a width x height image (row-major), the distance in pixels to
+// the nearest of the polylines; computed within reach_px of them, infinity
+// further away.
+std::vector<double> distance_to_polylines(const std::vector<std::vector<Eigen::Vector2d>>& lines, int width, int height,
+                                          double reach_px);
+
 // Consecutive lines of a chain (neighbour_chains) whose mean gap exceeds
 // min_gap_px: synthesis covers about a patch around each line, so between
 // such neighbours the background shows. Widest first.
