@@ -4,6 +4,7 @@
 
 #include "command.hpp"
 #include "output.hpp"
+#include "synthesis_options.hpp"
 
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/quality.hpp"
@@ -26,19 +27,12 @@ struct QualityOptions {
     std::string capture;
     std::string flowlines;
     int frames = 0;
-    int particles = 0;
-    int first_start = -1;
-    unsigned long long seed = 0;
+    SynthesisOptions synthesis;
     double band_px = 0.0;
     int cycle = 32;
     int threads = 0;
     bool json = false;
     std::string series_csv;
-    double coverage = 0.5;
-    int fade_frames = -1;
-    int wrap_fade_frames = -1;
-    std::string blend = "detail";
-    double overlap_sharpness = 4.0;
 };
 
 formats::FlowLineSet read_lines(const std::string& path, std::vector<Problem>& warnings) {
@@ -115,15 +109,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     const formats::FlowLineSet drawing = read_lines(lines_path, warnings);
     print_problems(warnings);
 
-    flow::SynthesisSettings settings;
-    settings.particles = options.particles;
-    settings.first_start_frame = options.first_start;
-    settings.seed = options.seed;
-    settings.coverage_weight = options.coverage;
-    settings.fade_frames = options.fade_frames;
-    settings.wrap_fade_frames = options.wrap_fade_frames;
-    settings.preserve_detail = options.blend == "detail";
-    settings.overlap_sharpness = options.overlap_sharpness;
+    const flow::SynthesisSettings settings = synthesis_settings(options.synthesis);
     auto streams = std::make_shared<flow::ParticleStreams>(
         bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
     for (const std::string& w : streams->schedule().warnings) log_message("warning: " + w);
@@ -180,11 +166,11 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                               {"missing_slots", missing},
                               // What the measured synthesis was rendered with, so figures can be traced.
                               {"synthesis",
-                               {{"blend", options.blend},
-                                {"overlap_sharpness", options.overlap_sharpness},
-                                {"coverage", options.coverage},
-                                {"fade_frames", options.fade_frames},
-                                {"wrap_fade_frames", options.wrap_fade_frames},
+                               {{"blend", options.synthesis.blend},
+                                {"overlap_sharpness", options.synthesis.overlap_sharpness},
+                                {"coverage", options.synthesis.coverage},
+                                {"fade_frames", options.synthesis.fade_frames},
+                                {"wrap_fade_frames", options.synthesis.wrap_fade_frames},
                                 {"first_start_frame", schedule.first_start_frame}}}};
     nlohmann::json methods = nlohmann::json::object();
     for (const flow::MethodQuality& m : result.methods) methods[m.method] = report_json(m.report);
@@ -238,18 +224,7 @@ const RegisterCommand registration{Command{
         app.add_option("--flowlines", options->flowlines, "the drawing the bank was tracked with (default: the capture's)");
         app.add_option("--frames", options->frames, "output frames measured (0 = twice the clip)")
             ->check(CLI::NonNegativeNumber);
-        app.add_option("--particles", options->particles, "K particles per line (0 = as many as fit), as in synth");
-        app.add_option("--first-start", options->first_start, "input start frame of the first particle, as in synth");
-        app.add_option("--seed", options->seed, "chooses the K-particle window, as in synth");
-        app.add_option("--coverage", options->coverage, "as in synth")->capture_default_str();
-        app.add_option("--fade-frames", options->fade_frames, "as in synth");
-        app.add_option("--wrap-fade-frames", options->wrap_fade_frames, "as in synth");
-        app.add_option("--blend", options->blend, "as in synth")
-            ->check(CLI::IsMember({"detail", "plain"}))
-            ->capture_default_str();
-        app.add_option("--overlap-sharpness", options->overlap_sharpness, "as in synth")
-            ->check(CLI::Range(1.0, 64.0))
-            ->capture_default_str();
+        add_synthesis_options(app, options->synthesis);  // as synth renders
         app.add_option("--band", options->band_px, "measure within PX of the tracked lines (0 = a quarter patch)");
         app.add_option("--cycle", options->cycle, "flow-map layer life in frames")->capture_default_str();
         app.add_option("--threads", options->threads, "frames rendered at once (0 = all cores)");

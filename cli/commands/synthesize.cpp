@@ -4,6 +4,7 @@
 // flow/editing.hpp.
 
 #include "command.hpp"
+#include "synthesis_options.hpp"
 #include "output.hpp"
 
 #include "flowvid/flow/editing.hpp"
@@ -29,16 +30,9 @@ struct RenderOptions {
     std::string frames = "100";
     std::string out;
     std::string background = "median";
-    int particles = 0;
-    int first_start = -1;
-    unsigned long long seed = 0;
+    SynthesisOptions synthesis;
     bool loop = false;
     int threads = 0;
-    double coverage = 0.5;
-    int fade_frames = -1;
-    int wrap_fade_frames = -1;
-    std::string blend = "detail";
-    double overlap_sharpness = 4.0;
     bool json = false;
     // edit
     std::string mapping = "equal";
@@ -112,16 +106,8 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
         return kExitInvalidInput;
     }
 
-    flow::SynthesisSettings settings;
-    settings.particles = options.particles;
-    settings.first_start_frame = options.first_start;
-    settings.seed = options.seed;
+    flow::SynthesisSettings settings = synthesis_settings(options.synthesis);
     settings.mapping = flow::arc_mapping_from_string(options.mapping);
-    settings.coverage_weight = options.coverage;
-    settings.fade_frames = options.fade_frames;
-    settings.wrap_fade_frames = options.wrap_fade_frames;
-    settings.preserve_detail = options.blend == "detail";
-    settings.overlap_sharpness = options.overlap_sharpness;
     settings.carry_background = options.carry_background;
     auto streams = std::make_shared<flow::ParticleStreams>(
         bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
@@ -234,26 +220,8 @@ void add_common(CLI::App& app, RenderOptions& o) {
     app.add_option("--background", o.background, "where no line reaches: median (static plate), loop (the clip), none")
         ->check(CLI::IsMember({"median", "loop", "none"}))
         ->capture_default_str();
-    app.add_option("--particles", o.particles, "K particles per line in the diagonal order (0 = as many as fit)");
-    app.add_option("--first-start", o.first_start, "input start frame of the first of the K particles (default: seeded)");
-    app.add_option("--seed", o.seed, "chooses the K-particle window when several fit (0 = the earliest)");
     app.add_flag("--loop", o.loop, "render exactly one period (frames 1..K*step): a file that loops seamlessly");
-    app.add_option("--coverage", o.coverage, "accumulated feather weight at which texture fully hides the background")
-        ->capture_default_str();
-    app.add_option("--fade-frames", o.fade_frames, "particles fade in and out over N frames (-1 = automatic)");
-    app.add_option("--wrap-fade-frames", o.wrap_fade_frames,
-                   "the first particle of each period (where the diagonal order wraps) fades in over N frames "
-                   "(-1 = automatic)");
-    app.add_option("--blend", o.blend,
-                   "where patches of different input frames overlap: detail (keep fine detail's contrast) or plain "
-                   "(weighted mean)")
-        ->check(CLI::IsMember({"detail", "plain"}))
-        ->capture_default_str();
-    app.add_option("--overlap-sharpness", o.overlap_sharpness,
-                   "where patches of different input frames overlap, each group's weight is raised to this power "
-                   "before mixing: 1 = in proportion (a double exposure), larger = the heavier shows, soft seam")
-        ->check(CLI::Range(1.0, 64.0))
-        ->capture_default_str();
+    add_synthesis_options(app, o.synthesis);
     app.add_option("--threads", o.threads, "frames rendered at once (0 = all cores)");
     app.add_flag("--json", o.json, "print the summary as JSON");
 }

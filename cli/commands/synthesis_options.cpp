@@ -1,0 +1,40 @@
+#include "synthesis_options.hpp"
+
+namespace flowvid::cli {
+
+void add_synthesis_options(CLI::App& app, SynthesisOptions& o) {
+    app.add_option("--particles", o.particles, "K particles per line in the diagonal order (0 = as many as fit)");
+    app.add_option("--first-start", o.first_start, "input start frame of the first of the K particles (default: seeded)");
+    app.add_option("--seed", o.seed, "chooses the K-particle window when several fit (0 = the earliest)");
+    app.add_option("--coverage", o.coverage, "accumulated feather weight at which texture fully hides the background")
+        ->capture_default_str();
+    app.add_option("--fade-frames", o.fade_frames, "particles fade in and out over N frames (-1 = automatic)");
+    app.add_option("--wrap-fade-frames", o.wrap_fade_frames,
+                   "the first particle of each period (where the diagonal order wraps) fades in over N frames "
+                   "(-1 = automatic)");
+    app.add_option("--blend", o.blend,
+                   "where patches of different input frames overlap: detail (keep fine detail's contrast) or plain "
+                   "(weighted mean)")
+        ->check(CLI::IsMember({"detail", "plain"}))
+        ->capture_default_str();
+    app.add_option("--overlap-sharpness", o.overlap_sharpness,
+                   "where patches of different input frames overlap, each group's weight is raised to this power "
+                   "before mixing: 1 = in proportion (a double exposure), larger = the heavier shows, soft seam")
+        ->check(CLI::Range(1.0, 64.0))
+        ->capture_default_str();
+}
+
+flow::SynthesisSettings synthesis_settings(const SynthesisOptions& o) {
+    flow::SynthesisSettings settings;
+    settings.particles = o.particles;
+    settings.first_start_frame = o.first_start;
+    settings.seed = o.seed;
+    settings.coverage_weight = o.coverage;
+    settings.fade_frames = o.fade_frames;
+    settings.wrap_fade_frames = o.wrap_fade_frames;
+    settings.preserve_detail = o.blend == "detail";
+    settings.overlap_sharpness = o.overlap_sharpness;
+    return settings;
+}
+
+}  // namespace flowvid::cli
