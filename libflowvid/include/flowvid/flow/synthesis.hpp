@@ -53,6 +53,8 @@ namespace flowvid::flow {
 enum class ArcMapping { equal, scaled };
 const char* to_string(ArcMapping mapping);
 ArcMapping arc_mapping_from_string(const std::string& text);  // "equal" | "scaled"; std::invalid_argument otherwise
+// s_in = s_out * scale: 1 for equal arc length, L_in / L_out for scaled.
+double arc_mapping_scale(ArcMapping mapping, double length_in, double length_out);
 
 struct SynthesisSettings {
     int particles = 0;           // K per line; 0 = as many as every line has in one common window

@@ -1,0 +1,185 @@
+// The diagonal order of thesis fig. 3.5b: which K particles each line
+// repeats, and which of them are on the line at an output frame.
+#include "flowvid/flow/synthesis.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <stdexcept>
+#include <string>
+
+namespace flowvid::flow {
+
+namespace {
+
+long long floor_div(long long a, long long b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+long long positive_mod(long long a, long long b) { return ((a % b) + b) % b; }
+
+std::uint64_t mix_seed(std::uint64_t x) {
+    x += 0x9E3779B97F4A7C15ULL;
+    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
+    return x ^ (x >> 31);
+}
+
+}  // namespace
+
+// ---- schedule ----------------------------------------------------------------------------------
+
+Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSettings& settings) {
+    Schedule schedule;
+    std::map<std::string, std::vector<std::pair<int, int>>> by_line;  // id -> (start, particle index)
+    for (std::size_t i = 0; i < bank.particles.size(); ++i)
+        by_line[bank.particles[i].line_id].emplace_back(bank.particles[i].start_frame, static_cast<int>(i));
+    std::vector<const formats::BankFlowLine*> lines;
+    std::vector<std::string> empty_lines;
+    for (const formats::BankFlowLine& line : bank.lines) {
+        auto it = by_line.find(line.id);
+        if (it == by_line.end() || it->second.empty()) {
+            empty_lines.push_back(line.id);
+            continue;
+        }
+        std::sort(it->second.begin(), it->second.end());
+        lines.push_back(&line);
+    }
+    if (lines.empty()) throw std::invalid_argument("the bank has no particle to synthesize from");
+    // Summaries, not one warning per line: a densified bank has hundreds.
+    const auto some = [](const std::vector<std::string>& ids) {
+        std::string text;
+        for (std::size_t i = 0; i < ids.size() && i < 3; ++i) text += (i ? ", " : "") + ids[i];
+        if (ids.size() > 3) text += ", ...";
+        return text;
+    };
+    if (!empty_lines.empty())
+        schedule.warnings.push_back(std::to_string(empty_lines.size()) + " of " + std::to_string(bank.lines.size()) +
+                                    " lines have no tracked particle and are not synthesized (" + some(empty_lines) + ")");
+
+    int step = 0;
+    int first_start = std::numeric_limits<int>::max(), last_start = std::numeric_limits<int>::min();
+    for (const auto* line : lines) {
+        const auto& starts = by_line[line->id];
+        for (std::size_t i = 1; i < starts.size(); ++i) {
+            const int d = starts[i].first - starts[i - 1].first;
+            if (d > 0 && (step == 0 || d < step)) step = d;
+        }
+        first_start = std::min(first_start, starts.front().first);
+        last_start = std::max(last_start, starts.back().first);
+    }
+    if (step == 0) step = 1;
+    // Which start slots (first_start + i * step) each line has a particle for.
+    const int slots = (last_start - first_start) / step + 1;
+    std::vector<std::vector<int>> has(lines.size(), std::vector<int>(static_cast<std::size_t>(slots) + 1, 0));  // prefix counts
+    for (std::size_t l = 0; l < lines.size(); ++l) {
+        std::vector<int> present(static_cast<std::size_t>(slots), 0);
+        for (const auto& [start, index] : by_line[lines[l]->id])
+            if ((start - first_start) % step == 0) present[static_cast<std::size_t>((start - first_start) / step)] = 1;
+        for (int i = 0; i < slots; ++i)
+            has[l][static_cast<std::size_t>(i) + 1] = has[l][static_cast<std::size_t>(i)] + present[static_cast<std::size_t>(i)];
+    }
+    const auto missing = [&](int first_slot, int count) {
+        int total = 0;
+        for (const auto& prefix : has)
+            total += count - (prefix[static_cast<std::size_t>(first_slot + count)] - prefix[static_cast<std::size_t>(first_slot)]);
+        return total;
+    };
+    // The window: as many particles as possible while at most a quarter of
+    // the slots (over all lines) lack a tracked particle of their own start
+    // frame; those borrow the nearest start, whose texture then matches its
+    // neighbours less well.
+    constexpr double kMaxMissingShare = 0.25;
+    const int line_count = static_cast<int>(lines.size());
+    int k = 1, first_slot = 0;
+    const int wanted = settings.particles > 0 ? std::min(settings.particles, slots) : 0;
+    if (settings.particles > slots)
+        schedule.warnings.push_back("asked for " + std::to_string(settings.particles) + " particles per line but the bank spans only " +
+                                    std::to_string(slots) + " start frames; using " + std::to_string(slots));
+    for (int count = wanted > 0 ? wanted : slots; count >= 1; --count) {
+        std::vector<int> fitting;
+        int best_missing = std::numeric_limits<int>::max();
+        for (int f = 0; f + count <= slots; ++f) {
+            const int m = missing(f, count);
+            if (m > kMaxMissingShare * count * line_count && wanted == 0) continue;
+            if (m < best_missing) {
+                best_missing = m;
+                fitting.clear();
+            }
+            if (m == best_missing) fitting.push_back(f);
+        }
+        if (fitting.empty()) continue;
+        k = count;
+        first_slot = fitting.front();
+        if (settings.first_start_frame >= 0) {
+            int nearest = fitting.front();
+            for (int f = 0; f + count <= slots; ++f)
+                if (std::abs(first_start + f * step - settings.first_start_frame) < std::abs(first_start + nearest * step - settings.first_start_frame))
+                    nearest = f;
+            first_slot = nearest;
+            if (first_start + nearest * step != settings.first_start_frame)
+                schedule.warnings.push_back("first start frame " + std::to_string(settings.first_start_frame) + " moved to " +
+                                            std::to_string(first_start + nearest * step));
+        } else if (settings.seed != 0) {
+            first_slot = fitting[static_cast<std::size_t>(mix_seed(settings.seed) % fitting.size())];
+        }
+        break;
+    }
+    const int s0 = first_start + first_slot * step;
+    schedule.particles_per_line = k;
+    schedule.start_every = step;
+    schedule.first_start_frame = s0;
+    schedule.period_frames = k * step;
+    for (const auto* line : lines) {
+        const auto& starts = by_line[line->id];
+        LineSchedule ls;
+        ls.line_id = line->id;
+        for (int i = 0; i < k; ++i) {
+            const int target = s0 + i * step;
+            const auto it = std::lower_bound(starts.begin(), starts.end(), std::make_pair(target, -1));
+            int chosen;
+            if (it != starts.end() && it->first == target) chosen = it->second;
+            else {
+                ++ls.substituted;
+                if (settings.missing_slots == SynthesisSettings::MissingSlots::empty) chosen = -1;
+                else if (it == starts.end()) chosen = std::prev(it)->second;
+                else if (it == starts.begin()) chosen = it->second;
+                else chosen = (target - std::prev(it)->first <= it->first - target) ? std::prev(it)->second : it->second;
+            }
+            ls.particles.push_back(chosen);
+            if (chosen >= 0) ls.max_life = std::max(ls.max_life, bank.particles[static_cast<std::size_t>(chosen)].life_frames());
+        }
+        schedule.lines.push_back(std::move(ls));
+    }
+    int substituted = 0;
+    std::vector<std::string> affected;
+    for (const LineSchedule& ls : schedule.lines) {
+        substituted += ls.substituted;
+        if (ls.substituted > 0) affected.push_back(ls.line_id);
+    }
+    if (substituted > 0)
+        schedule.warnings.push_back(std::to_string(substituted) + " of " + std::to_string(k * static_cast<int>(schedule.lines.size())) +
+                                    " particle slots (on " + std::to_string(affected.size()) + " lines: " + some(affected) +
+                                    ") had no complete particle of their start frame and " +
+                                    (settings.missing_slots == SynthesisSettings::MissingSlots::empty
+                                         ? "are left empty (their neighbours cover them)"
+                                         : "borrow the nearest one"));
+    return schedule;
+}
+
+std::vector<ScheduledParticle> scheduled_particles(const Schedule& schedule, const formats::ParticleBank& bank,
+                                                   std::size_t line, int frame) {
+    std::vector<ScheduledParticle> out;
+    const LineSchedule& ls = schedule.lines.at(line);
+    const long long step = schedule.start_every, k = schedule.particles_per_line;
+    const long long t = static_cast<long long>(frame) - 1;
+    const long long m_hi = floor_div(t, step);
+    const long long m_lo = -floor_div(-(t - (ls.max_life - 1)), step);  // ceil
+    for (long long m = m_hi; m >= m_lo; --m) {
+        const int age = static_cast<int>(t - m * step);
+        const int particle = ls.particles[static_cast<std::size_t>(positive_mod(m, k))];
+        if (particle < 0) continue;  // an empty slot
+        if (age < bank.particles[static_cast<std::size_t>(particle)].life_frames()) out.push_back({particle, age, static_cast<int>(positive_mod(m, k))});
+    }
+    return out;
+}
+
+}  // namespace flowvid::flow
