@@ -8,16 +8,6 @@ namespace py = pybind11;
 
 namespace flowvid::python {
 
-namespace {
-// As in bind_formats.cpp: JSON crosses as text so the add-on gets plain dicts.
-py::object json_to_python(const nlohmann::json& value) {
-    return py::module_::import("json").attr("loads")(value.dump());
-}
-nlohmann::json python_to_json(const py::object& value) {
-    return nlohmann::json::parse(py::module_::import("json").attr("dumps")(value).cast<std::string>());
-}
-}  // namespace
-
 void bind_flow(py::module_& module) {
     py::module_ flow = module.def_submodule("flow", "Flow-line sets for flow-based video");
     flow.def(

@@ -8,17 +8,6 @@ namespace py = pybind11;
 
 namespace flowvid::python {
 
-namespace {
-// JSON crosses into Python as text parsed by Python's json module, so the
-// add-on receives plain dicts without a C++ JSON binding.
-py::object json_to_python(const nlohmann::json& value) {
-    return py::module_::import("json").attr("loads")(value.dump());
-}
-nlohmann::json python_to_json(const py::object& value) {
-    return nlohmann::json::parse(py::module_::import("json").attr("dumps")(value).cast<std::string>());
-}
-}  // namespace
-
 void bind_formats(py::module_& module) {
     py::module_ formats = module.def_submodule("formats", "Portable file formats");
     formats.def(

@@ -1,7 +1,13 @@
 #pragma once
+#include <nlohmann/json.hpp>
 #include <pybind11/pybind11.h>
 
 namespace flowvid::python {
+// JSON crosses into Python as text parsed by Python's json module, so the
+// add-on receives plain dicts without a C++ JSON binding (json_bridge.cpp).
+pybind11::object json_to_python(const nlohmann::json& value);
+nlohmann::json python_to_json(const pybind11::object& value);
+
 void bind_errors(pybind11::module_& module);
 void bind_formats(pybind11::module_& module);
 void bind_cloth(pybind11::module_& module);
