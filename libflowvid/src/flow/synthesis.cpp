@@ -810,19 +810,6 @@ void splat_patch_rows(RenderBuffers& s, bool groups, const Splat& p, int patch, 
         float* dst = s.rgbw.data() + row * 4;
         const float* src = p.texture + (static_cast<std::size_t>(i) * patch + j_lo) * 4;
         const int n = j_hi - j_lo;
-        if (!groups) {
-            for (int j = 0; j < n; ++j) {
-                const float w = fy * feather[j_lo + j];
-                const float* t = src + static_cast<std::size_t>(j) * 4;
-                float* d = dst + static_cast<std::size_t>(j) * 4;
-                d[0] += w * t[0];
-                d[1] += w * t[1];
-                d[2] += w * t[2];
-                d[3] += w * t[3];
-            }
-            continue;
-        }
-        float wa[64], wrgb[64 * 3];  // alpha weight and weighted colour per column, in chunks
         for (int j = 0; j < n; ++j) {
             const float w = fy * feather[j_lo + j];
             const float* t = src + static_cast<std::size_t>(j) * 4;
@@ -832,6 +819,8 @@ void splat_patch_rows(RenderBuffers& s, bool groups, const Splat& p, int patch, 
             d[2] += w * t[2];
             d[3] += w * t[3];
         }
+        if (!groups) continue;
+        float wa[64], wrgb[64 * 3];  // alpha weight and weighted colour per column, in chunks
         for (int j0 = 0; j0 < n; j0 += 64) {
             const int m = std::min(64, n - j0);
             for (int j = 0; j < m; ++j) wa[j] = fy * feather[j_lo + j0 + j] * src[static_cast<std::size_t>(j0 + j) * 4 + 3];
