@@ -220,7 +220,7 @@ const RegisterCommand registration{Command{
             ->check(CLI::NonNegativeNumber);
         app.add_option("--max-gap", options->max_gap_px, "drawn lines further apart are not interpolated between (0 = 6 patches)");
         app.add_option("--max-speed", options->max_speed_px, "largest step searched, px per frame")->capture_default_str();
-        app.add_option("--search-radius", options->search_radius_px, "search window around the predicted step, px")
+        app.add_option("--search-radius", options->search_radius_px, "search window around the predicted step, px (a non-stationary particle whose match there fails searches up to --max-speed)")
             ->capture_default_str();
         app.add_option("--min-correlation", options->min_correlation,
                        "weaker matches move the particle by the prediction instead")

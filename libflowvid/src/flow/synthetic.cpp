@@ -10,7 +10,8 @@ namespace flowvid::flow {
 
 namespace {
 
-constexpr double kStep = 0.25;  // px of arc per travel-time table entry
+constexpr double kStep = 0.25;       // px of arc per travel-time table entry
+constexpr double kSurgeStep = 0.05;  // frames per surge-time table entry
 
 std::uint64_t mix(std::uint64_t x) {
     x ^= x >> 33;
@@ -57,6 +58,44 @@ SyntheticFlow::SyntheticFlow(SyntheticFlowSpec spec) : m_spec(std::move(spec)) {
     }
     const double at_zero = travel_frames(0.0);
     for (double& t : m_tau) t -= at_zero;
+    if (m_spec.time_factor) {
+        // Far enough before and after the clip for every particle on the curve
+        // (travel times at the slowest surge stay within this span).
+        const double span = 4.0 * (m_spec.frames + std::fabs(m_tau.front()) + std::fabs(m_tau.back())) + 64.0;
+        m_t0 = -span;
+        const int count = static_cast<int>(std::ceil((m_spec.frames + 2.0 * span) / kSurgeStep)) + 1;
+        m_surge.assign(static_cast<std::size_t>(count), 0.0);
+        for (int i = 1; i < count; ++i) {
+            const double t = m_t0 + i * kSurgeStep;
+            m_surge[static_cast<std::size_t>(i)] = m_surge[static_cast<std::size_t>(i - 1)] +
+                                                   0.5 * kSurgeStep * (m_spec.time_factor(t - kSurgeStep) + m_spec.time_factor(t));
+        }
+        const double offset = surge_time(0.0);
+        for (double& h : m_surge) h -= offset;
+    }
+}
+
+double SyntheticFlow::surge_time(double t) const {
+    if (m_surge.empty()) return t;
+    const double r = std::clamp((t - m_t0) / kSurgeStep, 0.0, static_cast<double>(m_surge.size() - 1));
+    const std::size_t i = std::min(static_cast<std::size_t>(r), m_surge.size() - 2);
+    const double f = r - static_cast<double>(i);
+    return m_surge[i] + f * (m_surge[i + 1] - m_surge[i]);
+}
+
+double SyntheticFlow::identity_at(double tau, int index) const {
+    if (!m_spec.speed_factor && m_surge.empty()) return index - tau;
+    // Solve g(e) * (H(index) - H(e)) = tau for e: the left side falls as e
+    // grows (for slowly varying g), so bisect.
+    const double h_index = surge_time(index);
+    const auto factor = [&](double e) { return m_spec.speed_factor ? m_spec.speed_factor(e) : 1.0; };
+    double lo = index - std::fabs(tau) * 10.0 - 10.0, hi = index + std::fabs(tau) * 10.0 + 10.0;
+    for (int it = 0; it < 60; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        if (factor(mid) * (h_index - surge_time(mid)) > tau) lo = mid;
+        else hi = mid;
+    }
+    return 0.5 * (lo + hi);
 }
 
 double SyntheticFlow::travel_frames(double s) const {
@@ -68,7 +107,7 @@ double SyntheticFlow::travel_frames(double s) const {
 
 double SyntheticFlow::arc_at(double entry_frame, double age) const {
     const double factor = m_spec.speed_factor ? m_spec.speed_factor(entry_frame) : 1.0;
-    const double target = age * factor;
+    const double target = (surge_time(entry_frame + age) - surge_time(entry_frame)) * factor;
     const auto it = std::lower_bound(m_tau.begin(), m_tau.end(), target);
     if (it == m_tau.begin()) return m_s0;
     if (it == m_tau.end()) return m_s0 + (m_tau.size() - 1) * kStep;
@@ -93,20 +132,7 @@ RgbImage SyntheticFlow::frame(int index) const {
                 w = y / s.feature_px;
                 seed += 7777;
             } else {
-                const double tau = travel_frames(p.s);
-                double identity;  // which particle is here: its entry frame
-                if (!s.speed_factor) {
-                    identity = index - tau;
-                } else {
-                    // Solve e + tau / g(e) = index (increasing in e for slowly varying g).
-                    double lo = index - std::fabs(tau) * 10.0 - 10.0, hi = index + std::fabs(tau) * 10.0 + 10.0;
-                    for (int it = 0; it < 60; ++it) {
-                        const double mid = 0.5 * (lo + hi);
-                        if (mid + tau / s.speed_factor(mid) < index) lo = mid;
-                        else hi = mid;
-                    }
-                    identity = 0.5 * (lo + hi);
-                }
+                const double identity = identity_at(travel_frames(p.s), index);  // which particle is here: its entry frame
                 u = p.n / s.feature_px + 1000.0;
                 w = -identity * v_ref / s.feature_px;
             }

@@ -477,7 +477,17 @@ bool run_pass(FrameSequence& frames, std::vector<LineState>& states, const RgbIm
                     step = predicted;
                     ++p.extrapolated;
                 } else {
-                    const StepResult m = match_step(st.current, st.next, p.s, lo, hi, templ);
+                    StepResult m = match_step(st.current, st.next, p.s, lo, hi, templ);
+                    // A non-stationary particle's last step predicts its next one
+                    // only while its speed changes slowly; a flame's gust can
+                    // outrun the window around it. Before extrapolating, search
+                    // the whole window once (stationary flows keep the window their
+                    // line's profile gives: a step outside it is more likely a
+                    // false match in weak texture than a change of speed).
+                    if (!stationary && have_prediction && !(m.certain && m.correlation >= settings.min_correlation)) {
+                        const StepResult wide = match_step(st.current, st.next, p.s, -2.0, settings.max_speed_px, templ);
+                        if (wide.certain && wide.correlation >= settings.min_correlation) m = wide;
+                    }
                     certain = m.certain && m.correlation >= settings.min_correlation;
                     step = m.step;
                     if (!certain && have_prediction) step = predicted;

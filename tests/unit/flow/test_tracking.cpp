@@ -167,6 +167,34 @@ TEST(FlowTracking, NonStationaryParticlesKeepTheirOwnSpeed) {
     EXPECT_EQ(result.bank.dynamics, formats::ParticleDynamics::non_stationary);
 }
 
+// Flames surge: the whole flow speeds up within a frame, more than the window
+// around a particle's last step reaches (2 -> 16 px/frame against +/- 6 px). A non-stationary particle whose match there fails searches the
+// whole window before it extrapolates its last step; without that it falls
+// behind the surge and its texture stops following the flow.
+TEST(FlowTracking, NonStationaryParticlesFollowASurgeBeyondTheirSearchWindow) {
+    SyntheticFlowSpec spec = accelerating_fall();
+    spec.frames = 48;
+    spec.speed_px_per_frame = [](double) { return 2.0; };
+    spec.time_factor = [](double t) { return t < 23.5 ? 1.0 : 8.0; };  // x8 from frame 23.5
+    spec.feature_px = 1.5;  // the surge stretches the texture along the flow 8 times
+    const SyntheticFlow truth(spec);
+    MemoryFrames clip = truth.clip();
+    TrackingSettings settings;
+    settings.dynamics = formats::ParticleDynamics::non_stationary;
+    settings.start_every = 2;
+    settings.max_path_frames = -1;
+    const TrackingResult result = track_particles(clip, {line_of(spec.curve)}, settings);
+    const Errors e = compare(result.bank, truth);
+    int surged = 0;  // particles on the line when the surge came
+    for (const auto& p : result.bank.particles)
+        if (p.start_frame < 23 && p.start_frame + p.life_frames() > 25) ++surged;
+    std::printf("surge: %d particles (%d through the surge), step error max %.3f rms %.3f, position error max %.3f px\n",
+                e.particles, surged, e.max_step, e.rms_step, e.max_position);
+    ASSERT_GE(surged, 4);
+    EXPECT_LT(e.max_step, 0.5);
+    EXPECT_LT(e.max_position, 1.5);
+}
+
 TEST(FlowTracking, TexturesAreCentredLinearPatchesAndBankRoundTrips) {
     const SyntheticFlow truth(accelerating_fall());
     MemoryFrames clip = truth.clip();

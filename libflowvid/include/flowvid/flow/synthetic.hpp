@@ -30,6 +30,12 @@ struct SyntheticFlowSpec {
     std::function<double(double)> speed_px_per_frame;  // v(s) > 0, s = arc length (px)
     // Non-stationary factor g(e) > 0 of the entry frame e; empty = stationary.
     std::function<double(double)> speed_factor;
+    // Non-stationary surge h(t) > 0 of the frame t (any real t): the whole
+    // flow speeds up and slows down together, so a particle's speed changes
+    // during its life (a flame's gusts); empty = 1. Combined with the above, a
+    // particle entering at e is where travel_frames(s) = g(e) * (H(e + age) - H(e)),
+    // H the integral of h.
+    std::function<double(double)> time_factor;
     double feature_px = 3.0;  // texture feature size
     std::uint64_t seed = 1;
 };
@@ -48,9 +54,16 @@ public:
     double travel_frames(double s) const;
 
 private:
+    // H(t), the integral of time_factor from 0 (t itself without one).
+    double surge_time(double t) const;
+    // The entry frame of the particle at travel time tau in frame `index`.
+    double identity_at(double tau, int index) const;
+
     SyntheticFlowSpec m_spec;
     std::vector<double> m_tau;  // travel time at s = m_s0 + i * kStep
     double m_s0 = 0.0;
+    std::vector<double> m_surge;  // H(t) at t = m_t0 + i * kSurgeStep
+    double m_t0 = 0.0;
 };
 
 // Smooth value noise in [0, 1], deterministic in (x, y, seed): the texture.
