@@ -342,16 +342,20 @@ void quality_on(const std::string& name, formats::ParticleDynamics dynamics, int
     const Synthesizer synth(streams, {}, Background::plate(plate), settings);
     const Comparison comparison = compare_with_baselines(*clip, *streams, synth, plate);
     const int frames_out = comparison.output_frames;
-    std::size_t substituted = 0;
-    for (const auto& l : streams->schedule().lines) substituted += static_cast<std::size_t>(l.substituted);
+    std::size_t substituted = 0, borrowed = 0;
+    for (const auto& l : streams->schedule().lines) {
+        substituted += static_cast<std::size_t>(l.substituted);
+        borrowed += static_cast<std::size_t>(l.borrowed);
+    }
     char title[512];
     std::snprintf(title, sizeof title,
                   "%s (%s, patch %d px, densify %.0f px): tracked %zu segments in %.1f s, %zu particles; K = %d, step %d, "
-                  "period %d frames, %zu of %zu slots empty; %d output frames",
+                  "period %d frames, %zu of %zu slots without a particle (%zu borrowing a near one); %d output frames",
                   name.c_str(), formats::to_string(dynamics), patch_px, densify_px, tracked.report.lines.size(), track_seconds,
                   bank->particles.size(), streams->schedule().particles_per_line, streams->schedule().start_every,
                   streams->schedule().period_frames, substituted,
-                  streams->schedule().lines.size() * static_cast<std::size_t>(streams->schedule().particles_per_line), frames_out);
+                  streams->schedule().lines.size() * static_cast<std::size_t>(streams->schedule().particles_per_line), borrowed,
+                  frames_out);
     std::vector<QualityRow> rows;
     for (const MethodQuality& m : comparison.methods) rows.push_back({m.method.c_str(), m.report});
     print_quality(title, rows);

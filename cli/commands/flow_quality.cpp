@@ -152,8 +152,11 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     if (!options.series_csv.empty()) write_series_csv(options.series_csv, result);
 
     const flow::Schedule& schedule = streams->schedule();
-    int missing = 0;  // slots without a particle of their start frame (left empty by default)
-    for (const flow::LineSchedule& l : schedule.lines) missing += l.substituted;
+    int missing = 0, borrowed = 0;  // slots without a particle of their start frame; those borrowing a near one
+    for (const flow::LineSchedule& l : schedule.lines) {
+        missing += l.substituted;
+        borrowed += l.borrowed;
+    }
     nlohmann::json summary = {{"bank", options.bank},
                               {"clip", capture_path},
                               {"clip_frames", clip.count()},
@@ -164,6 +167,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                               {"period_frames", schedule.period_frames},
                               {"lines", schedule.lines.size()},
                               {"missing_slots", missing},
+                              {"borrowed_slots", borrowed},
                               // What the measured synthesis was rendered with, so figures can be traced.
                               {"synthesis",
                                {{"blend", options.synthesis.blend},
@@ -171,6 +175,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                                 {"coverage", options.synthesis.coverage},
                                 {"fade_frames", options.synthesis.fade_frames},
                                 {"wrap_fade_frames", options.synthesis.wrap_fade_frames},
+                                {"borrow_within_frames", options.synthesis.borrow_within_frames},
                                 {"first_start_frame", schedule.first_start_frame}}}};
     nlohmann::json methods = nlohmann::json::object();
     for (const flow::MethodQuality& m : result.methods) methods[m.method] = report_json(m.report);
@@ -180,10 +185,10 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
         return kExitOk;
     }
     std::printf("%s: %d clip frames, %d output frames, %zu lines, K = %d, step %d, period %d frames, %d of %zu slots "
-                "without a particle\n",
+                "without a particle (%d borrowing a near one)\n",
                 capture_path.c_str(), clip.count(), result.output_frames, schedule.lines.size(),
                 schedule.particles_per_line, schedule.start_every, schedule.period_frames, missing,
-                schedule.lines.size() * static_cast<std::size_t>(schedule.particles_per_line));
+                schedule.lines.size() * static_cast<std::size_t>(schedule.particles_per_line), borrowed);
     std::printf("%-9s %9s %9s %9s | %8s %8s | %9s %9s %8s | %7s\n", "method", "seam max", "share>p99", "spike", "pulsing",
                 "(clip)", "patch d", "(self d)", "HF ratio", "motion");
     for (const flow::MethodQuality& m : result.methods) {

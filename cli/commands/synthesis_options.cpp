@@ -6,6 +6,11 @@ void add_synthesis_options(CLI::App& app, SynthesisOptions& o) {
     app.add_option("--particles", o.particles, "K particles per line in the diagonal order (0 = as many as fit)");
     app.add_option("--first-start", o.first_start, "input start frame of the first of the K particles (default: seeded)");
     app.add_option("--seed", o.seed, "chooses the K-particle window when several fit (0 = the earliest)");
+    app.add_option("--borrow-within", o.borrow_within_frames,
+                   "a window slot with no particle of its own start frame shows the nearest start's if it starts at "
+                   "most N frames away, else it is left empty (0 = always empty)")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
     app.add_option("--coverage", o.coverage, "accumulated feather weight at which texture fully hides the background")
         ->capture_default_str();
     app.add_option("--fade-frames", o.fade_frames, "particles fade in and out over N frames (-1 = automatic)");
@@ -34,6 +39,7 @@ flow::SynthesisSettings synthesis_settings(const SynthesisOptions& o) {
     settings.wrap_fade_frames = o.wrap_fade_frames;
     settings.preserve_detail = o.blend == "detail";
     settings.overlap_sharpness = o.overlap_sharpness;
+    settings.borrow_within_frames = o.borrow_within_frames;
     return settings;
 }
 

@@ -19,10 +19,11 @@ struct SynthesisOptions {
     int wrap_fade_frames = -1;
     std::string blend = "detail";
     double overlap_sharpness = 4.0;
+    int borrow_within_frames = flow::SynthesisSettings{}.borrow_within_frames;
 };
 
-// Adds --particles, --first-start, --seed, --coverage, --fade-frames,
-// --wrap-fade-frames, --blend and --overlap-sharpness to a command.
+// Adds --particles, --first-start, --seed, --borrow-within, --coverage,
+// --fade-frames, --wrap-fade-frames, --blend and --overlap-sharpness to a command.
 void add_synthesis_options(CLI::App& app, SynthesisOptions& options);
 
 // The library settings those options give (the rest at their defaults).

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdlib>
 #include <limits>
 #include <map>
 #include <stdexcept>
@@ -85,10 +86,26 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
     };
     // The window: as many particles as possible while at most a quarter of
     // the slots (over all lines) lack a tracked particle of their own start
-    // frame; those borrow the nearest start, whose texture then matches its
-    // neighbours less well.
+    // frame (they borrow a near start or stay empty, below), and every slot
+    // has a particle to show (its own or a near one to borrow) on most lines.
+    // A slot most lines lack is not a particle lost here and there but a gap
+    // across the whole flow at once: typically the clip's last starts, whose
+    // particles cannot complete their paths before it ends; each period its
+    // entry would leave the lines' starts to the background everywhere for a
+    // particle's life.
     constexpr double kMaxMissingShare = 0.25;
     const int line_count = static_cast<int>(lines.size());
+    std::vector<int> thin_before(static_cast<std::size_t>(slots) + 1, 0);  // prefix counts of slots most lines lack
+    for (int i = 0; i < slots; ++i) {
+        const int target = first_start + i * step;
+        int shown = 0;
+        for (const auto* line : lines) {
+            const auto& starts = by_line[line->id];
+            const auto it = std::lower_bound(starts.begin(), starts.end(), std::make_pair(target - settings.borrow_within_frames, -1));
+            if (it != starts.end() && it->first <= target + settings.borrow_within_frames) ++shown;
+        }
+        thin_before[static_cast<std::size_t>(i) + 1] = thin_before[static_cast<std::size_t>(i)] + (2 * shown < line_count ? 1 : 0);
+    }
     int k = 1, first_slot = 0;
     const int wanted = settings.particles > 0 ? std::min(settings.particles, slots) : 0;
     if (settings.particles > slots)
@@ -99,7 +116,8 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
         int best_missing = std::numeric_limits<int>::max();
         for (int f = 0; f + count <= slots; ++f) {
             const int m = missing(f, count);
-            if (m > kMaxMissingShare * count * line_count && wanted == 0) continue;
+            const bool has_thin_slot = thin_before[static_cast<std::size_t>(f + count)] != thin_before[static_cast<std::size_t>(f)];
+            if (wanted == 0 && (m > kMaxMissingShare * count * line_count || has_thin_slot)) continue;
             if (m < best_missing) {
                 best_missing = m;
                 fitting.clear();
@@ -139,29 +157,38 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
             if (it != starts.end() && it->first == target) chosen = it->second;
             else {
                 ++ls.substituted;
-                if (settings.missing_slots == SynthesisSettings::MissingSlots::empty) chosen = -1;
-                else if (it == starts.end()) chosen = std::prev(it)->second;
-                else if (it == starts.begin()) chosen = it->second;
-                else chosen = (target - std::prev(it)->first <= it->first - target) ? std::prev(it)->second : it->second;
+                // The nearest start (ties go to the earlier), if near enough.
+                const auto nearest = it == starts.end()     ? std::prev(it)
+                                     : it == starts.begin() ? it
+                                     : (target - std::prev(it)->first <= it->first - target) ? std::prev(it)
+                                                                                            : it;
+                chosen = std::abs(nearest->first - target) <= settings.borrow_within_frames ? nearest->second : -1;
+                if (chosen >= 0) ++ls.borrowed;
             }
             ls.particles.push_back(chosen);
             if (chosen >= 0) ls.max_life = std::max(ls.max_life, bank.particles[static_cast<std::size_t>(chosen)].life_frames());
         }
         schedule.lines.push_back(std::move(ls));
     }
-    int substituted = 0;
+    int substituted = 0, borrowed = 0;
     std::vector<std::string> affected;
     for (const LineSchedule& ls : schedule.lines) {
         substituted += ls.substituted;
+        borrowed += ls.borrowed;
         if (ls.substituted > 0) affected.push_back(ls.line_id);
     }
-    if (substituted > 0)
+    if (substituted > 0) {
+        std::string what;
+        if (borrowed > 0)
+            what = std::to_string(borrowed) + " borrow a particle starting at most " + std::to_string(settings.borrow_within_frames) +
+                   " frames away";
+        if (substituted > borrowed)
+            what += (what.empty() ? "" : ", ") + std::to_string(substituted - borrowed) +
+                    " are left empty (their neighbours cover them)";
         schedule.warnings.push_back(std::to_string(substituted) + " of " + std::to_string(k * static_cast<int>(schedule.lines.size())) +
                                     " particle slots (on " + std::to_string(affected.size()) + " lines: " + some(affected) +
-                                    ") had no complete particle of their start frame and " +
-                                    (settings.missing_slots == SynthesisSettings::MissingSlots::empty
-                                         ? "are left empty (their neighbours cover them)"
-                                         : "borrow the nearest one"));
+                                    ") had no complete particle of their start frame: " + what);
+    }
     return schedule;
 }
 

@@ -91,20 +91,39 @@ TEST(FlowSynthesis, DiagonalOrderReplaysWholePathsOfTheFirstKParticles) {
 }
 
 TEST(FlowSynthesis, WindowAvoidsMissingParticlesAndReportsSubstitutes) {
-    auto bank = toy_bank(12, 4);
-    // Lose the particles of start frames 1 and 2 (as if tracking lost them).
-    bank->particles.erase(bank->particles.begin() + 1, bank->particles.begin() + 3);
+    // Two lines; tracking lost in-2's particles of start frames 1 and 2.
+    const auto one_line = toy_bank(12, 4);
+    auto bank = std::make_shared<formats::ParticleBank>(*one_line);
+    bank->lines = {{"in-1", 90.0f}, {"in-2", 90.0f}, {"in-3", 90.0f}};
+    bank->particles.clear();
+    for (const char* id : {"in-1", "in-2", "in-3"})
+        for (formats::TrackedParticle p : one_line->particles) {
+            p.line_id = id;
+            if (std::string(id) == "in-2" && (p.start_frame == 1 || p.start_frame == 2)) continue;
+            bank->particles.push_back(std::move(p));
+        }
     const Schedule automatic = make_schedule(*bank, SynthesisSettings{});
-    // Slots 3..11 are complete (9 particles); a window including 1 and 2
-    // would borrow 2 of 11 slots (18 % < 25 %), so K = 12 is taken.
+    // A window including starts 1 and 2 lacks 2 of 36 slots (6 % < 25 %), and
+    // most lines have them, so K = 12 is taken; in-2 leaves them empty.
     EXPECT_EQ(automatic.particles_per_line, 12);
-    EXPECT_EQ(automatic.lines[0].substituted, 2);
+    EXPECT_EQ(automatic.lines[0].substituted, 0);
+    EXPECT_EQ(automatic.lines[1].substituted, 2);
     ASSERT_FALSE(automatic.warnings.empty());
     SynthesisSettings six;
     six.particles = 6;
     const Schedule window = make_schedule(*bank, six);
-    EXPECT_EQ(window.lines[0].substituted, 0);
+    EXPECT_EQ(window.lines[1].substituted, 0);
     EXPECT_GE(window.first_start_frame, 3);
+
+    // On a single line the lost starts are a gap across the whole flow: the
+    // automatic window leaves them out.
+    bank->lines.resize(1);
+    bank->particles.assign(one_line->particles.begin(), one_line->particles.end());
+    bank->particles.erase(bank->particles.begin() + 1, bank->particles.begin() + 3);
+    const Schedule single = make_schedule(*bank, SynthesisSettings{});
+    EXPECT_EQ(single.particles_per_line, 9);
+    EXPECT_EQ(single.first_start_frame, 3);
+    EXPECT_EQ(single.lines[0].substituted, 0);
 }
 
 TEST(FlowSynthesis, FramesRepeatWithThePeriodAndDoNotDependOnTheRange) {
@@ -258,13 +277,13 @@ TEST(FlowSynthesis, BackgroundModes) {
     EXPECT_THROW(background_mode_from_string("blur"), std::invalid_argument);
 }
 
-TEST(FlowSynthesis, MissingSlotsAreLeftEmptyUnlessBorrowingIsAsked) {
+TEST(FlowSynthesis, MissingSlotsAreLeftEmptyUnlessANearStartMayBeBorrowed) {
     auto bank = toy_bank(12, 4);
     bank->particles.erase(bank->particles.begin() + 1, bank->particles.begin() + 3);  // starts 1 and 2 lost
     SynthesisSettings settings;
     settings.particles = 5;
     settings.first_start_frame = 0;
-    const Schedule empty = make_schedule(*bank, settings);
+    const Schedule empty = make_schedule(*bank, settings);  // the default: never borrow
     ASSERT_EQ(empty.particles_per_line, 5);
     EXPECT_EQ(empty.lines[0].substituted, 2);
     EXPECT_EQ(empty.lines[0].particles, (std::vector<int>{0, -1, -1, 1, 2}));  // bank indices after the erase
@@ -275,10 +294,54 @@ TEST(FlowSynthesis, MissingSlotsAreLeftEmptyUnlessBorrowingIsAsked) {
             EXPECT_NE(sp.slot, 1);
             EXPECT_NE(sp.slot, 2);
         }
-    settings.missing_slots = SynthesisSettings::MissingSlots::borrow;
+    EXPECT_EQ(empty.lines[0].borrowed, 0);
+    settings.borrow_within_frames = 3;
     const Schedule borrowed = make_schedule(*bank, settings);
     EXPECT_EQ(borrowed.lines[0].substituted, 2);
+    EXPECT_EQ(borrowed.lines[0].borrowed, 2);
     EXPECT_EQ(borrowed.lines[0].particles, (std::vector<int>{0, 0, 1, 1, 2}));  // the nearest start (ties go down)
+
+    // Particles entering 4 frames apart, starts 4, 8 and 12 lost: within 4
+    // frames, start 4 borrows 0 and 12 borrows 16; 8 has none nearer than 8.
+    auto sparse = toy_bank(12, 4, 4, 4);
+    sparse->particles.erase(sparse->particles.begin() + 1, sparse->particles.begin() + 4);
+    settings.borrow_within_frames = 4;
+    const Schedule some = make_schedule(*sparse, settings);
+    ASSERT_EQ(some.start_every, 4);
+    EXPECT_EQ(some.lines[0].substituted, 3);
+    EXPECT_EQ(some.lines[0].borrowed, 2);
+    EXPECT_EQ(some.lines[0].particles, (std::vector<int>{0, 0, -1, 1, 1}));
+    settings.borrow_within_frames = 3;
+    EXPECT_EQ(make_schedule(*sparse, settings).lines[0].particles, (std::vector<int>{0, -1, -1, -1, 1}));
+}
+
+// The automatic window ends before start frames most lines lack (the clip's
+// last starts, whose particles cannot complete their paths), even where the
+// missing slots are few overall: their entry would leave every line's start
+// to the background at once, once a period.
+TEST(FlowSynthesis, TheAutomaticWindowEndsBeforeStartsMostLinesLack) {
+    const auto one_line = toy_bank(10, 4, 4, 4);
+    auto bank = std::make_shared<formats::ParticleBank>(*one_line);
+    bank->lines.clear();
+    std::vector<formats::TrackedParticle> particles;
+    for (const char* id : {"in-1", "in-2", "in-3", "in-4"}) {
+        bank->lines.push_back({id, 90.0f});
+        for (formats::TrackedParticle p : one_line->particles) {
+            p.line_id = id;
+            // Starts 32 and 36 completed on in-1 only: 6 of 40 slots missing (15 %).
+            if (p.start_frame >= 32 && std::string(id) != "in-1") continue;
+            particles.push_back(std::move(p));
+        }
+    }
+    bank->particles = std::move(particles);
+    const Schedule schedule = make_schedule(*bank, SynthesisSettings{});
+    EXPECT_EQ(schedule.first_start_frame, 0);
+    EXPECT_EQ(schedule.particles_per_line, 8);  // 10 before: the quarter allowed the two thin starts
+    for (const LineSchedule& line : schedule.lines) EXPECT_EQ(line.substituted, 0);
+    // Asked for, the thin starts are still taken.
+    SynthesisSettings ten;
+    ten.particles = 10;
+    EXPECT_EQ(make_schedule(*bank, ten).particles_per_line, 10);
 }
 
 // Where the diagonal order wraps, patches of input frames a period apart

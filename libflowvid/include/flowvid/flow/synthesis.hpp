@@ -73,12 +73,16 @@ struct SynthesisSettings {
     // entry spacing, at most half the particle's life).
     int wrap_fade_frames = -1;
     // A slot of the window whose start frame has no complete particle on a
-    // line: left empty (its neighbours on the line, which show the same input
-    // frame, and the neighbouring lines cover it), or filled with the particle
-    // of the nearest start, which then shows other input frames than its
-    // neighbours all its life (their overlap blurs).
-    enum class MissingSlots { empty, borrow };
-    MissingSlots missing_slots = MissingSlots::empty;
+    // line borrows the particle of the nearest start if that starts at most
+    // this many frames away. The borrowed particle shows its own texture, from
+    // input frames that far off its neighbours', all its life: where texture
+    // persists as it flows (water), that is another piece of the flow over
+    // theirs and their overlap ghosts, even 3 frames off. Otherwise the slot
+    // is left empty: its neighbours on the line (which show the same input
+    // frame) and the neighbouring lines cover it, unless they are too far
+    // apart and the background shows through. 0 (default) = always empty; a
+    // large value = always borrow.
+    int borrow_within_frames = 0;
     // Where patches showing different input frames overlap (the wrap of the
     // diagonal order, borrowed slots), their weighted mean loses fine detail
     // in proportion to how evenly they mix, and the loss comes and goes with
@@ -121,9 +125,11 @@ struct SynthesisSettings {
 struct LineSchedule {
     std::string line_id;
     std::vector<int> particles;  // K indices into bank.particles, in order k = 0..K-1; -1 = empty slot
-    // How many of the K had no complete particle of their start frame (left
-    // empty, or borrowing the nearest start: SynthesisSettings::missing_slots).
+    // How many of the K had no complete particle of their start frame, and
+    // how many of those borrow the nearest start's
+    // (SynthesisSettings::borrow_within_frames; the rest are left empty).
     int substituted = 0;
+    int borrowed = 0;
     int max_life = 0;            // frames
 };
 
