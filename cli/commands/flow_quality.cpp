@@ -28,6 +28,7 @@ struct QualityOptions {
     std::string flowlines;
     int frames = 0;
     SynthesisOptions synthesis;
+    std::string background = "median";
     double band_px = 0.0;
     int cycle = 32;
     int threads = 0;
@@ -122,13 +123,19 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                     std::to_string(bank->clip_width_px) + " x " + std::to_string(bank->clip_height_px));
         return kExitInvalidInput;
     }
-    const flow::ClipFrames clip = flow::ClipFrames::read_all(frames, 0, [&](double f) {
+    const auto clip_frames = std::make_shared<const flow::ClipFrames>(flow::ClipFrames::read_all(frames, 0, [&](double f) {
         reading.update(f);
         return true;
-    });
+    }));
     reading.done();
-    const flow::RgbImage plate = flow::median_plate(clip);
-    const flow::Synthesizer synth(streams, {}, flow::Background::plate(plate), settings);
+    const flow::ClipFrames& clip = *clip_frames;
+    const flow::RgbImage plate = flow::median_plate(clip);  // also the flow map's background
+    const flow::BackgroundMode background_mode = flow::background_mode_from_string(options.background);
+    const flow::Synthesizer synth(streams, {},
+                                  background_mode == flow::BackgroundMode::median
+                                      ? flow::Background::plate(plate)
+                                      : flow::make_background(background_mode, clip_frames, streams->schedule()),
+                                  settings);
 
     flow::ComparisonSettings compare;
     compare.output_frames = options.frames;
@@ -170,7 +177,8 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                               {"borrowed_slots", borrowed},
                               // What the measured synthesis was rendered with, so figures can be traced.
                               {"synthesis",
-                               {{"blend", options.synthesis.blend},
+                               {{"background", options.background},
+                                {"blend", options.synthesis.blend},
                                 {"overlap_sharpness", options.synthesis.overlap_sharpness},
                                 {"coverage", options.synthesis.coverage},
                                 {"fade_frames", options.synthesis.fade_frames},
@@ -206,7 +214,7 @@ const RegisterCommand registration{Command{
     [](CLI::App& app) -> CommandRunner {
         auto options = std::make_shared<QualityOptions>();
         app.footer(
-            "Renders frames 1..N of the infinite sequence (as flowvid synth does, median background), the\n"
+            "Renders frames 1..N of the infinite sequence (as flowvid synth does, with its --background), the\n"
             "clip looped, and the flow-map method games use (the clip's first frame advected by the tracked\n"
             "speeds in two layers half a cycle apart, cross-faded), and measures each against the clip on\n"
             "luma in the band around the tracked lines (issue 6):\n"
@@ -230,6 +238,10 @@ const RegisterCommand registration{Command{
         app.add_option("--frames", options->frames, "output frames measured (0 = twice the clip)")
             ->check(CLI::NonNegativeNumber);
         add_synthesis_options(app, options->synthesis);  // as synth renders
+        app.add_option("--background", options->background,
+                       "our synthesis's background where no line reaches: median, loop or replay (as in synth)")
+            ->check(CLI::IsMember({"median", "loop", "replay"}))
+            ->capture_default_str();
         app.add_option("--band", options->band_px, "measure within PX of the tracked lines (0 = a quarter patch)");
         app.add_option("--cycle", options->cycle, "flow-map layer life in frames")->capture_default_str();
         app.add_option("--threads", options->threads, "frames rendered at once (0 = all cores)");

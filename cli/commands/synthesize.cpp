@@ -128,8 +128,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
             return true;
         }));
         reading.done();
-        background = mode == flow::BackgroundMode::median ? flow::Background::plate(flow::median_plate(*clip))
-                                                           : flow::Background::looped(clip);
+        background = flow::make_background(mode, clip, streams->schedule());
     }
 
     std::vector<flow::OutputLine> outputs;
@@ -217,8 +216,10 @@ void add_common(CLI::App& app, RenderOptions& o) {
         ->capture_default_str();
     app.add_option("--out", o.out, "image pattern (out/%06d.png, .exr, .tif), folder, or video (.mp4, .avi)")->required();
     app.add_option("--capture,--clip", o.capture, "the source clip (default: the one recorded in the bank)");
-    app.add_option("--background", o.background, "where no line reaches: median (static plate), loop (the clip), none")
-        ->check(CLI::IsMember({"median", "loop", "none"}))
+    app.add_option("--background", o.background,
+                   "where no line reaches: median (static plate), loop (the clip), replay (the clip in step with the "
+                   "particles: the input frame they show), none")
+        ->check(CLI::IsMember({"median", "loop", "replay", "none"}))
         ->capture_default_str();
     app.add_flag("--loop", o.loop, "render exactly one period (frames 1..K*step): a file that loops seamlessly");
     add_synthesis_options(app, o.synthesis);

@@ -285,6 +285,7 @@ const char* to_string(BackgroundMode mode) {
     switch (mode) {
         case BackgroundMode::median: return "median";
         case BackgroundMode::loop: return "loop";
+        case BackgroundMode::replay: return "replay";
         case BackgroundMode::none: return "none";
     }
     return "?";
@@ -293,6 +294,7 @@ const char* to_string(BackgroundMode mode) {
 BackgroundMode background_mode_from_string(const std::string& text) {
     if (text == "median") return BackgroundMode::median;
     if (text == "loop") return BackgroundMode::loop;
+    if (text == "replay") return BackgroundMode::replay;
     if (text == "none") return BackgroundMode::none;
     throw std::invalid_argument("unknown background mode '" + text + "' (median, loop or none)");
 }
@@ -311,17 +313,41 @@ Background Background::looped(std::shared_ptr<const ClipFrames> clip) {
     return b;
 }
 
+Background Background::replayed(std::shared_ptr<const ClipFrames> clip, int first_frame, int period_frames,
+                                int dissolve_frames) {
+    if (period_frames < 1) throw std::invalid_argument("a replayed background needs a period of at least one frame");
+    Background b;
+    b.m_mode = BackgroundMode::replay;
+    b.m_clip = std::move(clip);
+    b.m_first_frame = std::max(0, first_frame);
+    b.m_period = period_frames;
+    b.m_dissolve = std::max(0, dissolve_frames);
+    return b;
+}
+
 void Background::fill(int frame, int width, int height, RgbImage& out) const {
     const auto fits = [&](const RgbImage& image) { return image.width == width && image.height == height; };
     if (m_mode == BackgroundMode::median && fits(m_plate)) {
         out = m_plate;
         return;
     }
-    if (m_mode == BackgroundMode::loop && m_clip && m_clip->count() > 0 && m_clip->width() == width &&
-        m_clip->height() == height) {
+    const bool have_clip = m_clip && m_clip->count() > 0 && m_clip->width() == width && m_clip->height() == height;
+    if (m_mode == BackgroundMode::loop && have_clip) {
         const int n = m_clip->count();
         const int index = (((frame - 1) % n) + n) % n;
         out = m_clip->linear(index);
+        return;
+    }
+    if (m_mode == BackgroundMode::replay && have_clip) {
+        const int n = m_clip->count();
+        const int r = (((frame - 1) % m_period) + m_period) % m_period;
+        out = m_clip->linear((m_first_frame + r) % n);
+        const int continuing = m_first_frame + m_period + r;  // what the particles already on the lines show
+        if (r < m_dissolve && continuing < n) {
+            const float w = static_cast<float>(r + 1) / static_cast<float>(m_dissolve + 1);
+            const RgbImage before = m_clip->linear(continuing);
+            for (std::size_t i = 0; i < out.rgb.size(); ++i) out.rgb[i] = w * out.rgb[i] + (1.0f - w) * before.rgb[i];
+        }
         return;
     }
     out = RgbImage(width, height);

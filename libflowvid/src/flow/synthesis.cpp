@@ -414,6 +414,18 @@ ArcMapping arc_mapping_from_string(const std::string& text) {
     throw std::invalid_argument("unknown arc-length mapping '" + text + "' (equal or scaled)");
 }
 
+Background make_background(BackgroundMode mode, std::shared_ptr<const ClipFrames> clip, const Schedule& schedule) {
+    if (mode == BackgroundMode::none || !clip) return Background();
+    if (mode == BackgroundMode::median) return Background::plate(median_plate(*clip));
+    if (mode == BackgroundMode::loop) return Background::looped(std::move(clip));
+    // The particles already on a line when it wraps go on showing the frames
+    // after the window until they leave; following them would keep two
+    // frames mixed for most of a period. The background changes over the
+    // entry spacing instead, as the new particles fade in.
+    return Background::replayed(std::move(clip), schedule.first_start_frame, schedule.period_frames,
+                                std::max(1, schedule.start_every));
+}
+
 double arc_mapping_scale(ArcMapping mapping, double length_in, double length_out) {
     return mapping == ArcMapping::scaled && length_out > 0.0 ? length_in / length_out : 1.0;
 }

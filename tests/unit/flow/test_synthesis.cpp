@@ -277,6 +277,59 @@ TEST(FlowSynthesis, BackgroundModes) {
     EXPECT_THROW(background_mode_from_string("blur"), std::invalid_argument);
 }
 
+// --background replay: the clip in step with the diagonal order, so that
+// where the particles' coverage ends the background shows the same input
+// frame as their texture (the median plate shows another: the clip's
+// typical look, not this frame's), and a dissolve where the order wraps.
+TEST(FlowSynthesis, AReplayedBackgroundShowsTheFrameTheParticlesShow) {
+    const StationaryFlowFixture& f = stationary();
+    SynthesisSettings settings;
+    auto streams = std::make_shared<ParticleStreams>(f.bank, std::vector<std::vector<Eigen::Vector2d>>{f.line.points}, settings);
+    const Schedule& schedule = streams->schedule();
+    const int s0 = schedule.first_start_frame, period = schedule.period_frames;
+    ASSERT_LT(s0 + period, f.clip->count());  // the clip goes on past the window: the wrap dissolves
+    const Synthesizer replayed(streams, {}, make_background(BackgroundMode::replay, f.clip, schedule), settings);
+    const Synthesizer median(streams, {}, make_background(BackgroundMode::median, f.clip, schedule), settings);
+    const int dissolve = schedule.start_every;
+    ASSERT_GE(dissolve, 2);
+    // Away from the wrap: after the particles on the line when it wrapped have left.
+    const int settled = schedule.lines[0].max_life;
+    ASSERT_LT(settled + 2, period);
+
+    double worst_replayed = 0.0, worst_median = 0.0;  // where coverage is partial, against the replayed clip frame
+    for (int t : {settled + 1, settled + 2, period, 2 * period - 1}) {
+        std::vector<float> coverage;
+        const RgbImage out = replayed.render(t, &coverage);
+        const RgbImage plate_out = median.render(t);
+        const RgbImage frame = f.clip->linear(s0 + (t - 1) % period);
+        for (int ch = 0; ch < 3; ++ch) EXPECT_EQ(out.pixel(2, 20)[ch], frame.pixel(2, 20)[ch]) << t;  // no line here
+        for (int y = 0; y < out.height; ++y)
+            for (int x = 0; x < out.width; ++x) {
+                const float c = coverage[static_cast<std::size_t>(y) * out.width + x];
+                if (c <= 0.05f || c >= 0.95f) continue;
+                for (int ch = 0; ch < 3; ++ch) {
+                    worst_replayed = std::max(worst_replayed, static_cast<double>(std::fabs(out.pixel(x, y)[ch] - frame.pixel(x, y)[ch])));
+                    worst_median = std::max(worst_median, static_cast<double>(std::fabs(plate_out.pixel(x, y)[ch] - frame.pixel(x, y)[ch])));
+                }
+            }
+    }
+    std::printf("partial coverage, largest difference from the replayed clip frame: replay %.4f, median %.4f\n", worst_replayed,
+                worst_median);
+    EXPECT_LT(worst_replayed, 0.02);
+    EXPECT_GT(worst_median, 0.1);
+
+    // After the wrap (output frame period + 1 + r) the background dissolves
+    // from the frame after the window, s0 + period + r, to s0 + r.
+    for (int r : {0, dissolve / 2, dissolve}) {
+        const RgbImage out = replayed.render(period + 1 + r);
+        const double w = r < dissolve ? (r + 1.0) / (dissolve + 1.0) : 1.0;
+        const RgbImage now = f.clip->linear(s0 + r), after = f.clip->linear(s0 + period + r);
+        for (int ch = 0; ch < 3; ++ch)
+            EXPECT_NEAR(out.pixel(2, 20)[ch], w * now.pixel(2, 20)[ch] + (1.0 - w) * after.pixel(2, 20)[ch], 1e-5) << r;
+    }
+    EXPECT_EQ(background_mode_from_string("replay"), BackgroundMode::replay);
+}
+
 TEST(FlowSynthesis, MissingSlotsAreLeftEmptyUnlessANearStartMayBeBorrowed) {
     auto bank = toy_bank(12, 4);
     bank->particles.erase(bank->particles.begin() + 1, bank->particles.begin() + 3);  // starts 1 and 2 lost

@@ -153,10 +153,11 @@ formats::Capture open_clip(const std::string& path, double fps = 0.0);
 RgbImage median_plate(const ClipFrames& clip, int max_samples = 64);
 
 // How regions no flow line covers are filled (issue: "a static median plate
-// or the looped clip").
-enum class BackgroundMode { median, loop, none };
+// or the looped clip"). replay: the looped clip in step with the synthesis,
+// showing the input frame its particles show (Background::replayed).
+enum class BackgroundMode { median, loop, replay, none };
 const char* to_string(BackgroundMode mode);
-// "median", "loop", "none"; throws std::invalid_argument otherwise.
+// "median", "loop", "replay", "none"; throws std::invalid_argument otherwise.
 BackgroundMode background_mode_from_string(const std::string& text);
 
 // The background of every output frame (linear light).
@@ -166,6 +167,17 @@ public:
     static Background plate(RgbImage linear_plate);
     // Output frame t (1-based) shows clip frame (t - 1) mod count.
     static Background looped(std::shared_ptr<const ClipFrames> clip);
+    // In step with a synthesis whose diagonal order replays input frames
+    // first_frame .. first_frame + period - 1 (Schedule::first_start_frame,
+    // period_frames): output frame t shows clip frame first_frame +
+    // (t - 1) mod period, the frame its particles show, so texture and
+    // background agree where the particles end. Where the order wraps, the
+    // particles already on the lines go on showing the frames after the
+    // window while new ones start again at first_frame; the background
+    // dissolves from the former to the latter over dissolve_frames, where
+    // the clip has the former.
+    static Background replayed(std::shared_ptr<const ClipFrames> clip, int first_frame, int period_frames,
+                               int dissolve_frames);
     BackgroundMode mode() const { return m_mode; }
     // Writes the background of output frame `frame` into `out` (resized).
     void fill(int frame, int width, int height, RgbImage& out) const;
@@ -174,6 +186,9 @@ private:
     BackgroundMode m_mode = BackgroundMode::none;
     RgbImage m_plate;
     std::shared_ptr<const ClipFrames> m_clip;
+    int m_first_frame = 0;  // replay
+    int m_period = 0;
+    int m_dissolve = 0;
 };
 
 // ---- writing frames ------------------------------------------------------------------

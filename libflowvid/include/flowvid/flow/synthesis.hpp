@@ -146,6 +146,13 @@ struct Schedule {
 // std::invalid_argument when no line has a particle.
 Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSettings& settings);
 
+// The background `mode` asks for, from the clip: the median plate, the clip
+// looped, or replayed in step with `schedule` (dissolving at its wrap over
+// the entry spacing, as the new particles fade in; the particles already on
+// the lines show the frames after the window until they leave, and where
+// their coverage ends they no longer match it); none: black.
+Background make_background(BackgroundMode mode, std::shared_ptr<const ClipFrames> clip, const Schedule& schedule);
+
 // The particles on a scheduled line at output frame `frame` (1-based, any
 // integer): bank particle index and age, in entry order (youngest first).
 struct ScheduledParticle {
