@@ -106,7 +106,11 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
         }
         thin_before[static_cast<std::size_t>(i) + 1] = thin_before[static_cast<std::size_t>(i)] + (2 * shown < line_count ? 1 : 0);
     }
+    // Should no window fit (no start frame on most lines), one particle: the
+    // start most lines have.
     int k = 1, first_slot = 0;
+    for (int f = 1; f < slots; ++f)
+        if (missing(f, 1) < missing(first_slot, 1)) first_slot = f;
     const int wanted = settings.particles > 0 ? std::min(settings.particles, slots) : 0;
     if (settings.particles > slots)
         schedule.warnings.push_back("asked for " + std::to_string(settings.particles) + " particles per line but the bank spans only " +
