@@ -12,6 +12,16 @@ namespace flowvid::flow {
 
 namespace {
 
+// `count` sample points that no particle stream holds yet.
+ParticleStreams::SamplePoints unmatched_samples(std::size_t count) {
+    ParticleStreams::SamplePoints points;
+    points.stream.assign(count, -1);
+    points.s.assign(count, 0.0f);
+    points.qx.assign(count, 0.0f);
+    points.qy.assign(count, 0.0f);
+    return points;
+}
+
 void sample_patch_bilinear(const float* texture, int patch, float u, float v, float out[4]) {
     const float fu = std::floor(u), fv = std::floor(v);
     const int iu = static_cast<int>(fu), iv = static_cast<int>(fv);
@@ -136,12 +146,8 @@ void ParticleStreams::visible(int stream, int frame, std::vector<Visible>& out) 
 ParticleStreams::SamplePoints ParticleStreams::prepare_samples(int input_line, ArcMapping mapping, double output_length_px,
                                                                const std::vector<float>& s_out,
                                                                const std::vector<float>& n) const {
-    SamplePoints points;
     const std::size_t count = s_out.size();
-    points.stream.assign(count, -1);
-    points.s.assign(count, 0.0f);
-    points.qx.assign(count, 0.0f);
-    points.qy.assign(count, 0.0f);
+    SamplePoints points = unmatched_samples(count);
     if (input_line < 0) return points;
     const InputLine& line = m_inputs[static_cast<std::size_t>(input_line)];
     const double scale = arc_mapping_scale(mapping, line.length_px, output_length_px);
@@ -213,12 +219,8 @@ ParticleStreams::FrameParticles ParticleStreams::frame_particles(int frame) cons
 
 void ParticleStreams::sample(int stream, int frame, ArcMapping mapping, double output_length_px,
                              const std::vector<float>& s_out, const std::vector<float>& n, Samples& out) const {
-    SamplePoints points;
     const std::size_t count = s_out.size();
-    points.stream.assign(count, -1);
-    points.s.assign(count, 0.0f);
-    points.qx.assign(count, 0.0f);
-    points.qy.assign(count, 0.0f);
+    SamplePoints points = unmatched_samples(count);
     FrameParticles particles;
     if (stream >= 0) {
         const LineGeometry& g = geometry(stream);
