@@ -11,6 +11,7 @@
 #include "flowvid/formats/flowlines.hpp"
 #include "flowvid/formats/particle_bank.hpp"
 
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -142,6 +143,25 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
                            {"mean_speed_px_per_frame", s.mean_speed_px_per_frame},
                            {"mean_life_frames", s.mean_life_frames}});
     summary["tracked_lines"] = tracked;
+    // How sure the block matching was: the share of steps whose match was weak
+    // or on the window's edge (those moved by the prediction instead).
+    // Of the completed particles' matched steps (not those whose patch was
+    // mostly outside the frame).
+    long long matched = 0, uncertain = 0;
+    double correlation_sum = 0.0;
+    for (const flow::LineTrackingStats& s : result.report.lines) {
+        matched += s.steps - s.extrapolated_steps;
+        uncertain += s.uncertain_steps;
+        correlation_sum += s.mean_correlation * static_cast<double>(s.steps - s.extrapolated_steps - s.uncertain_steps);
+    }
+    const double uncertain_share = matched > 0 ? static_cast<double>(uncertain) / static_cast<double>(matched) : 0.0;
+    summary["uncertain_step_share"] = uncertain_share;
+    summary["mean_correlation"] = matched > uncertain ? correlation_sum / static_cast<double>(matched - uncertain) : 0.0;
+    if (uncertain_share > 0.5)
+        log_message("warning: " + std::to_string(static_cast<int>(std::lround(100.0 * uncertain_share))) +
+                    " % of the tracking steps were uncertain (weak match or on the search window's edge) and moved "
+                    "by the prediction: the texture along the lines does not match from frame to frame; try a larger "
+                    "--patch, --dynamics non-stationary for flames and smoke, or a wider --search-radius");
 
     // For people: totals and the drawn lines; every tracked segment only in --json.
     nlohmann::json brief = summary;

@@ -138,6 +138,32 @@ TEST(CliFlow, TrackWarnsWhenNeighbouringLinesLeaveTheBackgroundBetweenThem) {
     EXPECT_FALSE(mentions(larger.err, "neighbouring lines")) << larger.err;
 }
 
+// track says how sure its block matching was, and warns when most steps were
+// guesses: on the procedural flow nearly every match is sure; asked for a
+// correlation of 0.99, which most of its matches just miss, most steps are
+// uncertain (moved by the prediction) and the particles still complete.
+TEST(CliFlow, TrackSaysHowSureItsMatchesWere) {
+    const std::string dir = own_dir("cli_flow_sure");
+    const auto track = [&](std::vector<std::string> extra) {
+        std::vector<std::string> args = {"track", "--capture", tiny_capture(), "--frames", "16", "--json", "--out", dir + "/bank.exr"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return run_flowvid(args);
+    };
+    const CliResult flowing = track({});
+    ASSERT_EQ(flowing.exit_code, 0) << flowing.err;
+    const nlohmann::json sure = nlohmann::json::parse(flowing.out);
+    EXPECT_LT(sure.at("uncertain_step_share").get<double>(), 0.05);
+    EXPECT_GT(sure.at("mean_correlation").get<double>(), 0.9);
+    EXPECT_FALSE(mentions(flowing.err, "uncertain")) << flowing.err;
+
+    const CliResult strict = track({"--min-correlation", "0.99"});
+    ASSERT_EQ(strict.exit_code, 0) << strict.err;
+    const nlohmann::json unsure = nlohmann::json::parse(strict.out);
+    EXPECT_GT(unsure.at("uncertain_step_share").get<double>(), 0.5);
+    EXPECT_GT(unsure.at("particles").get<int>(), 0);
+    EXPECT_TRUE(mentions(strict.err, "of the tracking steps were uncertain")) << strict.err;
+}
+
 TEST(CliFlow, ABankFindsItsClipFromAnyWorkingDirectory) {
     // Tracked with paths relative to one folder; rendered from another.
     const std::string dir = own_dir("cli_flow_relative");
