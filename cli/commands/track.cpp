@@ -143,10 +143,10 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
                            {"mean_speed_px_per_frame", s.mean_speed_px_per_frame},
                            {"mean_life_frames", s.mean_life_frames}});
     summary["tracked_lines"] = tracked;
-    // How sure the block matching was: the share of steps whose match was weak
-    // or on the window's edge (those moved by the prediction instead).
-    // Of the completed particles' matched steps (not those whose patch was
-    // mostly outside the frame).
+    // How sure the block matching was: of the completed particles' matched
+    // steps (not those whose patch was mostly outside the frame), the share
+    // whose match was weak or on the window's edge (moved by the prediction
+    // instead), and the mean correlation of the others.
     long long matched = 0, uncertain = 0;
     double correlation_sum = 0.0;
     for (const flow::LineTrackingStats& s : result.report.lines) {
@@ -240,7 +240,9 @@ const RegisterCommand registration{Command{
             ->check(CLI::NonNegativeNumber);
         app.add_option("--max-gap", options->max_gap_px, "drawn lines further apart are not interpolated between (0 = 6 patches)");
         app.add_option("--max-speed", options->max_speed_px, "largest step searched, px per frame")->capture_default_str();
-        app.add_option("--search-radius", options->search_radius_px, "search window around the predicted step, px (a non-stationary particle whose match there fails searches up to --max-speed)")
+        app.add_option("--search-radius", options->search_radius_px,
+                       "search window around the predicted step, px (a non-stationary particle whose match there "
+                       "fails searches up to --max-speed)")
             ->capture_default_str();
         app.add_option("--min-correlation", options->min_correlation,
                        "weaker matches move the particle by the prediction instead")

@@ -296,7 +296,7 @@ BackgroundMode background_mode_from_string(const std::string& text) {
     if (text == "loop") return BackgroundMode::loop;
     if (text == "replay") return BackgroundMode::replay;
     if (text == "none") return BackgroundMode::none;
-    throw std::invalid_argument("unknown background mode '" + text + "' (median, loop or none)");
+    throw std::invalid_argument("unknown background mode '" + text + "' (median, loop, replay or none)");
 }
 
 Background Background::plate(RgbImage linear_plate) {
