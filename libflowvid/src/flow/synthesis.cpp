@@ -31,15 +31,16 @@ double smoothstep01(double x) {
 // premultiplied sum; its total weight is kept) becomes the groups' colours
 // weighted by W_g^exponent, and the group weights become those powers (the
 // detail gain then follows them). group_rgb: the sums of weight x colour of
-// the second group and of the rest (floats 3..8; the first group's is the
-// total's remainder, so a pixel of one group costs no colour sums).
+// the second group and of the rest (kGroupColourFloats; the first group's is
+// the total's remainder, so a pixel of one group costs no colour sums).
+constexpr std::size_t kGroupColourFloats = 6;
 void sharpen_groups(float* rgbw, float& w0, float& w1, float& w2, const float* group_rgb, float exponent) {
     if (!(w1 > 0.0f) || rgbw[3] <= 1e-6f) return;
     float* weights[3] = {&w0, &w1, &w2};
     float sums[9];
     for (int k = 0; k < 3; ++k) {
-        sums[3 + k] = group_rgb[3 + k];
-        sums[6 + k] = group_rgb[6 + k];
+        sums[3 + k] = group_rgb[k];
+        sums[6 + k] = group_rgb[3 + k];
         sums[k] = rgbw[k] - sums[3 + k] - sums[6 + k];
     }
     float num[3] = {0.0f, 0.0f, 0.0f}, den = 0.0f;
@@ -100,7 +101,7 @@ struct Accumulator {
     std::vector<int> group_id;        // 2 per pixel, -1 = none yet
     std::vector<float> group_weight;  // 3 per pixel: the two groups, the rest
     bool colours = false;
-    std::vector<float> group_rgb;     // with colours, 9 per pixel: each group's sum of weight x colour
+    std::vector<float> group_rgb;     // with colours, per pixel: the second group's and the rest's sum of weight x colour
 
     void reset(int w, int h, bool with_groups, bool with_colours) {
         width = w;
@@ -113,7 +114,7 @@ struct Accumulator {
             group_id.assign(pixels * 2, -1);
             group_weight.assign(pixels * 3, 0.0f);
         }
-        if (colours) group_rgb.assign(pixels * 9, 0.0f);
+        if (colours) group_rgb.assign(pixels * kGroupColourFloats, 0.0f);
     }
     void add_group(std::size_t pixel, float wa, int group, const float* wrgb) {
         int* g = group_id.data() + pixel * 2;
@@ -132,7 +133,8 @@ struct Accumulator {
         }
         gw[slot] += wa;
         if (colours && slot > 0)  // the first group's colour is the total's remainder
-            for (int k = 0; k < 3; ++k) group_rgb[pixel * 9 + static_cast<std::size_t>(slot) * 3 + k] += wrgb[k];
+            for (int k = 0; k < 3; ++k)
+                group_rgb[pixel * kGroupColourFloats + static_cast<std::size_t>(slot - 1) * 3 + k] += wrgb[k];
     }
 };
 
@@ -674,7 +676,7 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
     if (sharpen)
         for (std::size_t i = 0; i < pixels; ++i) {
             float* gw = acc.group_weight.data() + 3 * i;
-            sharpen_groups(acc.rgbw.data() + 4 * i, gw[0], gw[1], gw[2], acc.group_rgb.data() + 9 * i,
+            sharpen_groups(acc.rgbw.data() + 4 * i, gw[0], gw[1], gw[2], acc.group_rgb.data() + kGroupColourFloats * i,
                            static_cast<float>(m_settings.overlap_sharpness));
         }
     // Detail preservation: where groups of different input frames mix, the
@@ -770,8 +772,9 @@ struct RenderBuffers {
     // (-1 = none yet) and the weights of those two and of the rest.
     std::vector<int> group0, group1;
     std::vector<float> weight0, weight1, weight_rest;
-    // Ring, with overlap sharpening: each group's sum of weight x colour
-    // (the two groups, the rest; 9 floats per pixel).
+    // Ring, with overlap sharpening: the second group's and the rest's sum of
+    // weight x colour (kGroupColourFloats per pixel; the first group's is the
+    // total's remainder).
     bool colours = false;
     std::vector<float> group_rgb;
     std::vector<float> row_sums;  // ring, with the detail gain: horizontal box sums of rgbw
@@ -804,7 +807,8 @@ inline void add_to_groups(RenderBuffers& s, std::size_t pixel, int n, const floa
     for (int j = 0; j < n; ++j) {
         const int slot = g0[j] == group ? 0 : g1[j] == group ? 1 : 2;
         if (slot == 0) continue;  // the first group's colour is the total's remainder
-        float* c = s.group_rgb.data() + (pixel + static_cast<std::size_t>(j)) * 9 + static_cast<std::size_t>(slot) * 3;
+        float* c = s.group_rgb.data() + (pixel + static_cast<std::size_t>(j)) * kGroupColourFloats +
+                   static_cast<std::size_t>(slot - 1) * 3;
         for (int k = 0; k < 3; ++k) c[k] += wrgb[3 * j + k];
     }
 }
@@ -1006,7 +1010,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
         for (auto* v : {&s.group0, &s.group1}) v->resize(ring_pixels);
         for (auto* v : {&s.weight0, &s.weight1, &s.weight_rest}) v->resize(ring_pixels);
     }
-    if (sharpen) s.group_rgb.resize(ring_pixels * 9);
+    if (sharpen) s.group_rgb.resize(ring_pixels * kGroupColourFloats);
     if (detail) s.row_sums.resize(ring_pixels * 4);
 
     const float full = static_cast<float>(std::max(1e-6, m_settings.coverage_weight));
@@ -1021,7 +1025,8 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
                 for (auto* v : {&s.weight0, &s.weight1, &s.weight_rest})
                     std::fill_n(v->data() + row, static_cast<std::size_t>(w), 0.0f);
             }
-            if (sharpen) std::fill_n(s.group_rgb.data() + row * 9, static_cast<std::size_t>(w) * 9, 0.0f);
+            if (sharpen)
+                std::fill_n(s.group_rgb.data() + row * kGroupColourFloats, static_cast<std::size_t>(w) * kGroupColourFloats, 0.0f);
         }
         for (int i = s.step_start[static_cast<std::size_t>(k)]; i < s.step_start[static_cast<std::size_t>(k) + 1]; ++i) {
             const Splat& p = s.splats[static_cast<std::size_t>(s.step_splats[static_cast<std::size_t>(i)])];
@@ -1036,7 +1041,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
                 for (int x = 0; x < w; ++x) {
                     const std::size_t i = row + static_cast<std::size_t>(x);
                     sharpen_groups(s.rgbw.data() + i * 4, s.weight0[i], s.weight1[i], s.weight_rest[i],
-                                   s.group_rgb.data() + i * 9, static_cast<float>(m_settings.overlap_sharpness));
+                                   s.group_rgb.data() + i * kGroupColourFloats, static_cast<float>(m_settings.overlap_sharpness));
                 }
             }
         if (detail)
