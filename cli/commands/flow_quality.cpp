@@ -36,11 +36,6 @@ struct QualityOptions {
     std::string series_csv;
 };
 
-formats::FlowLineSet read_lines(const std::string& path, std::vector<Problem>& warnings) {
-    if (formats::detect_file_kind(path) == formats::FileKind::flowline_svg) return formats::import_flowlines_svg(path, &warnings);
-    return formats::read_flowline_set(path, &warnings);
-}
-
 nlohmann::json report_json(const flow::QualityReport& r) {
     return {{"seam_max_ratio", r.max_transition_ratio},
             {"share_above_clip_p99", r.share_above_p99},
@@ -107,7 +102,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
         log_message("error: no flow lines: give --flowlines FILE (the drawing the bank was tracked with)");
         return kExitUsage;
     }
-    const formats::FlowLineSet drawing = read_lines(lines_path, warnings);
+    const formats::FlowLineSet drawing = formats::read_flowline_drawing(lines_path, &warnings);
     print_problems(warnings);
 
     const flow::SynthesisSettings settings = synthesis_settings(options.synthesis);

@@ -66,11 +66,6 @@ bool parse_frames(const std::string& text, int& first, int& last) {
     }
 }
 
-formats::FlowLineSet read_lines(const std::string& path, std::vector<Problem>& warnings) {
-    if (formats::detect_file_kind(path) == formats::FileKind::flowline_svg) return formats::import_flowlines_svg(path, &warnings);
-    return formats::read_flowline_set(path, &warnings);
-}
-
 int render(const RenderOptions& options, const GlobalOptions& global, bool edit) {
     int first = 1, last = 1;
     if (!options.loop && !parse_frames(options.frames, first, last)) {
@@ -99,7 +94,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
         log_message("error: no flow lines: give --flowlines FILE (the drawing the bank was tracked with)");
         return kExitUsage;
     }
-    const formats::FlowLineSet drawing = read_lines(lines_path, warnings);
+    const formats::FlowLineSet drawing = formats::read_flowline_drawing(lines_path, &warnings);
     print_problems(warnings);
     if (edit && drawing.outputs.empty()) {
         log_message("error: " + lines_path + ": no output lines to edit with (draw them in the group id=\"output\")");

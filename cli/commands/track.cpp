@@ -42,11 +42,6 @@ struct TrackOptions {
     bool json = false;
 };
 
-formats::FlowLineSet read_lines(const std::string& path, std::vector<Problem>& warnings) {
-    if (formats::detect_file_kind(path) == formats::FileKind::flowline_svg) return formats::import_flowlines_svg(path, &warnings);
-    return formats::read_flowline_set(path, &warnings);
-}
-
 int run_track(const TrackOptions& options, const GlobalOptions& global) {
     const formats::Capture capture = flow::open_clip(options.capture, options.fps);
     std::string lines_path = options.flowlines;
@@ -58,7 +53,7 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
         lines_path = capture.resolve(capture.flowlines);
     }
     std::vector<Problem> warnings;
-    const formats::FlowLineSet drawing = read_lines(lines_path, warnings);
+    const formats::FlowLineSet drawing = formats::read_flowline_drawing(lines_path, &warnings);
     print_problems(warnings);
 
     flow::CaptureFrames frames(capture, options.frames);

@@ -129,4 +129,9 @@ nlohmann::json summarize_any_file(const std::string& path) {
     return summary;
 }
 
+FlowLineSet read_flowline_drawing(const std::string& path, std::vector<Problem>* warnings) {
+    if (detect_file_kind(path) == FileKind::flowline_svg) return import_flowlines_svg(path, warnings);
+    return read_flowline_set(path, warnings);
+}
+
 }  // namespace flowvid::formats

@@ -4,6 +4,7 @@
 // fuzz targets, so all three judge a file the same way.
 
 #include "flowvid/error.hpp"
+#include "flowvid/formats/flowlines.hpp"
 #include "flowvid/formats/json_fields.hpp"
 
 #include <nlohmann/json.hpp>
@@ -37,5 +38,9 @@ std::vector<Problem> validate_any_file(const std::string& path, Strictness stric
 
 // A summary for `flowvid info` (throws ValidationError / IoError when invalid).
 nlohmann::json summarize_any_file(const std::string& path);
+
+// Flow lines from either form an artist or a tool gives them: an SVG drawing
+// or a *.flowlines.json, told apart by content.
+FlowLineSet read_flowline_drawing(const std::string& path, std::vector<Problem>* warnings = nullptr);
 
 }  // namespace flowvid::formats
