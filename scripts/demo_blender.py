@@ -189,12 +189,8 @@ def video(options):
 
     out = os.path.abspath(options.out)
     os.makedirs(out, exist_ok=True)
-    inputs = options.inputs
-    if inputs.lower().endswith(".svg"):  # an artist's drawing: to JSON as `flowvid convert` does
-        inputs = os.path.join(out, "drawn.flowlines.json")
-        api.run_flowvid_tool("convert", options.inputs, inputs)
     lines = os.path.join(out, "particles.flowlines.json")
-    baked = api.bake_flowlines(emitter, camera, 1, options.frames, lines, inputs=inputs, scene=scene)
+    baked = api.bake_flowlines(emitter, camera, 1, options.frames, lines, inputs=options.inputs, scene=scene)
     # The particles carry foam over darker water and rock: coverage 2 blends
     # the texture in instead of ending it in a hard edge (flowvid edit --help).
     first = api.synthesize(options.bank, lines, 1, options.frames, os.path.join(out, "synthesized"),

@@ -1,5 +1,6 @@
 #include "bindings.hpp"
 
+#include "flowvid/formats/any_file.hpp"
 #include "flowvid/formats/flowlines.hpp"
 
 #include <pybind11/stl.h>
@@ -13,7 +14,7 @@ void bind_flow(py::module_& module) {
     flow.def(
         "read_flowline_set",
         [](const std::string& path) {
-            return json_to_python(formats::flowline_set_to_json(formats::read_flowline_set(path)));
+            return json_to_python(formats::flowline_set_to_json(formats::read_flowline_drawing(path)));
         },
         py::arg("path"), "Read and validate a *.flowlines.json (or an SVG drawing); returns it as a dict.");
     flow.def(

@@ -4,12 +4,13 @@ import json
 import math
 import os
 import sys
+import tempfile
 import unittest
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(REPO, "blender_addon"))
 
-from flowvid_blender.core import calibration, mapping  # noqa: E402
+from flowvid_blender.core import backend, calibration, mapping  # noqa: E402
 
 EXAMPLE = os.path.join(REPO, "formats", "examples", "cotton.fabric.json")
 
@@ -109,6 +110,20 @@ class LibraryTest(unittest.TestCase):
         with self.assertRaises(flowvid.ValidationError) as caught:
             flowvid.cloth.simulate_swatch(static, broken, rows=8, cols=8)
         self.assertIn("/parameters/shear_stiffness_N_per_m", str(caught.exception))
+
+
+@unittest.skipUnless(os.environ.get("FLOWVID_CLI"), "the flowvid tool's path is given by ctest")
+class CliBackendTest(unittest.TestCase):
+    def test_reads_flow_lines_drawn_in_svg_or_json(self):
+        # Without the Python module the add-on reads an artist's drawing as the module does.
+        cli = backend.CliBackend(os.environ["FLOWVID_CLI"])
+        drawn = cli.read_flowline_set(os.path.join(REPO, "data", "demo", "waterfall", "flowlines.svg"))
+        self.assertEqual(drawn["format"], "flowvid.flowlines")
+        self.assertGreaterEqual(len(drawn["inputs"]), 2)
+        with tempfile.TemporaryDirectory() as folder:
+            path = os.path.join(folder, "drawn.flowlines.json")
+            cli.write_flowline_set(path, drawn)
+            self.assertEqual(cli.read_flowline_set(path), drawn)
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ import flowvid
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 EXAMPLE = os.path.join(REPO, "formats", "examples", "cotton.fabric.json")
+DRAWING = os.path.join(REPO, "data", "demo", "waterfall", "flowlines.svg")
 
 
 class ModuleTest(unittest.TestCase):
@@ -41,6 +42,15 @@ class ModuleTest(unittest.TestCase):
                 json.dump(preset, handle)
             messages = flowvid.formats.validate_fabric_preset(path)
             self.assertTrue(any("/parameters/bend_stiffness_N_m/value" in m for m in messages), messages)
+
+    def test_flow_lines_from_a_drawing_or_json(self):
+        # An artist's SVG reads as the same set as the JSON written from it.
+        drawn = flowvid.flow.read_flowline_set(DRAWING)
+        self.assertGreaterEqual(len(drawn["inputs"]), 2)
+        with tempfile.TemporaryDirectory() as folder:
+            path = os.path.join(folder, "drawn.flowlines.json")
+            flowvid.flow.write_flowline_set(path, drawn)
+            self.assertEqual(flowvid.flow.read_flowline_set(path), drawn)
 
 
 if __name__ == "__main__":

@@ -78,7 +78,15 @@ class CliBackend:
         with open(path, encoding="utf-8") as handle:
             return json.load(handle)
 
-    read_flowline_set = read_fabric_preset
+    def read_flowline_set(self, path):
+        # An artist's SVG drawing, as the library reads it: through `convert`.
+        if not path.lower().endswith(".svg"):
+            return self.read_fabric_preset(path)
+        with tempfile.TemporaryDirectory() as folder:
+            converted = os.path.join(folder, "drawn.flowlines.json")
+            self.run("convert", path, converted)
+            with open(converted, encoding="utf-8") as handle:
+                return json.load(handle)
 
     def _write_json(self, path, document):
         # Written beside the target, validated by the tool, then renamed over it.
