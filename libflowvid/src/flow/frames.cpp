@@ -339,18 +339,48 @@ void Background::fill(int frame, int width, int height, RgbImage& out) const {
         return;
     }
     if (m_mode == BackgroundMode::replay && have_clip) {
-        const int n = m_clip->count();
-        const int r = (((frame - 1) % m_period) + m_period) % m_period;
-        out = m_clip->linear((m_first_frame + r) % n);
-        const int continuing = m_first_frame + m_period + r;  // what the particles already on the lines show
-        if (r < m_dissolve && continuing < n) {
-            const float w = static_cast<float>(r + 1) / static_cast<float>(m_dissolve + 1);
-            const RgbImage before = m_clip->linear(continuing);
-            for (std::size_t i = 0; i < out.rgb.size(); ++i) out.rgb[i] = w * out.rgb[i] + (1.0f - w) * before.rgb[i];
+        const ReplayFrames frames = replay_frames(frame);
+        out = m_clip->linear(frames.now);
+        if (frames.continuing >= 0 && frames.dissolve_share > 0.0f) {
+            const float after = frames.dissolve_share;
+            const RgbImage before = m_clip->linear(frames.continuing);
+            for (std::size_t i = 0; i < out.rgb.size(); ++i) out.rgb[i] = (1.0f - after) * out.rgb[i] + after * before.rgb[i];
         }
         return;
     }
     out = RgbImage(width, height);
+}
+
+Background::ReplayFrames Background::replay_frames(int frame) const {
+    ReplayFrames frames;
+    if (m_mode != BackgroundMode::replay || !m_clip || m_clip->count() == 0) return frames;
+    const int n = m_clip->count();
+    const int r = (((frame - 1) % m_period) + m_period) % m_period;
+    frames.now = (m_first_frame + r) % n;
+    const int continuing = m_first_frame + m_period + r;
+    if (continuing < n) {
+        frames.continuing = continuing;
+        if (r < m_dissolve) frames.dissolve_share = 1.0f - static_cast<float>(r + 1) / static_cast<float>(m_dissolve + 1);
+    }
+    return frames;
+}
+
+void Background::fill_replay(int frame, int width, int height, const std::vector<float>& continuing_share,
+                             RgbImage& out) const {
+    const ReplayFrames frames = replay_frames(frame);
+    const std::size_t pixels = static_cast<std::size_t>(width) * height;
+    if (frames.continuing < 0 || m_clip->width() != width || m_clip->height() != height ||
+        continuing_share.size() != pixels) {
+        fill(frame, width, height, out);
+        return;
+    }
+    out = m_clip->linear(frames.now);
+    const RgbImage after = m_clip->linear(frames.continuing);
+    for (std::size_t i = 0; i < pixels; ++i) {
+        const float a = continuing_share[i];
+        if (a <= 0.0f) continue;
+        for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) out.rgb[k] += a * (after.rgb[k] - out.rgb[k]);
+    }
 }
 
 // ---- writing -------------------------------------------------------------------------------------

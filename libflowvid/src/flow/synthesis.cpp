@@ -399,6 +399,81 @@ void carry_background(const std::vector<const WarpTable*>& tables, const RgbImag
     }
 }
 
+// A particle around which a replayed background shows the frame it shows.
+struct ShownFrame {
+    Eigen::Vector2d centre;
+    float weight = 0.0f;
+    bool continuing = false;  // the frame after the window (else the window's)
+};
+
+// Per pixel, the share of the continuing frame in a replayed background:
+// that of the particles around the pixel (their fade weights, a tent over
+// each patch), spread half a patch beyond the patches by two box blurs on a
+// grid of quarter-patch cells and interpolated bilinearly; where no particle
+// reaches (a patch and a half from every centre), `fallback` (the wrap's
+// dissolve), approached smoothly as their weight falls off.
+std::vector<float> continuing_share_map(const std::vector<ShownFrame>& particles, int w, int h, int patch, float fallback) {
+    const int cell = std::max(2, patch / 4);
+    const int gw = w / cell + 2, gh = h / cell + 2;
+    std::vector<float> cont(static_cast<std::size_t>(gw) * gh, 0.0f), all(cont.size(), 0.0f);
+    const double half = 0.5 * patch;
+    for (const ShownFrame& p : particles) {
+        const int x0 = std::max(0, static_cast<int>(std::ceil((p.centre.x() - half) / cell)));
+        const int x1 = std::min(gw - 1, static_cast<int>(std::floor((p.centre.x() + half) / cell)));
+        const int y0 = std::max(0, static_cast<int>(std::ceil((p.centre.y() - half) / cell)));
+        const int y1 = std::min(gh - 1, static_cast<int>(std::floor((p.centre.y() + half) / cell)));
+        for (int gy = y0; gy <= y1; ++gy)
+            for (int gx = x0; gx <= x1; ++gx) {
+                const double tent = (1.0 - std::fabs(gx * cell - p.centre.x()) / half) * (1.0 - std::fabs(gy * cell - p.centre.y()) / half);
+                if (tent <= 0.0) continue;
+                const std::size_t i = static_cast<std::size_t>(gy) * gw + gx;
+                all[i] += static_cast<float>(tent * p.weight);
+                if (p.continuing) cont[i] += static_cast<float>(tent * p.weight);
+            }
+    }
+    const int radius = std::max(1, static_cast<int>(std::lround(half / cell)));
+    std::vector<float> line;
+    const auto box = [&](std::vector<float>& g, bool rows) {
+        const int n = rows ? gw : gh, lines = rows ? gh : gw;
+        line.resize(static_cast<std::size_t>(n));
+        for (int l = 0; l < lines; ++l) {
+            const auto at = [&](int k) -> float& {
+                return rows ? g[static_cast<std::size_t>(l) * gw + k] : g[static_cast<std::size_t>(k) * gw + l];
+            };
+            for (int k = 0; k < n; ++k) line[static_cast<std::size_t>(k)] = at(k);
+            for (int k = 0; k < n; ++k) {
+                float sum = 0.0f;
+                for (int j = std::max(0, k - radius); j <= std::min(n - 1, k + radius); ++j) sum += line[static_cast<std::size_t>(j)];
+                at(k) = sum / static_cast<float>(2 * radius + 1);
+            }
+        }
+    };
+    for (std::vector<float>* g : {&cont, &all})
+        for (int pass = 0; pass < 2; ++pass) {
+            box(*g, true);
+            box(*g, false);
+        }
+    // A hundredth of an isolated particle's peak after the blurs (a tent of
+    // about two cells each way, spread over 2 radius + 1 twice).
+    const float eps = 0.01f * std::pow(2.0f / static_cast<float>(2 * radius + 1), 2.0f);
+    std::vector<float> share_grid(cont.size());
+    for (std::size_t i = 0; i < cont.size(); ++i) share_grid[i] = (cont[i] + eps * fallback) / (all[i] + eps);
+    std::vector<float> share(static_cast<std::size_t>(w) * h);
+    for (int y = 0; y < h; ++y) {
+        const int gy = y / cell;
+        const float fy = static_cast<float>(y - gy * cell) / cell;
+        for (int x = 0; x < w; ++x) {
+            const int gx = x / cell;
+            const float fx = static_cast<float>(x - gx * cell) / cell;
+            const std::size_t i = static_cast<std::size_t>(gy) * gw + gx;
+            const float top = share_grid[i] + fx * (share_grid[i + 1] - share_grid[i]);
+            const float bottom = share_grid[i + gw] + fx * (share_grid[i + gw + 1] - share_grid[i + gw]);
+            share[static_cast<std::size_t>(y) * w + x] = top + fy * (bottom - top);
+        }
+    }
+    return share;
+}
+
 bool same_points(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vector2d>& b) {
     if (a.size() != b.size()) return false;
     for (std::size_t i = 0; i < a.size(); ++i)
@@ -641,6 +716,39 @@ int Synthesizer::height() const { return m_plan->height; }
 
 RgbImage Synthesizer::render(int frame) const { return render(frame, nullptr); }
 
+// A replayed background follows the ladder: after the wrap, the particles
+// still on a line from before it show the frames after the window, ahead of
+// the first new particle, and the background around them shows those too, so
+// texture and background agree where patches end on both sides of the
+// ladder step. Lines rendered as they were tracked only: on warped or
+// time-shifted lines (edits) the background keeps the wrap's dissolve.
+void Synthesizer::fill_background(int frame, RgbImage& out) const {
+    const int w = m_plan->width, h = m_plan->height;
+    const Background::ReplayFrames frames = m_background.replay_frames(frame);
+    if (frames.continuing < 0) {
+        m_background.fill(frame, w, h, out);
+        return;
+    }
+    std::vector<ShownFrame> shown;
+    std::vector<ParticleStreams::Visible> visible;
+    bool any_continuing = false;
+    for (const Plan::Line& line : m_plan->lines) {
+        if (!line.identity || line.time_offset_frames != 0) continue;
+        m_streams->visible(line.stream, frame, visible);
+        for (const auto& v : visible) {
+            if (v.input_frame != frames.now && v.input_frame != frames.continuing) continue;  // a borrowed start's
+            shown.push_back({v.centre, v.weight, v.input_frame == frames.continuing});
+            any_continuing = any_continuing || v.input_frame == frames.continuing;
+        }
+    }
+    if (!any_continuing) {
+        m_background.fill(frame, w, h, out);
+        return;
+    }
+    m_background.fill_replay(frame, w, h,
+                             continuing_share_map(shown, w, h, m_streams->patch_size(), frames.dissolve_share), out);
+}
+
 // The straightforward whole-frame version of render_into, kept as the
 // reference the banded renderer must reproduce (SynthesisSettings::reference_rendering).
 RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) const {
@@ -667,7 +775,7 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
         }
     }
     RgbImage out;
-    m_background.fill(frame, w, h, out);
+    fill_background(frame, out);
     CarryBuffers carry;
     carry_background_into(frame, out, carry);
     if (coverage) coverage->assign(static_cast<std::size_t>(w) * h, 0.0f);
@@ -926,7 +1034,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
     // Groups of patches by input frame: for the detail gain and for overlap sharpening.
     const bool detail = m_settings.preserve_detail, sharpen = m_settings.overlap_sharpness != 1.0;
     const bool groups = detail || sharpen;
-    m_background.fill(frame, w, h, out);
+    fill_background(frame, out);
     if (coverage) coverage->assign(static_cast<std::size_t>(w) * h, 0.0f);
     if (w <= 0 || h <= 0) return;
 

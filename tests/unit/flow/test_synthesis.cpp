@@ -327,6 +327,46 @@ TEST(FlowSynthesis, AReplayedBackgroundShowsTheFrameTheParticlesShow) {
         for (int ch = 0; ch < 3; ++ch)
             EXPECT_NEAR(out.pixel(2, 20)[ch], w * now.pixel(2, 20)[ch] + (1.0 - w) * after.pixel(2, 20)[ch], 1e-5) << r;
     }
+
+    // Until the particles on the line at the wrap have left, those ahead of
+    // the ladder step show the frames after the window, and so does the
+    // background around them (the dissolve alone would show the window's
+    // frame there: where their coverage ends, the texture's edge would show).
+    const int half = streams->patch_size() / 2;
+    int checked = 0;
+    double worst_ladder = 0.0, frames_differ = 0.0;
+    for (int r = dissolve + 1; r < settled; r += 3) {
+        const int t = period + 1 + r, continuing = s0 + period + r;
+        std::vector<float> coverage;
+        const RgbImage out = replayed.render(t, &coverage);
+        std::vector<ParticleStreams::Visible> visible;
+        streams->visible(0, t, visible);
+        const RgbImage after = f.clip->linear(continuing), now = f.clip->linear(s0 + r);
+        for (int y = 0; y < out.height; ++y)
+            for (int x = 0; x < out.width; ++x) {
+                const float c = coverage[static_cast<std::size_t>(y) * out.width + x];
+                if (c <= 0.05f || c >= 0.95f) continue;
+                bool under_continuing = false;
+                double to_new = std::numeric_limits<double>::infinity();  // chessboard distance to the nearest new particle
+                for (const auto& v : visible) {
+                    const double d = std::max(std::fabs(x - v.centre.x()), std::fabs(y - v.centre.y()));
+                    if (v.input_frame == continuing) under_continuing = under_continuing || d < half;
+                    else to_new = std::min(to_new, d);
+                }
+                if (!under_continuing || to_new < 4 * half) continue;  // away from the ladder step
+                ++checked;
+                for (int ch = 0; ch < 3; ++ch) {
+                    worst_ladder = std::max(worst_ladder, static_cast<double>(std::fabs(out.pixel(x, y)[ch] - after.pixel(x, y)[ch])));
+                    frames_differ = std::max(frames_differ, static_cast<double>(std::fabs(now.pixel(x, y)[ch] - after.pixel(x, y)[ch])));
+                }
+            }
+    }
+    std::printf("after the wrap, %d partly covered pixels ahead of the ladder step: largest difference from the frame "
+                "their particles show %.4f (from the window's frame: %.4f)\n",
+                checked, worst_ladder, frames_differ);
+    EXPECT_GT(checked, 50);
+    EXPECT_LT(worst_ladder, 0.02);
+    EXPECT_GT(frames_differ, 0.1);
     EXPECT_EQ(background_mode_from_string("replay"), BackgroundMode::replay);
 }
 

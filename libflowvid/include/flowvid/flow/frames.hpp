@@ -182,6 +182,23 @@ public:
     // Writes the background of output frame `frame` into `out` (resized).
     void fill(int frame, int width, int height, RgbImage& out) const;
 
+    // Replay only. The clip frames output frame `frame` may show: the
+    // window's (`now`) and the one after the window that the particles still
+    // on the lines from before the wrap show (`continuing`, -1 where the
+    // clip has none), with the dissolve's share of the latter (0 once it is
+    // over): what fill() shows everywhere.
+    struct ReplayFrames {
+        int now = -1;
+        int continuing = -1;
+        float dissolve_share = 0.0f;
+    };
+    ReplayFrames replay_frames(int frame) const;
+    // Replay with the continuing frame mixed in per pixel by
+    // `continuing_share` (width x height, 0..1) instead of the dissolve: the
+    // synthesizer follows the ladder, showing behind each particle the frame
+    // it shows (Synthesizer::render).
+    void fill_replay(int frame, int width, int height, const std::vector<float>& continuing_share, RgbImage& out) const;
+
 private:
     BackgroundMode m_mode = BackgroundMode::none;
     RgbImage m_plate;

@@ -147,10 +147,11 @@ struct Schedule {
 Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSettings& settings);
 
 // The background `mode` asks for, from the clip: the median plate, the clip
-// looped, or replayed in step with `schedule` (dissolving at its wrap over
-// the entry spacing, as the new particles fade in; the particles already on
-// the lines show the frames after the window until they leave, and where
-// their coverage ends they no longer match it); none: black.
+// looped, or replayed in step with `schedule` (the frame the particles show;
+// after the wrap, the particles still on the lines from before it show the
+// frames after the window until they leave, and the Synthesizer shows those
+// around them too; elsewhere the background dissolves to the window's first
+// frames over the entry spacing, as the new particles fade in); none: black.
 Background make_background(BackgroundMode mode, std::shared_ptr<const ClipFrames> clip, const Schedule& schedule);
 
 // The particles on a scheduled line at output frame `frame` (1-based, any
@@ -297,6 +298,8 @@ private:
     struct Scratch;  // a rendering thread's working buffers, reused from frame to frame
     struct CarryBuffers;
     void render_into(int frame, RgbImage& out, std::vector<float>* coverage, Scratch& scratch) const;
+    // The frame's background; a replayed one follows the ladder.
+    void fill_background(int frame, RgbImage& out) const;
     // Composites the background carried along warped output lines over `out`
     // (the frame's background), before the particles.
     void carry_background_into(int frame, RgbImage& out, CarryBuffers& buffers) const;
