@@ -87,15 +87,13 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     std::vector<Problem> warnings;
     auto bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(options.bank, &warnings));
     print_problems(warnings);
-    const std::string capture_path = options.capture.empty() ? formats::resolve_source_clip(options.bank, *bank) : options.capture;
-    std::error_code ec;
-    if (capture_path.empty() || !std::filesystem::exists(capture_path, ec)) {
-        log_message("error: " + options.bank + ": the measures need the source clip (" +
-                    (capture_path.empty() ? std::string("not recorded in the bank") : capture_path + " not found") +
-                    "); give --capture");
+    std::string why_no_clip;
+    const std::optional<formats::Capture> opened = open_bank_clip(options.capture, options.bank, *bank, why_no_clip);
+    if (!opened) {
+        log_message("error: " + options.bank + ": the measures need the source clip (" + why_no_clip + "); give --capture");
         return kExitUsage;
     }
-    const formats::Capture capture = flow::open_clip(capture_path, bank->fps);
+    const formats::Capture& capture = *opened;
     std::string lines_path = options.flowlines;
     if (lines_path.empty() && !capture.flowlines.empty()) lines_path = capture.resolve(capture.flowlines);
     if (lines_path.empty()) {
@@ -113,7 +111,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     Progress reading(global, "read clip");
     flow::CaptureFrames frames(capture);
     if (frames.width() != bank->clip_width_px || frames.height() != bank->clip_height_px) {
-        log_message("error: " + capture_path + ": frames are " + std::to_string(frames.width()) + " x " +
+        log_message("error: " + capture.clip_path() + ": frames are " + std::to_string(frames.width()) + " x " +
                     std::to_string(frames.height()) + " but the bank was tracked at " +
                     std::to_string(bank->clip_width_px) + " x " + std::to_string(bank->clip_height_px));
         return kExitInvalidInput;
@@ -160,7 +158,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
         borrowed += l.borrowed;
     }
     nlohmann::json summary = {{"bank", options.bank},
-                              {"clip", capture_path},
+                              {"clip", capture.clip_path()},
                               {"clip_frames", clip.count()},
                               {"output_frames", result.output_frames},
                               {"mask_pixels", result.mask_pixels},
@@ -189,7 +187,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     }
     std::printf("%s: %d clip frames, %d output frames, %zu lines, K = %d, step %d, period %d frames, %d of %zu slots "
                 "without a particle (%d borrowing a near one)\n",
-                capture_path.c_str(), clip.count(), result.output_frames, schedule.lines.size(),
+                capture.clip_path().c_str(), clip.count(), result.output_frames, schedule.lines.size(),
                 schedule.particles_per_line, schedule.start_every, schedule.period_frames, missing,
                 schedule.lines.size() * static_cast<std::size_t>(schedule.particles_per_line), borrowed);
     std::printf("%-9s %9s %9s %9s | %8s %8s | %9s %9s %8s | %7s\n", "method", "seam max", "share>p99", "spike", "pulsing",

@@ -1,6 +1,25 @@
 #include "synthesis_options.hpp"
 
+#include "flowvid/error.hpp"
+#include "flowvid/flow/frames.hpp"
+
 namespace flowvid::cli {
+
+std::optional<formats::Capture> open_bank_clip(const std::string& capture_option, const std::string& bank_path,
+                                               const formats::ParticleBank& bank, std::string& why_not) {
+    if (!capture_option.empty()) return flow::open_clip(capture_option, bank.fps);
+    const std::string recorded = formats::resolve_source_clip(bank_path, bank);
+    if (recorded.empty()) {
+        why_not = "not recorded in the bank";
+        return std::nullopt;
+    }
+    try {
+        return flow::open_clip(recorded, bank.fps);
+    } catch (const Error& error) {
+        why_not = recorded + " recorded in the bank: " + error.what();
+        return std::nullopt;
+    }
+}
 
 void add_synthesis_options(CLI::App& app, SynthesisOptions& o) {
     app.add_option("--particles", o.particles, "K particles per line in the diagonal order (0 = as many as fit)");

@@ -3,9 +3,12 @@
 // quality): the K-particle window and how overlapping patches are blended.
 
 #include "flowvid/flow/synthesis.hpp"
+#include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/particle_bank.hpp"
 
 #include <CLI/CLI.hpp>
 
+#include <optional>
 #include <string>
 
 namespace flowvid::cli {
@@ -28,5 +31,12 @@ void add_synthesis_options(CLI::App& app, SynthesisOptions& options);
 
 // The library settings those options give (the rest at their defaults).
 flow::SynthesisSettings synthesis_settings(const SynthesisOptions& options);
+
+// The clip a bank was tracked from (a capture folder, a video or an image
+// pattern): `capture_option` when given (its errors name the file and the
+// fix), else the one the bank records. Nothing when the bank records none or
+// it cannot be opened; `why_not` then says which and why.
+std::optional<formats::Capture> open_bank_clip(const std::string& capture_option, const std::string& bank_path,
+                                               const formats::ParticleBank& bank, std::string& why_not);
 
 }  // namespace flowvid::cli

@@ -77,14 +77,11 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     print_problems(warnings);
 
     // The clip: for the background and, by default, the flow lines.
-    std::string capture_path = options.capture.empty() ? formats::resolve_source_clip(options.bank, *bank) : options.capture;
-    std::optional<formats::Capture> capture;
-    std::error_code ec;
-    if (!capture_path.empty() && std::filesystem::exists(capture_path, ec)) capture = flow::open_clip(capture_path, bank->fps);
+    std::string why_no_clip;
+    const std::optional<formats::Capture> capture = open_bank_clip(options.capture, options.bank, *bank, why_no_clip);
     const flow::BackgroundMode mode = flow::background_mode_from_string(options.background);
     if (mode != flow::BackgroundMode::none && !capture) {
-        log_message("error: " + options.bank + ": the background needs the source clip (" +
-                    (capture_path.empty() ? std::string("not recorded in the bank") : capture_path + " not found") +
+        log_message("error: " + options.bank + ": the background needs the source clip (" + why_no_clip +
                     "); give --capture, or --background none");
         return kExitUsage;
     }
@@ -113,7 +110,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
         Progress reading(global, "read clip");
         flow::CaptureFrames frames(*capture);
         if (frames.width() != bank->clip_width_px || frames.height() != bank->clip_height_px) {
-            log_message("error: " + capture_path + ": frames are " + std::to_string(frames.width()) + " x " +
+            log_message("error: " + capture->clip_path() + ": frames are " + std::to_string(frames.width()) + " x " +
                         std::to_string(frames.height()) + " but the bank was tracked at " +
                         std::to_string(bank->clip_width_px) + " x " + std::to_string(bank->clip_height_px));
             return kExitInvalidInput;

@@ -57,6 +57,11 @@ std::string Capture::resolve(const std::string& relative) const {
     return (fs::path(folder.empty() ? "." : folder) / path).string();
 }
 
+std::string Capture::clip_path() const {
+    if (!json_path.empty()) return folder;
+    return resolve(frames.is_video() ? frames.video : frames.pattern);
+}
+
 std::string Capture::frame_path(int number) const {
     if (frames.is_video()) return resolve(frames.video);
     std::optional<std::string> name = format_frame_pattern(frames.pattern, number);

@@ -3,6 +3,7 @@
 #include "exr_preflight.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/capture.hpp"
 
 #include <ImathBox.h>
 #include <ImfChannelList.h>
@@ -794,9 +795,13 @@ std::string resolve_source_clip(const std::string& bank_path, const ParticleBank
     const fs::path recorded(bank.source_clip);
     if (recorded.is_absolute()) return bank.source_clip;
     std::error_code ec;
-    const fs::path beside = fs::path(bank_path).parent_path() / recorded;
-    if (fs::exists(beside, ec)) return beside.lexically_normal().string();
-    return bank.source_clip;
+    const fs::path beside = (fs::path(bank_path).parent_path() / recorded).lexically_normal();
+    bool present = fs::exists(beside, ec);
+    for (int first : {0, 1}) {
+        const std::optional<std::string> frame = format_frame_pattern(beside.string(), first);
+        present = present || (frame && fs::exists(*frame, ec));
+    }
+    return present ? beside.string() : bank.source_clip;
 }
 
 void write_particle_bank(const std::string& path, const ParticleBank& bank) {

@@ -181,6 +181,39 @@ TEST(CliFlow, ABankFindsItsClipFromAnyWorkingDirectory) {
     EXPECT_TRUE(fs::exists(dir + "/out/0002.png"));
 }
 
+TEST(CliFlow, ABankTrackedFromAnImageSequenceFindsItsFrames) {
+    // A bank tracked from a frame pattern (not a capture folder) records the
+    // pattern, relative to the bank; synth and quality open it from any
+    // working directory, or from --capture given the pattern.
+    const std::string dir = own_dir("cli_flow_pattern");
+    fs::create_directories(dir + "/project/banks");
+    fs::create_symlink(tiny_capture(), dir + "/project/waterfall");
+    const CliResult tracked = run_flowvid({"track", "--clip", "waterfall/frames/%04d.png", "--fps", "25", "--flowlines",
+                                           "waterfall/flowlines.svg", "--frames", "12", "--out", "banks/w.bank.exr"},
+                                          dir + "/project");
+    ASSERT_EQ(tracked.exit_code, 0) << tracked.err;
+    const CliResult info = run_flowvid({"info", dir + "/project/banks/w.bank.exr", "--json"});
+    EXPECT_TRUE(mentions(info.out, "../waterfall/frames/%04d.png")) << info.out;
+    const std::string bank = dir + "/project/banks/w.bank.exr", lines = dir + "/project/waterfall/flowlines.svg";
+    const CliResult recorded = run_flowvid({"synth", "--bank", bank, "--flowlines", lines, "--frames", "3:3", "--out",
+                                            dir + "/recorded/%04d.png"});
+    ASSERT_EQ(recorded.exit_code, 0) << recorded.err;
+    const CliResult given = run_flowvid({"synth", "--bank", bank, "--flowlines", lines, "--capture",
+                                         tiny_capture() + "/frames/%04d.png", "--frames", "3:3", "--out", dir + "/given/%04d.png"});
+    ASSERT_EQ(given.exit_code, 0) << given.err;
+    const CliResult folder = run_flowvid({"synth", "--bank", bank, "--flowlines", lines, "--capture", tiny_capture(),
+                                          "--frames", "3:3", "--out", dir + "/folder/%04d.png"});
+    ASSERT_EQ(folder.exit_code, 0) << folder.err;
+    // The same clip, however it is named: the same median background, the same frame.
+    const std::string expected = file_bytes(dir + "/folder/0003.png");
+    ASSERT_FALSE(expected.empty());
+    EXPECT_EQ(file_bytes(dir + "/recorded/0003.png"), expected);
+    EXPECT_EQ(file_bytes(dir + "/given/0003.png"), expected);
+    const CliResult quality = run_flowvid({"quality", "--bank", bank, "--flowlines", lines, "--frames", "8", "--json"});
+    EXPECT_EQ(quality.exit_code, 0) << quality.err;
+    EXPECT_TRUE(mentions(quality.out, "%04d.png")) << quality.out;  // the clip it measured against
+}
+
 TEST(CliFlow, SynthRangesJoinSeamlesslyAndLoop) {
     const std::string dir = own_dir("cli_flow_synth");
     // An output folder that cannot be made (a file is in the way): I/O error naming it.

@@ -140,9 +140,8 @@ void sample_bilinear(const RgbImage& image, double x, double y, float out[3]) {
 // ---- CaptureFrames -----------------------------------------------------------------
 
 CaptureFrames::CaptureFrames(const formats::Capture& capture, int max_frames)
-    : m_frames(capture), m_count(capture.frames.count), m_fps(capture.fps), m_source(capture.folder) {
+    : m_frames(capture), m_count(capture.frames.count), m_fps(capture.fps), m_source(capture.clip_path()) {
     if (max_frames > 0) m_count = std::min(m_count, max_frames);
-    if (m_source.empty()) m_source = capture.frames.is_video() ? capture.frames.video : capture.frames.pattern;
 }
 
 int CaptureFrames::width() const { return m_frames.width(); }

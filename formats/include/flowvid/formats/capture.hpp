@@ -138,6 +138,10 @@ struct Capture {
 
     // A path of capture.json resolved against the folder (absolute paths stay).
     std::string resolve(const std::string& relative) const;
+    // Where the clip can be opened again (what a particle bank records): the
+    // folder of a capture read from capture.json, else the video file or the
+    // frame pattern.
+    std::string clip_path() const;
     // Full path of frame `number` (pattern captures) and of its mask (when masks).
     std::string frame_path(int number) const;
     std::string mask_path(int number) const;

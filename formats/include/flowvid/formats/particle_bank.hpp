@@ -97,7 +97,8 @@ void write_particle_bank(const std::string& path, const ParticleBank& bank);
 // and when both move together.
 std::string source_clip_for_bank(const std::string& bank_path, const std::string& clip_path);
 // The clip a bank read from `bank_path` names: an absolute source_clip as
-// is; a relative one against the bank's folder when that exists, else
+// is; a relative one against the bank's folder when that exists (for a
+// frame pattern: when its frame 0 or 1 does), else
 // against the working directory (banks written before 2026-11-23 recorded
 // it so). Empty when the bank records none.
 std::string resolve_source_clip(const std::string& bank_path, const ParticleBank& bank);
