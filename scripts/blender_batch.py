@@ -32,6 +32,8 @@ def _arguments(argv):
     parser.add_argument("--frames", type=_frame_range,
                         help="A:B (default: the scene's frame range); frames are named by their number, so farm "
                              "tasks rendering chunks of one range join seamlessly")
+    parser.add_argument("--background", choices=("median", "loop", "replay", "none"),
+                        help="with --bank: what shows where no line reaches (flowvid edit --background; default median)")
     parser.add_argument("--render", help="folder to render the frames into (PNG)")
     parser.add_argument("--addon", help="folder holding flowvid_blender (default: this checkout's blender_addon)")
     parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
@@ -102,7 +104,7 @@ def main():
             if not options.flowlines:
                 raise api.FlowvidError("--bank needs --flowlines")
             folder = os.path.join(os.path.dirname(os.path.abspath(options.flowlines)), "synthesized")
-            first = api.synthesize(options.bank, options.flowlines, start, end, folder)
+            first = api.synthesize(options.bank, options.flowlines, start, end, folder, background=options.background)
             image = api.load_image_sequence(first, start, end - start + 1)
             api.show_on_camera_plane(scene.camera, image, start, end - start + 1, scene=scene)
             summary["synthesized"] = folder

@@ -677,12 +677,14 @@ def run_flowvid_tool(*arguments):
     return completed.stdout
 
 
-def synthesize(bank, flowlines, frame_start, frame_end, out_dir, extra=()):
-    """flowvid edit for the frame range: PNG frames out_dir/%06d.png; returns the first frame's path."""
+def synthesize(bank, flowlines, frame_start, frame_end, out_dir, extra=(), background=None):
+    """flowvid edit for the frame range: PNG frames out_dir/%06d.png; returns the first frame's path.
+    background: median, loop, replay or none (flowvid edit --background; None: the tool's default)."""
     os.makedirs(out_dir, exist_ok=True)
     pattern = os.path.join(out_dir, "%06d.png")
+    chosen = ("--background", background) if background else ()
     run_flowvid_tool("edit", "--bank", bank, "--flowlines", flowlines, "--frames", "%d:%d" % (frame_start, frame_end),
-                     "--out", pattern, *extra)
+                     "--out", pattern, *chosen, *extra)
     return pattern % frame_start
 
 

@@ -119,7 +119,8 @@ def test_end_to_end_render():
         lines_path = os.path.join(folder, "particles.flowlines.json")
         summary = api.bake_flowlines(emitter, camera, 1, 8, lines_path, inputs=drawn)
         assert summary["lines"] == 6, summary
-        first = api.synthesize(bank, lines_path, 1, 5, os.path.join(folder, "synth"), extra=("--background", "none", "--capture", clip))
+        first = api.synthesize(bank, lines_path, 1, 5, os.path.join(folder, "synth"), background="none",
+                               extra=("--capture", clip))
         image = api.load_image_sequence(first, 1, 5)
         api.show_on_camera_plane(camera, image, 1, 5, scene=scene)
         rendered = api.render_frames(os.path.join(folder, "render"), 1, 5, scene=scene)

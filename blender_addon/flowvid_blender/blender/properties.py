@@ -36,6 +36,12 @@ class FlowvidSceneSettings(bpy.types.PropertyGroup):
         ("cycle", "In turn", "Output lines take the input lines one after the other"),
     ))
     by_hand: StringProperty(name="By hand", description="Overrides: 'p3=in-2, p7=in-1'")
+    background: EnumProperty(name="Background", default="median", items=(
+        ("median", "Median plate", "Where no line reaches: the clip's static median frame"),
+        ("loop", "Looped clip", "Where no line reaches: the clip itself, looped"),
+        ("replay", "Replayed clip", "Where no line reaches: the clip frame the particles show"),
+        ("none", "Black", "Where no line reaches: black, to add the texture over a render"),
+    ), description="What shows where no output line carries texture (flowvid edit --background)")
     display: EnumProperty(name="Show as", default="PLANE", items=(
         ("PLANE", "Plane facing the camera", "Rendered: an emissive plane filling the camera view"),
         ("BACKGROUND", "Camera background", "Viewport only: the camera's background image"),
