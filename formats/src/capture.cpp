@@ -117,6 +117,15 @@ std::optional<std::string> format_frame_pattern(const std::string& pattern, int 
     return out;
 }
 
+std::optional<int> first_frame_of_pattern(const std::string& pattern) {
+    std::error_code ec;
+    for (int first : {0, 1}) {
+        const std::optional<std::string> frame = format_frame_pattern(pattern, first);
+        if (frame && fs::is_regular_file(*frame, ec)) return first;
+    }
+    return std::nullopt;
+}
+
 namespace {
 
 constexpr double kRotationTolerance = 1e-6;

@@ -796,11 +796,7 @@ std::string resolve_source_clip(const std::string& bank_path, const ParticleBank
     if (recorded.is_absolute()) return bank.source_clip;
     std::error_code ec;
     const fs::path beside = (fs::path(bank_path).parent_path() / recorded).lexically_normal();
-    bool present = fs::exists(beside, ec);
-    for (int first : {0, 1}) {
-        const std::optional<std::string> frame = format_frame_pattern(beside.string(), first);
-        present = present || (frame && fs::exists(*frame, ec));
-    }
+    const bool present = fs::exists(beside, ec) || first_frame_of_pattern(beside.string());
     return present ? beside.string() : bank.source_clip;
 }
 

@@ -236,15 +236,11 @@ formats::Capture open_clip(const std::string& path, double fps) {
     }
     if (has_integer_conversion(path)) {
         const std::string absolute = fs::absolute(path).string();
-        int first = -1;
-        for (int candidate : {0, 1})
-            if (fs::is_regular_file(*formats::format_frame_pattern(absolute, candidate), ec)) {
-                first = candidate;
-                break;
-            }
-        if (first < 0)
+        const std::optional<int> starts_at = formats::first_frame_of_pattern(absolute);
+        if (!starts_at)
             throw IoError(path, "", "no image for frame 0 or 1 of the pattern",
                           "name the frames with one printf integer, e.g. frames/%06d.png, starting at 0 or 1");
+        const int first = *starts_at;
         int count = 0;
         while (fs::is_regular_file(*formats::format_frame_pattern(absolute, first + count), ec)) ++count;
         capture.frames.pattern = absolute;

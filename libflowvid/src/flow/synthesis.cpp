@@ -517,6 +517,10 @@ struct Synthesizer::Plan {
         int time_offset_frames = 0;  // shows the particles of frame + this
         formats::FlowLine line;  // keyed lines: geometry per frame
         WarpTable warp;          // fixed, non-identity lines
+        // Whether a replayed background follows its particles (fill_background).
+        bool followed_by(const Background& background) const {
+            return background.mode() == BackgroundMode::replay && identity && time_offset_frames == 0;
+        }
     };
     std::vector<Line> lines;
     // SynthesisSettings::carry_background: each warped output line as a
@@ -722,7 +726,8 @@ RgbImage Synthesizer::render(int frame) const { return render(frame, nullptr); }
 // texture and background agree where patches end on both sides of the
 // ladder step. Lines rendered as they were tracked only: on warped or
 // time-shifted lines (edits) the background keeps the wrap's dissolve.
-void Synthesizer::fill_background(int frame, RgbImage& out) const {
+void Synthesizer::fill_background(int frame, const std::vector<ParticleStreams::Visible>& on_followed_lines,
+                                  RgbImage& out) const {
     const int w = m_plan->width, h = m_plan->height;
     const Background::ReplayFrames frames = m_background.replay_frames(frame);
     if (frames.continuing < 0) {
@@ -730,16 +735,11 @@ void Synthesizer::fill_background(int frame, RgbImage& out) const {
         return;
     }
     std::vector<ShownFrame> shown;
-    std::vector<ParticleStreams::Visible> visible;
     bool any_continuing = false;
-    for (const Plan::Line& line : m_plan->lines) {
-        if (!line.identity || line.time_offset_frames != 0) continue;
-        m_streams->visible(line.stream, frame, visible);
-        for (const auto& v : visible) {
-            if (v.input_frame != frames.now && v.input_frame != frames.continuing) continue;  // a borrowed start's
-            shown.push_back({v.centre, v.weight, v.input_frame == frames.continuing});
-            any_continuing = any_continuing || v.input_frame == frames.continuing;
-        }
+    for (const auto& v : on_followed_lines) {
+        if (v.input_frame != frames.now && v.input_frame != frames.continuing) continue;  // a borrowed start's
+        shown.push_back({v.centre, v.weight, v.input_frame == frames.continuing});
+        any_continuing = any_continuing || v.input_frame == frames.continuing;
     }
     if (!any_continuing) {
         m_background.fill(frame, w, h, out);
@@ -760,8 +760,10 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
     std::vector<ParticleStreams::Visible> visible;
     std::vector<float> feather(static_cast<std::size_t>(patch));
     for (int i = 0; i < patch; ++i) feather[static_cast<std::size_t>(i)] = feather_weight(static_cast<float>(i), patch);
+    std::vector<ParticleStreams::Visible> followed;  // what a replayed background follows
     for (const Plan::Line& line : m_plan->lines) {
         m_streams->visible(line.stream, frame + line.time_offset_frames, visible);
+        if (line.followed_by(m_background)) followed.insert(followed.end(), visible.begin(), visible.end());
         if (line.identity) {
             for (const auto& v : visible) splat_patch(acc, v, patch, feather);
             continue;
@@ -775,7 +777,7 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
         }
     }
     RgbImage out;
-    fill_background(frame, out);
+    fill_background(frame, followed, out);
     CarryBuffers carry;
     carry_background_into(frame, out, carry);
     if (coverage) coverage->assign(static_cast<std::size_t>(w) * h, 0.0f);
@@ -868,6 +870,7 @@ struct RenderBuffers {
     };
 
     std::vector<ParticleStreams::Visible> visible;
+    std::vector<ParticleStreams::Visible> followed;  // on the lines a replayed background follows
     std::vector<float> feather;
     std::vector<WarpTable> keyed_warps;
     std::vector<Splat> splats;
@@ -1034,9 +1037,11 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
     // Groups of patches by input frame: for the detail gain and for overlap sharpening.
     const bool detail = m_settings.preserve_detail, sharpen = m_settings.overlap_sharpness != 1.0;
     const bool groups = detail || sharpen;
-    fill_background(frame, out);
     if (coverage) coverage->assign(static_cast<std::size_t>(w) * h, 0.0f);
-    if (w <= 0 || h <= 0) return;
+    if (w <= 0 || h <= 0) {
+        m_background.fill(frame, w, h, out);
+        return;
+    }
 
     s.feather.resize(static_cast<std::size_t>(patch));
     for (int i = 0; i < patch; ++i) s.feather[static_cast<std::size_t>(i)] = feather_weight(static_cast<float>(i), patch);
@@ -1047,8 +1052,10 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
     for (const Plan::Line& line : m_plan->lines) keyed += line.keyed ? 1 : 0;
     s.keyed_warps.resize(keyed);  // never reallocated below: splats point into it
     keyed = 0;
+    s.followed.clear();
     for (const Plan::Line& line : m_plan->lines) {
         m_streams->visible(line.stream, frame + line.time_offset_frames, s.visible);
+        if (line.followed_by(m_background)) s.followed.insert(s.followed.end(), s.visible.begin(), s.visible.end());
         const WarpTable* warp = nullptr;
         if (line.keyed) {
             warp = &s.keyed_warps[keyed++];
@@ -1086,6 +1093,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
         }
     }
 
+    fill_background(frame, s.followed, out);
     carry_background_into(frame, out, s.carry);
 
     // Steps: band k = rows [k B, (k + 1) B) needs rows up to hi_k = (k + 1) B + R;

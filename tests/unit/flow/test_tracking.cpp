@@ -55,6 +55,16 @@ formats::FlowLine line_of(const std::vector<Eigen::Vector2d>& points, const std:
     return line;
 }
 
+// Tracks a synthetic flow's curve with non-stationary dynamics, every path to its end.
+TrackingResult track_non_stationary(const SyntheticFlow& truth, int start_every) {
+    MemoryFrames clip = truth.clip();
+    TrackingSettings settings;
+    settings.dynamics = formats::ParticleDynamics::non_stationary;
+    settings.start_every = start_every;
+    settings.max_path_frames = -1;
+    return track_particles(clip, {line_of(truth.spec().curve)}, settings);
+}
+
 SyntheticFlowSpec accelerating_fall() {
     SyntheticFlowSpec spec;
     spec.width = 128;
@@ -143,12 +153,7 @@ TEST(FlowTracking, NonStationaryParticlesKeepTheirOwnSpeed) {
     // varying, so that no particle overtakes another).
     spec.speed_factor = [](double e) { return 1.0 + 0.2 * std::sin(2.0 * M_PI * (e - 20.0) / 96.0); };
     const SyntheticFlow truth(spec);
-    MemoryFrames clip = truth.clip();
-    TrackingSettings settings;
-    settings.dynamics = formats::ParticleDynamics::non_stationary;
-    settings.start_every = 1;
-    settings.max_path_frames = -1;
-    const TrackingResult result = track_particles(clip, {line_of(spec.curve)}, settings);
+    const TrackingResult result = track_non_stationary(truth, 1);
     const Errors e = compare(result.bank, truth);
     std::printf("non-stationary: %d particles, step error max %.3f rms %.3f, position error max %.3f px\n", e.particles,
                 e.max_step, e.rms_step, e.max_position);
@@ -178,12 +183,7 @@ TEST(FlowTracking, NonStationaryParticlesFollowASurgeBeyondTheirSearchWindow) {
     spec.time_factor = [](double t) { return t < 23.5 ? 1.0 : 8.0; };  // x8 from frame 23.5
     spec.feature_px = 1.5;  // the surge stretches the texture along the flow 8 times
     const SyntheticFlow truth(spec);
-    MemoryFrames clip = truth.clip();
-    TrackingSettings settings;
-    settings.dynamics = formats::ParticleDynamics::non_stationary;
-    settings.start_every = 2;
-    settings.max_path_frames = -1;
-    const TrackingResult result = track_particles(clip, {line_of(spec.curve)}, settings);
+    const TrackingResult result = track_non_stationary(truth, 2);
     const Errors e = compare(result.bank, truth);
     int surged = 0;  // particles on the line when the surge came
     for (const auto& p : result.bank.particles)

@@ -150,6 +150,9 @@ struct Capture {
 // Formats a printf-style frame pattern ("frames/%06d.png", 7 -> "frames/000007.png").
 // Accepts exactly one %d, %Nd or %0Nd (N <= 32) and %% escapes; nullopt otherwise.
 std::optional<std::string> format_frame_pattern(const std::string& pattern, int number);
+// The number a frame pattern's sequence starts at: 0 or 1, whichever file
+// exists (0 first); nullopt when neither does or the pattern is not one.
+std::optional<int> first_frame_of_pattern(const std::string& pattern);
 
 // Validates a parsed capture.json whose folder is `folder`; every problem goes
 // to `diagnostics` (whose file should be the capture.json path).

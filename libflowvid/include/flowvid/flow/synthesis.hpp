@@ -298,8 +298,9 @@ private:
     struct Scratch;  // a rendering thread's working buffers, reused from frame to frame
     struct CarryBuffers;
     void render_into(int frame, RgbImage& out, std::vector<float>* coverage, Scratch& scratch) const;
-    // The frame's background; a replayed one follows the ladder.
-    void fill_background(int frame, RgbImage& out) const;
+    // The frame's background; a replayed one follows the ladder, from the
+    // particles visible on the lines it follows (gathered while rendering).
+    void fill_background(int frame, const std::vector<ParticleStreams::Visible>& on_followed_lines, RgbImage& out) const;
     // Composites the background carried along warped output lines over `out`
     // (the frame's background), before the particles.
     void carry_background_into(int frame, RgbImage& out, CarryBuffers& buffers) const;
