@@ -106,7 +106,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     const flow::SynthesisSettings settings = synthesis_settings(options.synthesis);
     auto streams = std::make_shared<flow::ParticleStreams>(
         bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
-    for (const std::string& w : streams->schedule().warnings) log_message("warning: " + w);
+    report_schedule(streams->schedule());
 
     Progress reading(global, "read clip");
     flow::CaptureFrames frames(capture);
@@ -178,6 +178,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                                 {"wrap_fade_frames", options.synthesis.wrap_fade_frames},
                                 {"borrow_within_frames", options.synthesis.borrow_within_frames},
                                 {"first_start_frame", schedule.first_start_frame}}}};
+    summary.update(window_summary(schedule));
     nlohmann::json methods = nlohmann::json::object();
     for (const flow::MethodQuality& m : result.methods) methods[m.method] = report_json(m.report);
     summary["methods"] = methods;

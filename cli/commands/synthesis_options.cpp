@@ -2,8 +2,39 @@
 
 #include "flowvid/error.hpp"
 #include "flowvid/flow/frames.hpp"
+#include "output.hpp"
+
+#include <cmath>
+#include <cstdio>
 
 namespace flowvid::cli {
+
+namespace {
+nlohmann::json number_or_null(double value) { return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value); }
+}  // namespace
+
+void report_schedule(const flow::Schedule& schedule) {
+    for (const std::string& w : schedule.warnings) log_message("warning: " + w);
+    const flow::Schedule::Window& longest = schedule.longest_window;
+    if (longest.particles_per_line == 0) return;
+    char text[400];
+    std::snprintf(text, sizeof text,
+                  "window: K = %d particles from input frame %d (period %d frames), whose wrap joins better than the longest "
+                  "window's (K = %d from frame %d): join error %.3f against %.3f (--particles and --first-start choose another)",
+                  schedule.particles_per_line, schedule.first_start_frame, schedule.period_frames, longest.particles_per_line,
+                  longest.first_start_frame, schedule.wrap_join_error, longest.wrap_join_error);
+    log_message(text);
+}
+
+nlohmann::json window_summary(const flow::Schedule& schedule) {
+    nlohmann::json out = {{"wrap_join_error", number_or_null(schedule.wrap_join_error)}};
+    const flow::Schedule::Window& longest = schedule.longest_window;
+    if (longest.particles_per_line > 0)
+        out["longest_window"] = {{"particles_per_line", longest.particles_per_line},
+                                 {"first_start_frame", longest.first_start_frame},
+                                 {"wrap_join_error", number_or_null(longest.wrap_join_error)}};
+    return out;
+}
 
 std::optional<formats::Capture> open_bank_clip(const std::string& capture_option, const std::string& bank_path,
                                                const formats::ParticleBank& bank, std::string& why_not) {
@@ -24,7 +55,7 @@ std::optional<formats::Capture> open_bank_clip(const std::string& capture_option
 void add_synthesis_options(CLI::App& app, SynthesisOptions& o) {
     app.add_option("--particles", o.particles, "K particles per line in the diagonal order (0 = as many as fit)");
     app.add_option("--first-start", o.first_start, "input start frame of the first of the K particles (default: seeded)");
-    app.add_option("--seed", o.seed, "chooses the K-particle window when several fit (0 = the earliest)");
+    app.add_option("--seed", o.seed, "chooses the K-particle window when several fit (0 = the one whose wrap joins best)");
     app.add_option("--borrow-within", o.borrow_within_frames,
                    "a window slot with no particle of its own start frame shows the nearest start's if it starts at "
                    "most N frames away, else it is left empty (0 = always empty)")

@@ -7,6 +7,7 @@
 #include "flowvid/formats/particle_bank.hpp"
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <optional>
 #include <string>
@@ -31,6 +32,14 @@ void add_synthesis_options(CLI::App& app, SynthesisOptions& options);
 
 // The library settings those options give (the rest at their defaults).
 flow::SynthesisSettings synthesis_settings(const SynthesisOptions& options);
+
+// Logs the schedule's warnings and, when the window was shortened for a
+// better-joining wrap, which window was taken over the longest and why.
+void report_schedule(const flow::Schedule& schedule);
+
+// The window's wrap join for a command's summary: {"wrap_join_error": x or
+// null, "longest_window": {...} when a shorter window was taken}.
+nlohmann::json window_summary(const flow::Schedule& schedule);
 
 // The clip a bank was tracked from (a capture folder, a video or an image
 // pattern): `capture_option` when given (its errors name the file and the

@@ -103,7 +103,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     settings.carry_background = options.carry_background;
     auto streams = std::make_shared<flow::ParticleStreams>(
         bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
-    for (const std::string& w : streams->schedule().warnings) log_message("warning: " + w);
+    report_schedule(streams->schedule());
 
     flow::Background background;
     if (mode != flow::BackgroundMode::none) {
@@ -190,6 +190,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     summary["particles_per_line"] = schedule.particles_per_line;
     summary["start_every"] = schedule.start_every;
     summary["first_start_frame"] = schedule.first_start_frame;
+    summary.update(window_summary(schedule));
     summary["lines"] = schedule.lines.size();
     summary["background"] = options.background;
     if (edit) summary["mapping"] = options.mapping;

@@ -3,6 +3,7 @@
 #include "flowvid/flow/synthesis.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <limits>
@@ -23,6 +24,93 @@ std::uint64_t mix_seed(std::uint64_t x) {
     x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
     return x ^ (x >> 31);
 }
+
+// How well a window's wrap joins: the ladder step of fig. 3.5b. After each
+// wrap the first particle of the window (start s) enters behind the last ones
+// of the period before, which show input frames a period P later; where that
+// particle is at age a, the input itself showed frame s + P + a. The error is
+// the RMS difference of linear luma between its texture there and the texture
+// of the input particle nearest that place at that frame (within a quarter
+// patch), over the middle half of the patch, averaged over the lines and ages
+// the clip has such a frame for. A fire whose flames are low at s + P shows
+// the dark pot there in old particles beside the new ones' flames; a window
+// whose wrap lands on similar frames hides the step, as the thesis expects.
+class WrapJoin {
+public:
+    WrapJoin(const formats::ParticleBank& bank, const std::vector<const std::vector<std::pair<int, int>>*>& starts_by_line)
+        : m_bank(bank), m_starts(starts_by_line) {
+        const std::size_t frames = static_cast<std::size_t>(std::max(1, bank.clip_frame_count));
+        m_alive.resize(starts_by_line.size(), std::vector<std::vector<std::pair<int, int>>>(frames));
+        for (std::size_t l = 0; l < starts_by_line.size(); ++l)
+            for (const auto& [start, index] : *starts_by_line[l]) {
+                const formats::TrackedParticle& p = bank.particles[static_cast<std::size_t>(index)];
+                for (int age = 0; age < p.life_frames(); ++age) {
+                    const long long f = static_cast<long long>(start) + age;
+                    if (f >= 0 && f < static_cast<long long>(frames)) m_alive[l][static_cast<std::size_t>(f)].emplace_back(index, age);
+                }
+            }
+    }
+
+    // NaN when nothing could be compared.
+    double error(int s0, int step, int count) const {
+        const int period = step * count, frames = static_cast<int>(m_alive.empty() ? 0 : m_alive.front().size());
+        const int n = m_bank.patch_size_px;
+        double sum = 0.0;
+        long long samples = 0;
+        for (std::size_t l = 0; l < m_starts.size(); ++l) {
+            // The window's first particle on this line (an empty slot 0 leaves it to slot 1, ...).
+            const auto& starts = *m_starts[l];
+            const auto it = std::find_if(starts.begin(), starts.end(), [&](const std::pair<int, int>& st) {
+                return st.first >= s0 && st.first < s0 + period && (st.first - s0) % step == 0;
+            });
+            if (it == starts.end()) continue;
+            const formats::TrackedParticle& p = m_bank.particles[static_cast<std::size_t>(it->second)];
+            for (int age = 0; age < p.life_frames(); ++age) {
+                const int f = it->first + period + age;
+                if (f >= frames) break;
+                const float s = p.arc_length_px[static_cast<std::size_t>(age)];
+                const std::pair<int, int>* nearest = nullptr;
+                float nearest_px = static_cast<float>(n) / 4.0f;
+                for (const auto& alive : m_alive[l][static_cast<std::size_t>(f)]) {
+                    const float d = std::fabs(m_bank.particles[static_cast<std::size_t>(alive.first)].arc_length_px[static_cast<std::size_t>(alive.second)] - s);
+                    if (d <= nearest_px) {
+                        nearest_px = d;
+                        nearest = &alive;
+                    }
+                }
+                if (!nearest) continue;
+                const double mse = middle_luma_mse(p, age, m_bank.particles[static_cast<std::size_t>(nearest->first)], nearest->second, n);
+                if (std::isnan(mse)) continue;
+                sum += mse;
+                ++samples;
+            }
+        }
+        return samples > 0 ? std::sqrt(sum / static_cast<double>(samples)) : std::numeric_limits<double>::quiet_NaN();
+    }
+
+private:
+    static double middle_luma_mse(const formats::TrackedParticle& a, int age_a, const formats::TrackedParticle& b, int age_b, int n) {
+        const std::size_t patch_values = static_cast<std::size_t>(n) * n * 4;
+        const float* pa = a.texture_rgba.data() + static_cast<std::size_t>(age_a) * patch_values;
+        const float* pb = b.texture_rgba.data() + static_cast<std::size_t>(age_b) * patch_values;
+        const auto luma = [](const float* px) { return (0.2126 * px[0] + 0.7152 * px[1] + 0.0722 * px[2]) / px[3]; };
+        double sum = 0.0;
+        int count = 0;
+        for (int y = n / 4; y < n - n / 4; ++y)
+            for (int x = n / 4; x < n - n / 4; ++x) {
+                const std::size_t o = (static_cast<std::size_t>(y) * n + x) * 4;
+                if (pa[o + 3] < 0.5f || pb[o + 3] < 0.5f) continue;  // outside the clip
+                const double d = luma(pa + o) - luma(pb + o);
+                sum += d * d;
+                ++count;
+            }
+        return count > 0 ? sum / count : std::numeric_limits<double>::quiet_NaN();
+    }
+
+    const formats::ParticleBank& m_bank;
+    std::vector<const std::vector<std::pair<int, int>>*> m_starts;         // per line: (start, particle), sorted
+    std::vector<std::vector<std::vector<std::pair<int, int>>>> m_alive;  // per line, per input frame: (particle, age)
+};
 
 }  // namespace
 
@@ -115,13 +203,17 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
     if (settings.particles > slots)
         schedule.warnings.push_back("asked for " + std::to_string(settings.particles) + " particles per line but the bank spans only " +
                                     std::to_string(slots) + " start frames; using " + std::to_string(slots));
+    const auto fits = [&](int f, int count) {
+        const bool has_thin_slot = thin_before[static_cast<std::size_t>(f + count)] != thin_before[static_cast<std::size_t>(f)];
+        return missing(f, count) <= kMaxMissingShare * count * line_count && !has_thin_slot;
+    };
+    std::vector<int> fitting;  // of the window found: its first slots with the fewest missing
     for (int count = wanted > 0 ? wanted : slots; count >= 1; --count) {
-        std::vector<int> fitting;
+        fitting.clear();
         int best_missing = std::numeric_limits<int>::max();
         for (int f = 0; f + count <= slots; ++f) {
             const int m = missing(f, count);
-            const bool has_thin_slot = thin_before[static_cast<std::size_t>(f + count)] != thin_before[static_cast<std::size_t>(f)];
-            if (wanted == 0 && (m > kMaxMissingShare * count * line_count || has_thin_slot)) continue;
+            if (wanted == 0 && !fits(f, count)) continue;
             if (m < best_missing) {
                 best_missing = m;
                 fitting.clear();
@@ -145,11 +237,47 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
         }
         break;
     }
+    // The default window (no start frame or seed asked for): of those at
+    // least kMinPeriodShare as long as the longest (or of the asked length),
+    // the one whose wrap joins best, when it joins clearly better than the
+    // longest, earliest one (a shorter period repeats sooner; a join within
+    // noise of the other is not worth it).
+    constexpr double kMinPeriodShare = 0.85, kMinJoinGain = 0.9;
+    std::vector<const std::vector<std::pair<int, int>>*> line_starts;
+    for (const auto* line : lines) line_starts.push_back(&by_line[line->id]);
+    const WrapJoin join(bank, line_starts);
+    if (settings.first_start_frame < 0 && settings.seed == 0 && !fitting.empty()) {
+        std::vector<std::pair<int, int>> candidates;  // (count, first slot)
+        if (wanted > 0) {
+            for (int f : fitting) candidates.emplace_back(k, f);
+        } else {
+            const int shortest = std::max(1, static_cast<int>(std::ceil(kMinPeriodShare * k)));
+            for (int count = k; count >= shortest; --count)
+                for (int f = 0; f + count <= slots; ++f)
+                    if (fits(f, count)) candidates.emplace_back(count, f);
+        }
+        const double longest = join.error(first_start + first_slot * step, step, k);
+        std::pair<int, int> best{k, first_slot};
+        double best_error = longest;
+        for (const auto& [count, f] : candidates) {
+            const double e = join.error(first_start + f * step, step, count);
+            if (e < best_error) {  // false for NaN
+                best_error = e;
+                best = {count, f};
+            }
+        }
+        if (best != std::make_pair(k, first_slot) && best_error < kMinJoinGain * longest) {
+            schedule.longest_window = {k, first_start + first_slot * step, longest};
+            k = best.first;
+            first_slot = best.second;
+        }
+    }
     const int s0 = first_start + first_slot * step;
     schedule.particles_per_line = k;
     schedule.start_every = step;
     schedule.first_start_frame = s0;
     schedule.period_frames = k * step;
+    schedule.wrap_join_error = join.error(s0, step, k);
     for (const auto* line : lines) {
         const auto& starts = by_line[line->id];
         LineSchedule ls;

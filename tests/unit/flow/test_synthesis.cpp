@@ -427,14 +427,76 @@ TEST(FlowSynthesis, TheAutomaticWindowEndsBeforeStartsMostLinesLack) {
         }
     }
     bank->particles = std::move(particles);
+    // Textures alike whatever the start, so that every window's wrap joins
+    // equally well and the window's length decides.
+    for (formats::TrackedParticle& p : bank->particles)
+        for (std::size_t i = 0; i < p.texture_rgba.size(); i += 4) p.texture_rgba[i] = 0.5f;
     const Schedule schedule = make_schedule(*bank, SynthesisSettings{});
     EXPECT_EQ(schedule.first_start_frame, 0);
     EXPECT_EQ(schedule.particles_per_line, 8);  // 10 before: the quarter allowed the two thin starts
+    EXPECT_EQ(schedule.longest_window.particles_per_line, 0);
     for (const LineSchedule& line : schedule.lines) EXPECT_EQ(line.substituted, 0);
     // Asked for, the thin starts are still taken.
     SynthesisSettings ten;
     ten.particles = 10;
     EXPECT_EQ(make_schedule(*bank, ten).particles_per_line, 10);
+}
+
+// The default window is the one whose wrap joins best (the ladder step of
+// fig. 3.5b shows the least), among those at least 85 % as long as the
+// longest. Every particle shows a grey g(f) of the input frame f it comes
+// from, random per frame except that frames 19..24 repeat frames 1..6: a
+// window starting at frame 1 with a period of 18 frames wraps onto the very
+// frames the input shows, so its join error is 0, while the longest window
+// (K = 20 from frame 0) joins frames 0..4 to 20..24. Its error is the RMS of
+// those grey differences, computed here by hand.
+TEST(FlowSynthesis, TheDefaultWindowIsTheOneWhoseWrapJoinsBest) {
+    const int count = 20, life = 6;
+    auto bank = toy_bank(count, life);
+    ASSERT_EQ(bank->clip_frame_count, 25);
+    std::mt19937 random(7);
+    std::uniform_real_distribution<float> grey(0.1f, 0.9f);
+    std::vector<float> g(25);
+    for (float& value : g) value = grey(random);
+    for (int f = 19; f < 25; ++f) g[static_cast<std::size_t>(f)] = g[static_cast<std::size_t>(f - 18)];
+    // Slow particles (1 px/frame): the input's particle nearest a place is
+    // within the quarter patch the measure looks in.
+    for (formats::TrackedParticle& p : bank->particles)
+        for (int a = 0; a < life; ++a) {
+            p.arc_length_px[static_cast<std::size_t>(a)] = static_cast<float>(a);
+            for (int t = 0; t < 16; ++t)
+                for (int c = 0; c < 3; ++c)
+                    p.texture_rgba[(static_cast<std::size_t>(a) * 16 + t) * 4 + c] = g[static_cast<std::size_t>(p.start_frame + a)];
+        }
+
+    const Schedule schedule = make_schedule(*bank, SynthesisSettings{});
+    EXPECT_EQ(schedule.first_start_frame, 1);
+    EXPECT_EQ(schedule.particles_per_line, 18);
+    EXPECT_NEAR(schedule.wrap_join_error, 0.0, 1e-6);
+    double sum = 0.0;
+    for (int a = 0; a + 20 < 25; ++a) sum += std::pow(g[static_cast<std::size_t>(a)] - g[static_cast<std::size_t>(a + 20)], 2);
+    const double longest = std::sqrt(sum / 5.0);
+    ASSERT_GT(longest, 0.05);
+    EXPECT_EQ(schedule.longest_window.particles_per_line, 20);
+    EXPECT_EQ(schedule.longest_window.first_start_frame, 0);
+    EXPECT_NEAR(schedule.longest_window.wrap_join_error, longest, 1e-6);
+    std::printf("wrap join error: chosen window %.4f, longest %.4f (by hand %.4f)\n", schedule.wrap_join_error,
+                schedule.longest_window.wrap_join_error, longest);
+
+    // A window asked for is kept; so is a seeded one (among the longest).
+    SynthesisSettings asked;
+    asked.first_start_frame = 0;
+    const Schedule kept = make_schedule(*bank, asked);
+    EXPECT_EQ(kept.particles_per_line, 20);
+    EXPECT_NEAR(kept.wrap_join_error, longest, 1e-6);  // measured for any window
+    EXPECT_EQ(kept.longest_window.particles_per_line, 0);
+    SynthesisSettings seeded;
+    seeded.seed = 3;
+    EXPECT_EQ(make_schedule(*bank, seeded).particles_per_line, 20);
+    // Of the windows of an asked length, the best-joining one.
+    SynthesisSettings eighteen;
+    eighteen.particles = 18;
+    EXPECT_EQ(make_schedule(*bank, eighteen).first_start_frame, 1);
 }
 
 // Where the diagonal order wraps, patches of input frames a period apart

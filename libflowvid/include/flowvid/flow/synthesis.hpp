@@ -44,6 +44,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -57,9 +58,14 @@ ArcMapping arc_mapping_from_string(const std::string& text);  // "equal" | "scal
 double arc_mapping_scale(ArcMapping mapping, double length_in, double length_out);
 
 struct SynthesisSettings {
-    int particles = 0;           // K per line; 0 = as many as every line has in one common window
+    // K per line; 0 = as many as every line has in one common window, or up
+    // to 15 % fewer where such a window's wrap joins clearly better
+    // (Schedule::wrap_join_error).
+    int particles = 0;
     int first_start_frame = -1;  // s0, the input start frame of particle 0; -1 = from the seed
-    std::uint64_t seed = 0;      // 0 = the earliest window; else a seeded window among those that fit
+    // 0 = the window whose wrap joins best (the earliest when none is clearly
+    // better); else a seeded window among the longest that fit.
+    std::uint64_t seed = 0;
     ArcMapping mapping = ArcMapping::equal;
     double coverage_weight = 0.5;  // accumulated feather weight at which texture fully hides the background
     // Particles fade in over this many frames after entering a line and out
@@ -138,6 +144,18 @@ struct Schedule {
     int start_every = 1;         // step, output frames between two entries on a line
     int first_start_frame = 0;   // s0
     int period_frames = 0;       // K * step: frame t + period equals frame t
+    // How well the wrap joins (the ladder step of fig. 3.5b): RMS difference
+    // of linear luma between what the window's first particle shows and what
+    // the input showed at the same place a period later, where the old
+    // particles it meets come from. NaN where the clip has no such frames.
+    double wrap_join_error = std::numeric_limits<double>::quiet_NaN();
+    // When a shorter window was taken because its wrap joins clearly better:
+    // the longest window's K, s0 and join error (particles_per_line 0: not).
+    struct Window {
+        int particles_per_line = 0;
+        int first_start_frame = 0;
+        double wrap_join_error = std::numeric_limits<double>::quiet_NaN();
+    } longest_window;
     std::vector<LineSchedule> lines;  // bank lines with particles, bank order
     std::vector<std::string> warnings;
 };
