@@ -30,6 +30,7 @@ struct RenderOptions {
     std::string frames = "100";
     std::string out;
     std::string background = "median";
+    std::string texture = "whole";
     SynthesisOptions synthesis;
     bool loop = false;
     int threads = 0;
@@ -80,9 +81,18 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     std::string why_no_clip;
     const std::optional<formats::Capture> capture = open_bank_clip(options.capture, options.bank, *bank, why_no_clip);
     const flow::BackgroundMode mode = flow::background_mode_from_string(options.background);
-    if (mode != flow::BackgroundMode::none && !capture) {
-        log_message("error: " + options.bank + ": the background needs the source clip (" + why_no_clip +
-                    "); give --capture, or --background none");
+    const flow::TextureLayer layer = flow::texture_layer_from_string(options.texture);
+    const bool moving = layer == flow::TextureLayer::moving;
+    if (moving && (mode == flow::BackgroundMode::loop || mode == flow::BackgroundMode::replay)) {
+        log_message("error: --texture moving screens the flames over a still background, and the " + options.background +
+                    " background already shows them: use --background median (the clip's dark plate) or none");
+        return kExitUsage;
+    }
+    if ((mode != flow::BackgroundMode::none || moving) && !capture) {
+        log_message("error: " + options.bank + ": " +
+                    (moving ? std::string("--texture moving needs the source clip's still plate")
+                            : std::string("the background needs the source clip")) +
+                    " (" + why_no_clip + "); give --capture" + (moving ? "" : ", or --background none"));
         return kExitUsage;
     }
     std::string lines_path = options.flowlines;
@@ -98,15 +108,8 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
         return kExitInvalidInput;
     }
 
-    flow::SynthesisSettings settings = synthesis_settings(options.synthesis);
-    settings.mapping = flow::arc_mapping_from_string(options.mapping);
-    settings.carry_background = options.carry_background;
-    auto streams = std::make_shared<flow::ParticleStreams>(
-        bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
-    report_schedule(streams->schedule());
-
-    flow::Background background;
-    if (mode != flow::BackgroundMode::none) {
+    std::shared_ptr<flow::ClipFrames> clip;
+    if (mode != flow::BackgroundMode::none || moving) {
         Progress reading(global, "read clip");
         flow::CaptureFrames frames(*capture);
         if (frames.width() != bank->clip_width_px || frames.height() != bank->clip_height_px) {
@@ -115,13 +118,29 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
                         std::to_string(bank->clip_width_px) + " x " + std::to_string(bank->clip_height_px));
             return kExitInvalidInput;
         }
-        auto clip = std::make_shared<flow::ClipFrames>(flow::ClipFrames::read_all(frames, 0, [&](double f) {
+        clip = std::make_shared<flow::ClipFrames>(flow::ClipFrames::read_all(frames, 0, [&](double f) {
             reading.update(f);
             return true;
         }));
         reading.done();
-        background = flow::make_background(mode, clip, streams->schedule());
     }
+    const std::vector<std::vector<Eigen::Vector2d>> input_points =
+        flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path);
+    std::optional<flow::RgbImage> still_plate;  // the clip's median plate, when needed
+    // The moving layer is screened over the plate it was taken from (the
+    // clip's dark plate), which --background median then shows.
+    if (moving) still_plate = flow::moving_layer_still_plate(*clip);
+    else if (mode == flow::BackgroundMode::median) still_plate = flow::median_plate(*clip);
+
+    flow::SynthesisSettings settings = synthesis_settings(options.synthesis);
+    settings.mapping = flow::arc_mapping_from_string(options.mapping);
+    settings.carry_background = options.carry_background;
+    settings.texture_layer = layer;
+    auto streams = std::make_shared<flow::ParticleStreams>(bank, input_points, settings, &drawing);
+    report_schedule(streams->schedule());
+    flow::Background background = mode == flow::BackgroundMode::median
+                                      ? flow::Background::plate(*still_plate)
+                                      : flow::make_background(mode, clip, streams->schedule());
 
     std::vector<flow::OutputLine> outputs;
     nlohmann::json summary;
@@ -157,6 +176,9 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
             }
         }
     }
+    // The window and the edit's correspondence were chosen on whole textures,
+    // so that both layers of one bank keep one timing and one assignment.
+    if (moving) flow::keep_moving_part(*bank, input_points, *still_plate);
     const flow::Synthesizer synthesizer(streams, outputs, std::move(background), settings);
     for (const std::string& w : synthesizer.warnings())
         if (std::find(streams->schedule().warnings.begin(), streams->schedule().warnings.end(), w) ==
@@ -193,6 +215,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     summary.update(window_summary(schedule));
     summary["lines"] = schedule.lines.size();
     summary["background"] = options.background;
+    summary["texture"] = options.texture;
     if (edit) summary["mapping"] = options.mapping;
     if (options.json) std::cout << summary.dump(2) << '\n';
     else std::cout << human_readable(summary);
@@ -213,6 +236,13 @@ void add_common(CLI::App& app, RenderOptions& o) {
                    "where no line reaches: median (static plate), loop (the clip), replay (the clip in step with the "
                    "particles: the input frame they show), none")
         ->check(CLI::IsMember({"median", "loop", "replay", "none"}))
+        ->capture_default_str();
+    app.add_option("--texture", o.texture,
+                   "what a patch carries: whole (everything in it: water and the rock it passes), or moving (only the "
+                   "light the flow adds to the clip's dark plate, screened over that plate, or over black with "
+                   "--background none: flames and smoke in front of a scene, whose edits should not move the "
+                   "scene's edges)")
+        ->check(CLI::IsMember({"whole", "moving"}))
         ->capture_default_str();
     app.add_flag("--loop", o.loop, "render exactly one period (frames 1..K*step): a file that loops seamlessly");
     add_synthesis_options(app, o.synthesis);

@@ -257,6 +257,24 @@ TEST(CliFlow, EditsAlongNewLinesAndWritesTheDenseSet) {
     EXPECT_EQ(run_flowvid({"validate", dir + "/dense.flowlines.json"}).exit_code, 0);
 }
 
+// --texture moving (the numbers: FlowEditing.TheMovingLayerMovesTheFlameNotTheEdgeBehindIt):
+// the edit runs and says so; a background that already shows the flow is refused.
+TEST(CliFlow, TheMovingLayerNeedsAStillBackground) {
+    const std::string dir = own_dir("cli_flow_moving");
+    const CliResult r = run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", tiny_capture() + "/flowlines.svg",
+                                     "--frames", "2:2", "--texture", "moving", "--out", dir + "/%04d.png", "--json"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(nlohmann::json::parse(r.out)["texture"], "moving");
+    EXPECT_TRUE(fs::exists(dir + "/0002.png"));
+    for (const char* background : {"loop", "replay"}) {
+        const CliResult refused = run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "2:2", "--texture", "moving",
+                                               "--background", background, "--out", dir + "/r%04d.png"});
+        EXPECT_EQ(refused.exit_code, 2) << background;
+        EXPECT_TRUE(mentions(refused.err, "--background median")) << refused.err;
+        EXPECT_FALSE(fs::exists(dir + "/r0002.png"));
+    }
+}
+
 TEST(CliFlow, BadInputExitCodesNameTheProblem) {
     const std::string dir = own_dir("cli_flow_bad");
     EXPECT_EQ(run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "0", "--out", dir + "/%04d.png"}).exit_code, 2);

@@ -256,7 +256,12 @@ formats::Capture open_clip(const std::string& path, double fps) {
 
 // ---- backgrounds ---------------------------------------------------------------------------
 
-RgbImage median_plate(const ClipFrames& clip, int max_samples) {
+namespace {
+
+// A still plate: per pixel and channel, `pick` chooses one value from the
+// samples of (at most max_samples evenly spaced) linear frames.
+template <class Pick>
+RgbImage per_pixel_plate(const ClipFrames& clip, int max_samples, Pick pick) {
     const int count = clip.count();
     if (count == 0) return RgbImage(clip.width(), clip.height());
     const int samples = std::max(1, std::min(count, max_samples));
@@ -267,13 +272,30 @@ RgbImage median_plate(const ClipFrames& clip, int max_samples) {
     std::vector<float> values(static_cast<std::size_t>(samples));
     for (std::size_t i = 0; i < plate.rgb.size(); ++i) {
         for (int s = 0; s < samples; ++s) values[static_cast<std::size_t>(s)] = frames[static_cast<std::size_t>(s)].rgb[i];
-        const auto mid = values.begin() + samples / 2;
-        std::nth_element(values.begin(), mid, values.end());
-        float median = *mid;
-        if (samples % 2 == 0) median = 0.5f * (median + *std::max_element(values.begin(), mid));
-        plate.rgb[i] = median;
+        plate.rgb[i] = pick(values);
     }
     return plate;
+}
+
+}  // namespace
+
+RgbImage median_plate(const ClipFrames& clip, int max_samples) {
+    return per_pixel_plate(clip, max_samples, [](std::vector<float>& values) {
+        const auto mid = values.begin() + static_cast<long>(values.size() / 2);
+        std::nth_element(values.begin(), mid, values.end());
+        float median = *mid;
+        if (values.size() % 2 == 0) median = 0.5f * (median + *std::max_element(values.begin(), mid));
+        return median;
+    });
+}
+
+RgbImage quantile_plate(const ClipFrames& clip, double quantile, int max_samples) {
+    const double q = std::clamp(quantile, 0.0, 1.0);
+    return per_pixel_plate(clip, max_samples, [q](std::vector<float>& values) {
+        const auto rank = values.begin() + static_cast<long>(std::lround(q * static_cast<double>(values.size() - 1)));
+        std::nth_element(values.begin(), rank, values.end());
+        return *rank;
+    });
 }
 
 const char* to_string(BackgroundMode mode) {

@@ -6,7 +6,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
+#include <string>
 
 namespace flowvid::flow {
 
@@ -45,6 +47,42 @@ void sample_patch_bilinear(const float* texture, int patch, float u, float v, fl
 }
 
 }  // namespace
+
+// ---- the moving part ------------------------------------------------------------------------------
+
+RgbImage moving_layer_still_plate(const ClipFrames& clip) { return quantile_plate(clip, kMovingLayerStillQuantile); }
+
+void keep_moving_part(formats::ParticleBank& bank, const std::vector<std::vector<Eigen::Vector2d>>& input_points,
+                      const RgbImage& linear_still_plate) {
+    if (input_points.size() != bank.lines.size()) throw std::invalid_argument("one polyline per bank line is needed");
+    if (linear_still_plate.width != bank.clip_width_px || linear_still_plate.height != bank.clip_height_px)
+        throw std::invalid_argument("the still plate is " + std::to_string(linear_still_plate.width) + " x " +
+                                    std::to_string(linear_still_plate.height) + " but the bank's clip " +
+                                    std::to_string(bank.clip_width_px) + " x " + std::to_string(bank.clip_height_px));
+    const int patch = bank.patch_size_px, w = linear_still_plate.width, h = linear_still_plate.height;
+    const std::size_t patch_values = static_cast<std::size_t>(patch) * patch * 4;
+    std::vector<LineGeometry> geometry;  // as tracking and ParticleStreams build it
+    for (const auto& points : input_points) geometry.emplace_back(points, patch / 3.0);
+    std::map<std::string, std::size_t> line_of;
+    for (std::size_t i = 0; i < bank.lines.size(); ++i) line_of[bank.lines[i].id] = i;
+    for (formats::TrackedParticle& p : bank.particles) {
+        const auto it = line_of.find(p.line_id);
+        if (it == line_of.end()) continue;
+        const LineGeometry& g = geometry[it->second];
+        for (int age = 0; age < p.life_frames(); ++age) {
+            const Eigen::Vector2d centre = g.point(p.arc_length_px[static_cast<std::size_t>(age)]);
+            const int ox = patch_origin(centre.x(), patch), oy = patch_origin(centre.y(), patch);
+            float* texel = p.texture_rgba.data() + static_cast<std::size_t>(age) * patch_values;
+            for (int i = 0; i < patch; ++i)
+                for (int j = 0; j < patch; ++j, texel += 4) {
+                    const int x = ox + j, y = oy + i;
+                    if (x < 0 || y < 0 || x >= w || y >= h) continue;  // alpha 0 there
+                    const float* still = linear_still_plate.pixel(x, y);
+                    for (int c = 0; c < 3; ++c) texel[c] = std::max(0.0f, texel[c] - texel[3] * still[c]) / (1.0f - std::min(still[c], kMovingLayerMaxStill));
+                }
+        }
+    }
+}
 
 // ---- particle streams -----------------------------------------------------------------------------
 

@@ -26,6 +26,14 @@ double smoothstep01(double x) {
     return t * t * (3.0 - 2.0 * t);
 }
 
+// Texture over the background at coverage c: covering it (whole patches), or
+// screened over it (the moving layer's residuals, TextureLayer::moving).
+inline void composite(float* out, const float tex[3], float c, bool screen) {
+    for (int k = 0; k < 3; ++k)
+        out[k] = screen ? std::max(0.0f, out[k] + tex[k] * c * (1.0f - std::min(out[k], kMovingLayerMaxStill)))
+                        : out[k] * (1.0f - c) + std::max(0.0f, tex[k]) * c;
+}
+
 // SynthesisSettings::overlap_sharpness at one pixel where groups of patches
 // showing different input frames overlap: the pixel's colour (rgbw,
 // premultiplied sum; its total weight is kept) becomes the groups' colours
@@ -491,6 +499,14 @@ ArcMapping arc_mapping_from_string(const std::string& text) {
     throw std::invalid_argument("unknown arc-length mapping '" + text + "' (equal or scaled)");
 }
 
+const char* to_string(TextureLayer layer) { return layer == TextureLayer::whole ? "whole" : "moving"; }
+
+TextureLayer texture_layer_from_string(const std::string& text) {
+    if (text == "whole") return TextureLayer::whole;
+    if (text == "moving") return TextureLayer::moving;
+    throw std::invalid_argument("unknown texture layer '" + text + "' (whole or moving)");
+}
+
 Background make_background(BackgroundMode mode, std::shared_ptr<const ClipFrames> clip, const Schedule& schedule) {
     if (mode == BackgroundMode::none || !clip) return Background();
     if (mode == BackgroundMode::median) return Background::plate(median_plate(*clip));
@@ -580,6 +596,10 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
     : m_streams(std::move(streams)), m_plan(std::make_unique<Plan>()), m_background(std::move(background)),
       m_settings(settings) {
     if (!m_streams) throw std::invalid_argument("no particle streams");
+    if (settings.texture_layer == TextureLayer::moving &&
+        (m_background.mode() == BackgroundMode::loop || m_background.mode() == BackgroundMode::replay))
+        throw std::invalid_argument(std::string("the moving texture layer needs a still background (median or none), not ") +
+                                    to_string(m_background.mode()) + ": the clip already shows the flames it would add");
     const formats::ParticleBank& bank = m_streams->bank();
     m_plan->width = bank.clip_width_px;
     m_plan->height = bank.clip_height_px;
@@ -782,6 +802,7 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
     carry_background_into(frame, out, carry);
     if (coverage) coverage->assign(static_cast<std::size_t>(w) * h, 0.0f);
     const float full = static_cast<float>(std::max(1e-6, m_settings.coverage_weight));
+    const bool screen = m_settings.texture_layer == TextureLayer::moving;
     const std::size_t pixels = static_cast<std::size_t>(w) * h;
     if (sharpen)
         for (std::size_t i = 0; i < pixels; ++i) {
@@ -833,10 +854,7 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
                     tex[k] = mean + (tex[k] - mean) * gain[i];
                 }
         }
-        float* o = out.rgb.data() + 3 * i;
-        o[0] = o[0] * (1.0f - c) + std::max(0.0f, tex[0]) * c;
-        o[1] = o[1] * (1.0f - c) + std::max(0.0f, tex[1]) * c;
-        o[2] = o[2] * (1.0f - c) + std::max(0.0f, tex[2]) * c;
+        composite(out.rgb.data() + 3 * i, tex, c, screen);
         if (coverage) (*coverage)[i] = c;
     }
     return out;
@@ -1130,6 +1148,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
     if (detail) s.row_sums.resize(ring_pixels * 4);
 
     const float full = static_cast<float>(std::max(1e-6, m_settings.coverage_weight));
+    const bool screen = m_settings.texture_layer == TextureLayer::moving;
     int lo = 0;
     for (int k = 0; k < bands; ++k) {
         const int hi = step_hi(k);
@@ -1201,10 +1220,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
                             }
                     }
                 }
-                float* o = orow + 3 * x;
-                o[0] = o[0] * (1.0f - c) + std::max(0.0f, tex[0]) * c;
-                o[1] = o[1] * (1.0f - c) + std::max(0.0f, tex[1]) * c;
-                o[2] = o[2] * (1.0f - c) + std::max(0.0f, tex[2]) * c;
+                composite(orow + 3 * x, tex, c, screen);
                 if (cov) cov[x] = c;
             }
         }

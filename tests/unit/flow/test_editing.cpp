@@ -5,6 +5,7 @@
 
 #include "flowvid/flow/editing.hpp"
 #include "flowvid/flow/geometry.hpp"
+#include "flowvid/flow/sampling.hpp"
 #include "flowvid/flow/synthesis.hpp"
 #include "test_support.hpp"
 
@@ -618,4 +619,126 @@ TEST(FlowEditing, OverlapSharpnessShowsOneInputFrameWhereTwoOverlapInsteadOfADou
     EXPECT_LT(mixed, 0.05);
     EXPECT_GT(sharp, 0.4);
     EXPECT_GT(sharpest, sharp + 0.1);
+}
+
+namespace {
+
+// A still scene with a vertical edge (dark 0.1 left of x = 50, bright 0.5
+// from it, a faint ramp in y) and a flame: a narrow band of light around
+// x = 47 whose pattern rises 3 px a frame. One input line runs up the flame
+// at x = 47 (y 100 -> 40); particles enter every frame and are cut from the
+// scene as tracking would (whole pixels around the centre): an 8 px patch
+// holds the edge. Linear values.
+struct FlameInFrontOfAnEdge {
+    static float still(int x, int y) { return (x < 50 ? 0.1f : 0.5f) + 0.0005f * static_cast<float>(y); }
+    static float light(double x, double y, int frame) {
+        const double across = (x - 47.0) / 1.2;
+        return static_cast<float>(0.3 * std::exp(-0.5 * across * across) *
+                                  (0.5 + 0.5 * std::cos(2.0 * M_PI * (y + 3.0 * frame) / 10.0)));
+    }
+    static float pixel(int x, int y, int frame) { return still(x, y) + light(x, y, frame); }
+
+    std::shared_ptr<formats::ParticleBank> bank = std::make_shared<formats::ParticleBank>();
+    RgbImage plate{120, 120};
+    std::vector<std::vector<Eigen::Vector2d>> points{{{47.0, 100.0}, {47.0, 40.0}}};
+
+    FlameInFrontOfAnEdge() {
+        const int patch = 8, count = 40, life = 21;
+        bank->patch_size_px = patch;
+        bank->clip_width_px = bank->clip_height_px = 120;
+        bank->clip_frame_count = count + life;
+        bank->lines.push_back({"in-0", 60.0f});
+        for (int p = 0; p < count; ++p) {
+            formats::TrackedParticle particle;
+            particle.line_id = "in-0";
+            particle.start_frame = p;
+            for (int a = 0; a < life; ++a) {
+                const double y = 100.0 - 3.0 * a;
+                particle.arc_length_px.push_back(static_cast<float>(3.0 * a));
+                const int ox = patch_origin(47.0, patch), oy = patch_origin(y, patch);
+                for (int i = 0; i < patch; ++i)
+                    for (int j = 0; j < patch; ++j) {
+                        const float v = pixel(ox + j, oy + i, p + a);
+                        particle.texture_rgba.insert(particle.texture_rgba.end(), {v, v, v, 1.0f});
+                    }
+            }
+            bank->particles.push_back(std::move(particle));
+        }
+        for (int y = 0; y < 120; ++y)
+            for (int x = 0; x < 120; ++x)
+                for (int k = 0; k < 3; ++k) plate.pixel(x, y)[k] = still(x, y);
+    }
+
+    RgbImage render(TextureLayer layer, double output_x, bool reference, std::vector<float>* coverage = nullptr) const {
+        SynthesisSettings settings;
+        settings.first_start_frame = 0;  // K = 40: no wrap on the line at frame 30
+        settings.texture_layer = layer;
+        settings.reference_rendering = reference;
+        auto layer_bank = std::make_shared<formats::ParticleBank>(*bank);
+        if (layer == TextureLayer::moving) keep_moving_part(*layer_bank, points, plate);
+        auto streams = std::make_shared<ParticleStreams>(layer_bank, points, settings);
+        const Synthesizer synth(streams, {{line("out", {{output_x, 100.0}, {output_x, 40.0}}), "in-0"}},
+                                Background::plate(plate), settings);
+        return synth.render(30, coverage);
+    }
+};
+
+}  // namespace
+
+// TextureLayer::moving: an edit moves the flame, not the scene's edge behind
+// it. Moved 30 px right (onto the bright side), whole patches carry the dark
+// side of the edge along; the moving layer leaves the destination's plate
+// where the source had no flame light, and screens the light over it
+// (plate + coverage * light / (1 - source plate) * (1 - plate)). Unedited, it renders
+// as whole patches do (the clip is nowhere darker than its plate here).
+TEST(FlowEditing, TheMovingLayerMovesTheFlameNotTheEdgeBehindIt) {
+    const FlameInFrontOfAnEdge scene;
+    std::vector<float> coverage;
+    const RgbImage whole = scene.render(TextureLayer::whole, 77.0, false);
+    const RgbImage moving = scene.render(TextureLayer::moving, 77.0, false, &coverage);
+    const int input_frame = 29;  // s0 + (30 - 1) mod 40
+    int checked = 0;
+    float worst_plate = 0.0f, worst_light = 0.0f, smallest_edge = 1.0f;
+    for (int y = 50; y <= 90; ++y) {
+        if (coverage[static_cast<std::size_t>(y) * 120 + 77] < 0.999f) continue;
+        ++checked;
+        for (int x = 73; x <= 81; ++x) {
+            const float plate = FlameInFrontOfAnEdge::still(x, y);
+            const float light = FlameInFrontOfAnEdge::light(x - 30, y, input_frame);
+            const float source_plate = FlameInFrontOfAnEdge::still(x - 30, y);
+            const float covered = coverage[static_cast<std::size_t>(y) * 120 + static_cast<std::size_t>(x)];
+            const float expected = plate + covered * light / (1.0f - source_plate) * (1.0f - plate);
+            worst_light = std::max(worst_light, std::fabs(moving.pixel(x, y)[0] - expected));
+            if (light < 1e-4f) worst_plate = std::max(worst_plate, std::fabs(moving.pixel(x, y)[0] - plate));
+        }
+        // Whole patches show the edge's dark side 2 px left of the line (no light there).
+        smallest_edge = std::min(smallest_edge, FlameInFrontOfAnEdge::still(75, y) - whole.pixel(75, y)[0]);
+    }
+    ASSERT_GT(checked, 20);
+    std::printf("moved 30 px: moving layer within %.2g of the screened light, %.2g of the plate where no light; whole "
+                "patches carry the edge (>= %.3f darker than the plate)\n",
+                worst_light, worst_plate, smallest_edge);
+    EXPECT_LT(worst_light, 2e-3f);
+    EXPECT_LT(worst_plate, 1e-4f);
+    EXPECT_GT(smallest_edge, 0.25f);  // 0.4 less the light 2 px from the line
+
+    // Unedited, both layers give the same frame; banded = reference renderer.
+    const RgbImage in_place_whole = scene.render(TextureLayer::whole, 47.0, false);
+    const RgbImage in_place_moving = scene.render(TextureLayer::moving, 47.0, false);
+    const RgbImage reference = scene.render(TextureLayer::moving, 77.0, true);
+    float same = 0.0f, renderers = 0.0f;
+    for (std::size_t i = 0; i < moving.rgb.size(); ++i) {
+        same = std::max(same, std::fabs(in_place_whole.rgb[i] - in_place_moving.rgb[i]));
+        renderers = std::max(renderers, std::fabs(moving.rgb[i] - reference.rgb[i]));
+    }
+    EXPECT_LT(same, 1e-5f);
+    EXPECT_LT(renderers, 1e-5f);
+
+    // It needs a still background: over the clip looped the flames would show twice.
+    SynthesisSettings settings;
+    settings.texture_layer = TextureLayer::moving;
+    auto streams = std::make_shared<ParticleStreams>(scene.bank, scene.points, settings);
+    auto clip = std::make_shared<ClipFrames>(120, 120, 25.0, "memory");
+    clip->append(RgbImage(120, 120));
+    EXPECT_THROW(Synthesizer(streams, {}, Background::looped(clip), settings), std::invalid_argument);
 }

@@ -3,10 +3,12 @@
 
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/geometry.hpp"
+#include "flowvid/flow/synthesis.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -109,4 +111,25 @@ TEST(FlowFrames, MedianPlateIgnoresWhatMoves) {
     RgbImage out;
     looped.fill(11, 40, 20, out);  // output frame 11 -> clip frame 10 mod 9 = 1
     EXPECT_EQ(out.rgb, clip.linear(1).rgb);
+}
+
+TEST(FlowFrames, QuantilePlatePicksTheRankedSampleOfEveryPixel) {
+    // Ten frames of one grey each, in shuffled order: the plate at quantile q
+    // is the frame of rank round(q * 9), in linear values.
+    const std::vector<int> order{7, 2, 9, 0, 5, 3, 8, 1, 6, 4};
+    ClipFrames clip(6, 4, 25.0, "memory");
+    for (int grey : order) {
+        RgbImage frame(6, 4);
+        std::fill(frame.rgb.begin(), frame.rgb.end(), 0.05f + 0.1f * static_cast<float>(grey));
+        clip.append(frame);
+    }
+    const auto frame_of_grey = [&](int grey) {
+        return static_cast<int>(std::find(order.begin(), order.end(), grey) - order.begin());
+    };
+    for (const auto& [quantile, rank] : std::vector<std::pair<double, int>>{{0.0, 0}, {0.1, 1}, {0.5, 5}, {1.0, 9}}) {
+        const RgbImage plate = quantile_plate(clip, quantile);
+        const float expected = clip.linear(frame_of_grey(rank)).rgb[0];
+        for (float v : plate.rgb) ASSERT_EQ(v, expected) << "quantile " << quantile;
+    }
+    EXPECT_EQ(moving_layer_still_plate(clip).rgb, quantile_plate(clip, kMovingLayerStillQuantile).rgb);
 }

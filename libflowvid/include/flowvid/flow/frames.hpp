@@ -151,6 +151,9 @@ formats::Capture open_clip(const std::string& path, double fps = 0.0);
 // The per-pixel, per-channel median over (at most max_samples evenly spaced)
 // frames, in linear light: the static plate of the clip.
 RgbImage median_plate(const ClipFrames& clip, int max_samples = 64);
+// The same at another quantile (0 = the darkest sample, 0.5 = about the
+// median): a low one is the scene with the least light of flames on it.
+RgbImage quantile_plate(const ClipFrames& clip, double quantile, int max_samples = 64);
 
 // How regions no flow line covers are filled (issue: "a static median plate
 // or the looped clip"). replay: the looped clip in step with the synthesis,

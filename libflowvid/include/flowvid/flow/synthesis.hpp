@@ -29,6 +29,9 @@
 // arc s_out and lateral offset n on the output line; s_in = s_out (equal arc
 // length) or s_out * L_in / L_out (scaled, fig. 3.17); the texture is read at
 // P_in(s_in) + n N_in(s_in) from the particles near s_in.
+// With TextureLayer::moving, patches hold only the light the flow adds to the
+// clip's still plate where they were cut (keep_moving_part) and are screened
+// over the background: bg + coverage * r * (1 - bg), r = sum(w * residual) / sum(w).
 // A frame is rendered in bands of rows through a small ring of rows (the
 // band, plus the rows the detail-preserving local mean reaches): every patch
 // is added to each band it crosses in the same order as a whole-frame pass,
@@ -56,6 +59,25 @@ const char* to_string(ArcMapping mapping);
 ArcMapping arc_mapping_from_string(const std::string& text);  // "equal" | "scaled"; std::invalid_argument otherwise
 // s_in = s_out * scale: 1 for equal arc length, L_in / L_out for scaled.
 double arc_mapping_scale(ArcMapping mapping, double length_in, double length_out);
+
+// What a particle's patch carries onto the output.
+enum class TextureLayer {
+    whole,   // everything in the patch: the water, and the rock it passes
+    moving,  // the light the flow adds to the clip's still plate, screened over the background
+};
+// The moving layer's still plate is the clip's dark plate: per pixel, this
+// quantile over the clip (the scene with the least light of flames on it;
+// the median would keep their glow, and every moment with less flame than
+// that would show as a dark hole wherever an edit moves it).
+inline constexpr double kMovingLayerStillQuantile = 0.1;
+// Screening (bg + r * (1 - bg), r = (pixel - still) / (1 - still)) gives back
+// the clip's own pixel over its still plate and never passes white over a
+// brighter background (adding would: an edited flame over the glowing base
+// clipped to white and lilac). Still values are capped here: a white still
+// pixel leaves nothing to screen.
+inline constexpr float kMovingLayerMaxStill = 0.95f;
+const char* to_string(TextureLayer layer);
+TextureLayer texture_layer_from_string(const std::string& text);  // "whole" | "moving"; std::invalid_argument otherwise
 
 struct SynthesisSettings {
     // K per line; 0 = as many as every line has in one common window, or up
@@ -121,6 +143,17 @@ struct SynthesisSettings {
     // line crosses (a rock ledge), and a fire's plate is the scene without
     // flames.
     bool carry_background = false;
+    // TextureLayer::moving: patches are screened over the background instead
+    // of covering it. For flames and smoke in front of a still scene: an edit
+    // that bends the lines moves the flames, not the pot's edge behind them
+    // (a whole patch cut beside the pot carries its edge along, and the dark
+    // pot of moments without flame). The bank's textures must hold the
+    // moving part (keep_moving_part), and the background must be still: the
+    // plate they were taken from (moving_layer_still_plate) or none (a layer
+    // to screen over a render). Over the clip looped or replayed the flames
+    // would show twice. Unedited lines over that plate render as with
+    // `whole`, except where the clip is darker than it.
+    TextureLayer texture_layer = TextureLayer::whole;
     // Testing: render with the straightforward whole-frame accumulation
     // (several full-size buffers per frame) instead of the banded renderer,
     // which reproduces it to float rounding. Slower; same frames.
@@ -171,6 +204,20 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
 // around them too; elsewhere the background dissolves to the window's first
 // frames over the entry spacing, as the new particles fade in); none: black.
 Background make_background(BackgroundMode mode, std::shared_ptr<const ClipFrames> clip, const Schedule& schedule);
+
+// The still plate of the moving layer: quantile_plate at kMovingLayerStillQuantile.
+RgbImage moving_layer_still_plate(const ClipFrames& clip);
+
+// Keeps only the light the flow adds in every particle's texture: each
+// texel's excess over the still plate (linear, the clip's size) at the pixel
+// it was cut from, as a screen residual (kMovingLayerMaxStill); textures are
+// premultiplied. `input_points` as for ParticleStreams (one polyline per
+// bank line). For TextureLayer::moving.
+// The window (make_schedule weighs textures) and an edit's correspondence
+// are best chosen before, on whole textures: both layers then keep one
+// timing. ParticleStreams keeps nothing computed from textures.
+void keep_moving_part(formats::ParticleBank& bank, const std::vector<std::vector<Eigen::Vector2d>>& input_points,
+                      const RgbImage& linear_still_plate);
 
 // The particles on a scheduled line at output frame `frame` (1-based, any
 // integer): bank particle index and age, in entry order (youngest first).
