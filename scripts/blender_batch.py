@@ -34,6 +34,9 @@ def _arguments(argv):
                              "tasks rendering chunks of one range join seamlessly")
     parser.add_argument("--background", choices=("median", "loop", "replay", "none"),
                         help="with --bank: what shows where no line reaches (flowvid edit --background; default median)")
+    parser.add_argument("--texture", choices=("whole", "moving"),
+                        help="with --bank: what a particle's patch carries (flowvid edit --texture; default whole): "
+                             "moving = only the light flames or smoke add, for scenes behind a fire")
     parser.add_argument("--render", help="folder to render the frames into (PNG)")
     parser.add_argument("--addon", help="folder holding flowvid_blender (default: this checkout's blender_addon)")
     parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
@@ -104,7 +107,8 @@ def main():
             if not options.flowlines:
                 raise api.FlowvidError("--bank needs --flowlines")
             folder = os.path.join(os.path.dirname(os.path.abspath(options.flowlines)), "synthesized")
-            first = api.synthesize(options.bank, options.flowlines, start, end, folder, background=options.background)
+            first = api.synthesize(options.bank, options.flowlines, start, end, folder, background=options.background,
+                                   texture=options.texture)
             image = api.load_image_sequence(first, start, end - start + 1)
             api.show_on_camera_plane(scene.camera, image, start, end - start + 1, scene=scene)
             summary["synthesized"] = folder

@@ -677,12 +677,14 @@ def run_flowvid_tool(*arguments):
     return completed.stdout
 
 
-def synthesize(bank, flowlines, frame_start, frame_end, out_dir, extra=(), background=None):
+def synthesize(bank, flowlines, frame_start, frame_end, out_dir, extra=(), background=None, texture=None):
     """flowvid edit for the frame range: PNG frames out_dir/%06d.png; returns the first frame's path.
-    background: median, loop, replay or none (flowvid edit --background; None: the tool's default)."""
+    background: median, loop, replay or none (flowvid edit --background; None: the tool's default).
+    texture: whole or moving (flowvid edit --texture: moving keeps only the light flames or smoke add to
+    the scene, screened over its dark plate or over black; None: the tool's default, whole)."""
     os.makedirs(out_dir, exist_ok=True)
     pattern = os.path.join(out_dir, "%06d.png")
-    chosen = ("--background", background) if background else ()
+    chosen = (("--background", background) if background else ()) + (("--texture", texture) if texture else ())
     run_flowvid_tool("edit", "--bank", bank, "--flowlines", flowlines, "--frames", "%d:%d" % (frame_start, frame_end),
                      "--out", pattern, *chosen, *extra)
     return pattern % frame_start

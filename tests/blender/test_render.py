@@ -162,5 +162,18 @@ def test_end_to_end_render():
             assert spread > 0.02, "empty render"
             assert difference < 0.03, difference
             assert near_mean > 0.15 and near_mean > 4.0 * far_mean, (near_mean, far_mean)
+
+        # The texture choice reaches the tool: over black, the moving layer keeps only the light the
+        # flow adds to the clip's dark plate, (pixel - plate) / (1 - plate) <= pixel: never brighter than
+        # the whole patches on the same pixels, and darker on the whole (the same frame without it).
+        moving_first = api.synthesize(bank, lines_path, 1, 1, os.path.join(folder, "moving"), background="none",
+                                      texture="moving", extra=("--capture", clip))
+        covered = [(sum(w), sum(m)) for rw, rm in zip(synth_first, read_pixels(moving_first))
+                   for w, m in zip(rw, rm) if sum(w) > 0.15]
+        share = sum(m for _, m in covered) / sum(w for w, _ in covered)
+        brighter = max(m - w for w, m in covered)
+        print("moving layer over black: %.3f of the whole patches' brightness on %d covered px, at most %.4f brighter"
+              % (share, len(covered), brighter))
+        assert len(covered) > 100 and share < 0.97 and brighter < 3 * 2.0 / 255, (share, len(covered), brighter)
     finally:
         shutil.rmtree(folder, ignore_errors=True)

@@ -281,7 +281,7 @@ class FLOWVID_OT_synthesize(bpy.types.Operator):
                 raise api.FlowvidError("choose a particle bank (*.bank.exr from flowvid track)")
             first = api.synthesize(bpy.path.abspath(settings.bank), bpy.path.abspath(settings.flowlines),
                                    settings.frame_start, settings.frame_end, bpy.path.abspath(settings.output_dir),
-                                   background=settings.background)
+                                   background=settings.background, texture=settings.texture)
             count = settings.frame_end - settings.frame_start + 1
             image = api.load_image_sequence(first, settings.frame_start, count)
             camera = settings.camera or context.scene.camera

@@ -62,6 +62,7 @@ class PARTICLE_PT_flowvid_video(bpy.types.Panel):
         col.prop(settings, "bank")
         col.prop(settings, "output_dir")
         col.prop(settings, "background")
+        col.prop(settings, "texture")
         col.prop(settings, "display")
         col.operator("flowvid.synthesize", icon="RENDER_ANIMATION")
         col.label(text="Then render as usual (Render > Render Animation).")

@@ -42,6 +42,11 @@ class FlowvidSceneSettings(bpy.types.PropertyGroup):
         ("replay", "Replayed clip", "Where no line reaches: the clip frame the particles show"),
         ("none", "Black", "Where no line reaches: black, to add the texture over a render"),
     ), description="What shows where no output line carries texture (flowvid edit --background)")
+    texture: EnumProperty(name="Texture", default="whole", items=(
+        ("whole", "Whole patches", "Particles carry everything in their patches (water)"),
+        ("moving", "Moving light only", "Particles carry only the light flames or smoke add to the scene, screened "
+                                        "over its dark plate (or over black): edits leave the scene behind them"),
+    ), description="What each particle's patch carries (flowvid edit --texture)")
     display: EnumProperty(name="Show as", default="PLANE", items=(
         ("PLANE", "Plane facing the camera", "Rendered: an emissive plane filling the camera view"),
         ("BACKGROUND", "Camera background", "Viewport only: the camera's background image"),
