@@ -126,7 +126,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     }
     const std::vector<std::vector<Eigen::Vector2d>> input_points =
         flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path);
-    std::optional<flow::RgbImage> still_plate;  // the clip's median plate, when needed
+    std::optional<flow::RgbImage> still_plate;  // the median plate, or the moving layer's dark plate
     // The moving layer is screened over the plate it was taken from (the
     // clip's dark plate), which --background median then shows.
     if (moving) still_plate = flow::moving_layer_still_plate(*clip);

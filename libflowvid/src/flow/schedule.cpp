@@ -256,6 +256,14 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
                 for (int f = 0; f + count <= slots; ++f)
                     if (fits(f, count)) candidates.emplace_back(count, f);
         }
+        // Long clips with a small start spacing fit thousands of windows: an
+        // even sample of them keeps the choice to a fraction of a second.
+        constexpr std::size_t kMaxJoinCandidates = 256;
+        if (candidates.size() > kMaxJoinCandidates) {
+            std::vector<std::pair<int, int>> sampled;
+            for (std::size_t i = 0; i < kMaxJoinCandidates; ++i) sampled.push_back(candidates[i * candidates.size() / kMaxJoinCandidates]);
+            candidates = std::move(sampled);
+        }
         const double longest = join.error(first_start + first_slot * step, step, k);
         std::pair<int, int> best{k, first_slot};
         double best_error = longest;
