@@ -78,7 +78,8 @@ void keep_moving_part(formats::ParticleBank& bank, const std::vector<std::vector
                     const int x = ox + j, y = oy + i;
                     if (x < 0 || y < 0 || x >= w || y >= h) continue;  // alpha 0 there
                     const float* still = linear_still_plate.pixel(x, y);
-                    for (int c = 0; c < 3; ++c) texel[c] = std::max(0.0f, texel[c] - texel[3] * still[c]) / (1.0f - std::min(still[c], kMovingLayerMaxStill));
+                    for (int c = 0; c < 3; ++c)
+                        texel[c] = std::max(0.0f, texel[c] - texel[3] * still[c]) / (1.0f - std::min(still[c], kMovingLayerMaxStill));
                 }
         }
     }
