@@ -126,11 +126,10 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     }
     const std::vector<std::vector<Eigen::Vector2d>> input_points =
         flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path);
-    std::optional<flow::RgbImage> still_plate;  // the median plate, or the moving layer's dark plate
     // The moving layer is screened over the plate it was taken from (the
     // clip's dark plate), which --background median then shows.
+    std::optional<flow::RgbImage> still_plate;
     if (moving) still_plate = flow::moving_layer_still_plate(*clip);
-    else if (mode == flow::BackgroundMode::median) still_plate = flow::median_plate(*clip);
 
     flow::SynthesisSettings settings = synthesis_settings(options.synthesis);
     settings.mapping = flow::arc_mapping_from_string(options.mapping);
@@ -138,7 +137,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     settings.texture_layer = layer;
     auto streams = std::make_shared<flow::ParticleStreams>(bank, input_points, settings, &drawing);
     report_schedule(streams->schedule());
-    flow::Background background = mode == flow::BackgroundMode::median
+    flow::Background background = moving && mode == flow::BackgroundMode::median
                                       ? flow::Background::plate(*still_plate)
                                       : flow::make_background(mode, clip, streams->schedule());
 
