@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 namespace flowvid::cli {
 namespace {
@@ -29,6 +30,7 @@ struct QualityOptions {
     int frames = 0;
     SynthesisOptions synthesis;
     std::string background = "median";
+    std::string texture = "whole";
     double band_px = 0.0;
     int cycle = 32;
     int threads = 0;
@@ -103,9 +105,19 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     const formats::FlowLineSet drawing = formats::read_flowline_drawing(lines_path, &warnings);
     print_problems(warnings);
 
-    const flow::SynthesisSettings settings = synthesis_settings(options.synthesis);
-    auto streams = std::make_shared<flow::ParticleStreams>(
-        bank, flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path), settings, &drawing);
+    const flow::TextureLayer layer = flow::texture_layer_from_string(options.texture);
+    const flow::BackgroundMode background_mode = flow::background_mode_from_string(options.background);
+    const bool moving = layer == flow::TextureLayer::moving;
+    if (moving && background_mode != flow::BackgroundMode::median) {
+        log_message("error: --texture moving screens the flames over the clip's dark plate, and the " +
+                    options.background + " background already shows them: use --background median");
+        return kExitUsage;
+    }
+    flow::SynthesisSettings settings = synthesis_settings(options.synthesis);
+    settings.texture_layer = layer;
+    const std::vector<std::vector<Eigen::Vector2d>> input_points =
+        flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path);
+    auto streams = std::make_shared<flow::ParticleStreams>(bank, input_points, settings, &drawing);
     report_schedule(streams->schedule());
 
     Progress reading(global, "read clip");
@@ -123,12 +135,19 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     reading.done();
     const flow::ClipFrames& clip = *clip_frames;
     const flow::RgbImage plate = flow::median_plate(clip);  // also the flow map's background
-    const flow::BackgroundMode background_mode = flow::background_mode_from_string(options.background);
-    const flow::Synthesizer synth(streams, {},
-                                  background_mode == flow::BackgroundMode::median
-                                      ? flow::Background::plate(plate)
-                                      : flow::make_background(background_mode, clip_frames, streams->schedule()),
-                                  settings);
+    // As synth renders it: the moving layer over the dark plate it was taken
+    // from, with the window chosen on whole textures.
+    std::optional<flow::Background> background;
+    if (moving) {
+        flow::RgbImage still_plate = flow::moving_layer_still_plate(clip);
+        flow::keep_moving_part(*bank, input_points, still_plate);
+        background = flow::Background::plate(std::move(still_plate));
+    } else if (background_mode == flow::BackgroundMode::median) {
+        background = flow::Background::plate(plate);
+    } else {
+        background = flow::make_background(background_mode, clip_frames, streams->schedule());
+    }
+    const flow::Synthesizer synth(streams, {}, std::move(*background), settings);
 
     flow::ComparisonSettings compare;
     compare.output_frames = options.frames;
@@ -171,6 +190,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                               // What the measured synthesis was rendered with, so figures can be traced.
                               {"synthesis",
                                {{"background", options.background},
+                                {"texture", options.texture},
                                 {"blend", options.synthesis.blend},
                                 {"overlap_sharpness", options.synthesis.overlap_sharpness},
                                 {"coverage", options.synthesis.coverage},
@@ -208,10 +228,10 @@ const RegisterCommand registration{Command{
     [](CLI::App& app) -> CommandRunner {
         auto options = std::make_shared<QualityOptions>();
         app.footer(
-            "Renders frames 1..N of the infinite sequence (as flowvid synth does, with its --background), the\n"
-            "clip looped, and the flow-map method games use (the clip's first frame advected by the tracked\n"
-            "speeds in two layers half a cycle apart, cross-faded), and measures each against the clip on\n"
-            "luma in the band around the tracked lines (issue 6):\n"
+            "Renders frames 1..N of the infinite sequence (as flowvid synth does, with its --background and\n"
+            "--texture), the clip looped, and the flow-map method games use (the clip's first frame advected\n"
+            "by the tracked speeds in two layers half a cycle apart, cross-faded), and measures each against\n"
+            "the clip on luma in the band around the tracked lines (issue 6):\n"
             "  seam max   largest frame-to-frame difference / the clip's 95th percentile\n"
             "  share>p99  share of transitions above the clip's 99th percentile\n"
             "  spike      largest transition / the method's own median transition (a seam stands out\n"
@@ -235,6 +255,11 @@ const RegisterCommand registration{Command{
         app.add_option("--background", options->background,
                        "our synthesis's background where no line reaches: median, loop or replay (as in synth)")
             ->check(CLI::IsMember({"median", "loop", "replay"}))
+            ->capture_default_str();
+        app.add_option("--texture", options->texture,
+                       "what our synthesis's patches carry: whole, or moving (the light the flow adds, screened over "
+                       "the clip's dark plate; as in synth)")
+            ->check(CLI::IsMember({"whole", "moving"}))
             ->capture_default_str();
         app.add_option("--band", options->band_px, "measure within PX of the tracked lines (0 = a quarter patch)");
         app.add_option("--cycle", options->cycle, "flow-map layer life in frames")->capture_default_str();

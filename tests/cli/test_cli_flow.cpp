@@ -415,10 +415,12 @@ TEST(CliFlow, QualitySeriesShowsWhereTheLoopJumpsAndReproducesTheMeasures) {
     for (double e : ours_hf_energy) var += (e - mean) * (e - mean) / (ours_hf_energy.size() - 1);
     EXPECT_NEAR(std::sqrt(var) / mean, ours.at("pulsing").get<double>(), 1e-5);
 
-    // Synthesis options reach the measured synthesis: the detail gain, and
-    // mixing overlapping groups in proportion, measure differently.
+    // Synthesis options reach the measured synthesis: the detail gain,
+    // mixing overlapping groups in proportion, and the moving layer over the
+    // dark plate measure differently; the baselines do not change.
     for (const std::vector<std::string>& option : {std::vector<std::string>{"--blend", "plain"},
-                                                   std::vector<std::string>{"--overlap-sharpness", "1"}}) {
+                                                   std::vector<std::string>{"--overlap-sharpness", "1"},
+                                                   std::vector<std::string>{"--texture", "moving"}}) {
         std::vector<std::string> args = {"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60", "--json"};
         args.insert(args.end(), option.begin(), option.end());
         const CliResult other = run_flowvid(args);
@@ -426,8 +428,19 @@ TEST(CliFlow, QualitySeriesShowsWhereTheLoopJumpsAndReproducesTheMeasures) {
         const nlohmann::json o = nlohmann::json::parse(other.out);
         // The report says what the synthesis was rendered with.
         if (option[0] == "--blend") EXPECT_EQ(o.at("synthesis").at("blend"), "plain");
+        else if (option[0] == "--texture") EXPECT_EQ(o.at("synthesis").at("texture"), "moving");
         else EXPECT_EQ(o.at("synthesis").at("overlap_sharpness").get<double>(), 1.0);
         EXPECT_NE(o.at("methods").at("ours").at("hf_power_ratio").get<double>(), ours.at("hf_power_ratio").get<double>())
             << option[0];
+        for (const char* baseline : {"loop", "flow map"})
+            EXPECT_EQ(o.at("methods").at(baseline).at("patch_distance").get<double>(),
+                      j.at("methods").at(baseline).at("patch_distance").get<double>())
+                << option[0] << " " << baseline;
     }
+    // The moving layer is screened over the dark plate: a looped background
+    // would show the flames twice.
+    const CliResult refused = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60",
+                                           "--texture", "moving", "--background", "loop"});
+    EXPECT_EQ(refused.exit_code, 2) << refused.err;
+    EXPECT_TRUE(mentions(refused.err, "--background median")) << refused.err;
 }
