@@ -189,7 +189,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     }
 
     prepare_output_folder(options.out);  // out/%06d.png or a video: its folder, made when missing
-    flow::FrameWriter writer(options.out, synthesizer.width(), synthesizer.height(), bank->fps);
+    flow::FrameWriter writer(options.out, synthesizer.width(), synthesizer.height(), bank->fps, last - first + 1);
     Progress progress(global, edit ? "edit" : "synth");
     std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs
     interrupt.emplace();
@@ -229,7 +229,7 @@ void add_common(CLI::App& app, RenderOptions& o) {
     app.add_option("--bank", o.bank, "particle bank written by flowvid track (.exr)")->required();
     app.add_option("--frames", o.frames, "N (frames 1..N) or A:B (frames A..B of the infinite sequence)")
         ->capture_default_str();
-    app.add_option("--out", o.out, "image pattern (out/%06d.png, .exr, .tif), folder, or video (.mp4, .avi)")->required();
+    app.add_option("--out", o.out, "image pattern (out/%06d.png, .exr, .tif), folder, video (.mp4, .avi), or for one frame an image (still.png)")->required();
     app.add_option("--capture,--clip", o.capture, "the source clip (default: the one recorded in the bank)");
     app.add_option("--background", o.background,
                    "where no line reaches: median (static plate), loop (the clip), replay (the clip in step with the "

@@ -16,6 +16,7 @@
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 
 namespace flowvid::cli {
 namespace {
@@ -97,11 +98,17 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
     Progress progress(global, "track");
     std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs
     interrupt.emplace();
-    flow::TrackingResult result = flow::track_particles(frames, lines, settings, [&](const flow::TrackingProgress& p) {
-        progress.update(static_cast<double>(p.frame) / std::max(1, p.frame_count),
-                        "frame " + std::to_string(p.frame) + "/" + std::to_string(p.frame_count));
-        return !interrupt->requested();
-    });
+    flow::TrackingResult result;
+    try {
+        result = flow::track_particles(frames, lines, settings, [&](const flow::TrackingProgress& p) {
+            progress.update(static_cast<double>(p.frame) / std::max(1, p.frame_count),
+                            "frame " + std::to_string(p.frame) + "/" + std::to_string(p.frame_count));
+            return !interrupt->requested();
+        });
+    } catch (const std::invalid_argument& e) {  // the clip, the lines and the options do not fit together
+        log_message("error: " + frames.source() + " with " + lines_path + ": " + e.what());
+        return kExitInvalidInput;
+    }
     interrupt.reset();
     progress.done();
     if (result.report.status == flow::TrackingReport::Status::cancelled) {

@@ -233,6 +233,15 @@ TEST(CliFlow, SynthRangesJoinSeamlesslyAndLoop) {
         const std::string name = "/000" + std::to_string(f) + ".png";
         EXPECT_EQ(file_bytes(dir + "/a" + name), file_bytes(dir + "/b" + name)) << "frame " << f;
     }
+    // One frame may go to a plain image name: the same image the pattern
+    // gives that frame. More frames need a frame number (nothing written).
+    const CliResult still = run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "5:5", "--out", dir + "/still.png"});
+    ASSERT_EQ(still.exit_code, 0) << still.err;
+    EXPECT_EQ(file_bytes(dir + "/still.png"), file_bytes(dir + "/a/0005.png"));
+    const CliResult two = run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "5:6", "--out", dir + "/two.png"});
+    EXPECT_EQ(two.exit_code, 4) << two.err;
+    EXPECT_TRUE(mentions(two.err, "--frames A:A")) << two.err;
+    EXPECT_FALSE(fs::exists(dir + "/two.png"));
     // One period written as a folder of PNGs loops seamlessly; also as a video.
     const int period = summary["period_frames"].get<int>();
     const CliResult loop = run_flowvid({"synth", "--bank", tiny_bank(), "--loop", "--out", dir + "/loop", "--json"});
@@ -281,6 +290,22 @@ TEST(CliFlow, BadInputExitCodesNameTheProblem) {
     EXPECT_EQ(run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "9:3", "--out", dir + "/%04d.png"}).exit_code, 2);
     EXPECT_EQ(run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "x", "--out", dir + "/%04d.png"}).exit_code, 2);
     EXPECT_EQ(run_flowvid({"track", "--capture", tiny_capture()}).exit_code, 2);  // --out is required
+    // Clip, lines and patch that cannot be tracked together: said before any work, no bank written.
+    write_text(dir + "/off.svg", R"(<svg xmlns="http://www.w3.org/2000/svg" width="96" height="80">
+  <g id="input"><path id="beside" d="M 120,-4 L 150,84"/></g>
+</svg>)");
+    const std::vector<std::pair<std::vector<std::string>, std::string>> untrackable = {
+        {{"--frames", "1"}, "at least 2 frames"},
+        {{"--patch", "96"}, "at most 80 px"},
+        {{"--flowlines", dir + "/off.svg"}, "beside lies outside the clip's 96 x 80 frame"}};
+    for (const auto& [options, says] : untrackable) {
+        std::vector<std::string> args = {"track", "--capture", tiny_capture(), "--out", dir + "/no.bank.exr"};
+        args.insert(args.end(), options.begin(), options.end());
+        const CliResult r = run_flowvid(args);
+        EXPECT_EQ(r.exit_code, 3) << options[0] << "\n" << r.err;
+        EXPECT_TRUE(mentions(r.err, says)) << r.err;
+        EXPECT_FALSE(fs::exists(dir + "/no.bank.exr"));
+    }
 
     const CliResult missing = run_flowvid({"synth", "--bank", dir + "/none.bank.exr", "--out", dir + "/%04d.png"});
     EXPECT_EQ(missing.exit_code, 4);

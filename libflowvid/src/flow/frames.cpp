@@ -440,6 +440,7 @@ void write_image_file(const std::string& path, const RgbImage& linear) {
 struct FrameWriter::Impl {
     std::string target;
     std::string pattern;  // image sequences
+    bool single_image = false;  // one frame to a plain file name: `target` itself
     int width = 0;
     int height = 0;
     double fps = 25.0;
@@ -447,7 +448,8 @@ struct FrameWriter::Impl {
     cv::VideoWriter writer;
 };
 
-FrameWriter::FrameWriter(const std::string& target, int width, int height, double fps) : m_impl(std::make_unique<Impl>()) {
+FrameWriter::FrameWriter(const std::string& target, int width, int height, double fps, int frame_count)
+    : m_impl(std::make_unique<Impl>()) {
     m_impl->target = target;
     m_impl->width = width;
     m_impl->height = height;
@@ -467,13 +469,17 @@ FrameWriter::FrameWriter(const std::string& target, int width, int height, doubl
     }
     if (has_integer_conversion(target)) {
         m_impl->pattern = target;
+    } else if (frame_count == 1 && !ext.empty()) {
+        m_impl->single_image = true;
+        m_impl->pattern = target;
     } else if (ext.empty()) {
         fs::create_directories(target, ec);
         if (ec) throw IoError(target, "", "cannot create the folder: " + ec.message(), "check permissions");
         m_impl->pattern = (fs::path(target) / "%06d.png").string();
     } else {
-        throw IoError(target, "", "an image output needs a frame number in its name",
-                      "write e.g. out/%06d.png, a folder, or a video file (.mp4, .avi)");
+        throw IoError(target, "", "an image output of more than one frame needs a frame number in its name",
+                      "write e.g. out/%06d.png, a folder, or a video file (.mp4, .avi); a plain name such as "
+                      "still.png takes one frame (--frames A:A)");
     }
     const fs::path parent = fs::path(m_impl->pattern).parent_path();
     if (!parent.empty() && !fs::is_directory(parent, ec))
@@ -490,7 +496,7 @@ FrameWriter::~FrameWriter() {
 bool FrameWriter::is_video() const { return m_impl->video; }
 
 std::string FrameWriter::path_of(int frame) const {
-    if (m_impl->video) return m_impl->target;
+    if (m_impl->video || m_impl->single_image) return m_impl->target;
     return *formats::format_frame_pattern(m_impl->pattern, frame);
 }
 

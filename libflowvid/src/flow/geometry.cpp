@@ -122,6 +122,28 @@ std::vector<Eigen::Vector2d> blend_polylines(const std::vector<Eigen::Vector2d>&
     return out;
 }
 
+double length_inside_frame(const std::vector<Eigen::Vector2d>& points, int width, int height) {
+    double inside = 0.0;
+    for (std::size_t i = 1; i < points.size(); ++i) {
+        // Clip the segment p + t d, t in [0, 1], to the rectangle one slab at a time.
+        const Eigen::Vector2d p = points[i - 1], d = points[i] - points[i - 1];
+        double t0 = 0.0, t1 = 1.0;
+        const double lo[2] = {0.0, 0.0}, hi[2] = {static_cast<double>(width), static_cast<double>(height)};
+        for (int axis = 0; axis < 2 && t0 <= t1; ++axis) {
+            if (d[axis] == 0.0) {
+                if (p[axis] < lo[axis] || p[axis] > hi[axis]) t1 = -1.0;
+                continue;
+            }
+            double a = (lo[axis] - p[axis]) / d[axis], b = (hi[axis] - p[axis]) / d[axis];
+            if (a > b) std::swap(a, b);
+            t0 = std::max(t0, a);
+            t1 = std::min(t1, b);
+        }
+        if (t1 > t0) inside += (t1 - t0) * d.norm();
+    }
+    return inside;
+}
+
 LineGap line_gap(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vector2d>& b, int samples) {
     const std::vector<Eigen::Vector2d> ra = resample(a, samples);
     const std::vector<Eigen::Vector2d> rb = resample(b, samples);

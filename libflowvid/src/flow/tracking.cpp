@@ -602,6 +602,18 @@ TrackingResult track_particles(FrameSequence& frames, const std::vector<formats:
     const int frame_count = frames.count();
     const int width = frames.width(), height = frames.height();
     const int patch = settings.patch_size_px;
+    if (frame_count < 2)
+        throw std::invalid_argument("tracking follows particles from frame to frame: the clip needs at least 2 frames, "
+                                    "it has " + std::to_string(frame_count));
+    if (patch > std::min(width, height))
+        throw std::invalid_argument("a " + std::to_string(patch) + " px patch does not fit the clip's " +
+                                    std::to_string(width) + " x " + std::to_string(height) +
+                                    " frame: use a patch of at most " + std::to_string(std::min(width, height)) + " px");
+    for (const formats::FlowLine& line : lines)
+        if (length_inside_frame(line.points, width, height) < 1.0)
+            throw std::invalid_argument("input line " + line.id + " lies outside the clip's " + std::to_string(width) +
+                                        " x " + std::to_string(height) +
+                                        " frame: draw it over the flow (in pixels of the clip)");
 
     TrackingResult result;
     RgbImage plate;

@@ -169,6 +169,17 @@ TEST(FlowEditing, PicksTheKnownBestAssignmentOnAConstructedCase) {
     EXPECT_NEAR(plan.total_cost, cost, 1e-9);
 }
 
+// The part of a line inside the frame, by hand: a diagonal 3-4-5 leaving the
+// frame halfway, a line along the border, one beside the frame.
+TEST(FlowEditing, LengthInsideTheFrameClipsEachSegmentToTheFrame) {
+    using P = std::vector<Eigen::Vector2d>;
+    EXPECT_NEAR(length_inside_frame(P{{-30.0, -40.0}, {30.0, 40.0}}, 100, 100), 50.0, 1e-12);
+    EXPECT_NEAR(length_inside_frame(P{{10.0, 10.0}, {10.0, 50.0}, {200.0, 50.0}}, 100, 60), 40.0 + 90.0, 1e-12);
+    EXPECT_NEAR(length_inside_frame(P{{0.0, -10.0}, {0.0, 70.0}}, 100, 60), 60.0, 1e-12);
+    EXPECT_EQ(length_inside_frame(P{{120.0, -4.0}, {150.0, 84.0}}, 96, 80), 0.0);
+    EXPECT_EQ(length_inside_frame(P{{10.0, 10.0}}, 96, 80), 0.0);
+}
+
 TEST(FlowEditing, InterpolatesDenseLinesBetweenNeighboursOnly) {
     const std::vector<std::vector<Eigen::Vector2d>> drawn = {
         {{10.0, 0.0}, {12.0, 100.0}},   // a

@@ -218,10 +218,11 @@ private:
 // through OpenImageIO), a folder (written as FOLDER/%06d.png), or a video
 // file (.mp4/.mov/.mkv MPEG-4 part 2, .avi Motion-JPEG, through OpenCV). Image
 // files are named by output frame number, so ranges rendered apart fit
-// together; a video holds the frames in the order written.
+// together; a video holds the frames in the order written. A caller that
+// writes one frame (frame_count 1) may name a plain image file (still.png).
 class FrameWriter {
 public:
-    FrameWriter(const std::string& target, int width, int height, double fps);
+    FrameWriter(const std::string& target, int width, int height, double fps, int frame_count = 0);
     ~FrameWriter();
     FrameWriter(const FrameWriter&) = delete;
     FrameWriter& operator=(const FrameWriter&) = delete;

@@ -49,6 +49,10 @@ private:
     std::vector<Eigen::Vector2d> m_tangents;  // smoothed, one per pixel of arc (index = round(s))
 };
 
+// Length of the part of a polyline inside the frame [0, width] x [0, height]
+// (each segment clipped to the rectangle): 0 for a line drawn off the clip.
+double length_inside_frame(const std::vector<Eigen::Vector2d>& points, int width, int height);
+
 // Both polylines resampled to `samples` points at equal fractions of their arc
 // length and blended: (1 - w) a + w b.
 std::vector<Eigen::Vector2d> blend_polylines(const std::vector<Eigen::Vector2d>& a, const std::vector<Eigen::Vector2d>& b,
