@@ -103,6 +103,10 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     }
     const formats::FlowLineSet drawing = formats::read_flowline_drawing(lines_path, &warnings);
     print_problems(warnings);
+    if (drawing.width != bank->clip_width_px || drawing.height != bank->clip_height_px)
+        log_message("warning: " + lines_path + ": drawn for " + std::to_string(drawing.width) + " x " +
+                    std::to_string(drawing.height) + " but the bank's clip is " + std::to_string(bank->clip_width_px) +
+                    " x " + std::to_string(bank->clip_height_px) + ": lines are read in the clip's pixels");
     if (edit && drawing.outputs.empty()) {
         log_message("error: " + lines_path + ": no output lines to edit with (draw them in the group id=\"output\")");
         return kExitInvalidInput;

@@ -321,6 +321,18 @@ TEST(CliFlow, BadInputExitCodesNameTheProblem) {
     EXPECT_TRUE(mentions(bad.err, dir + "/bad.svg")) << bad.err;
     EXPECT_TRUE(mentions(bad.err, "out-1")) << bad.err;
 
+    // An output line drawn off the frame, and a drawing made for another
+    // frame size: rendered, with warnings that say why nothing shows.
+    write_text(dir + "/off.svg", R"(<svg xmlns="http://www.w3.org/2000/svg" width="192" height="160">
+  <g id="input"><path id="in-1" d="M 48,-4 L 48,84"/><path id="in-2" d="M 40,-4 L 40,84"/></g>
+  <g id="output"><path id="far" data-from="in-1" d="M 150,0 L 150,80"/></g>
+</svg>)");
+    const CliResult off = run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", dir + "/off.svg", "--no-interpolate",
+                                       "--frames", "2:2", "--out", dir + "/off.png"});
+    EXPECT_EQ(off.exit_code, 0) << off.err;
+    EXPECT_TRUE(mentions(off.err, "1 output line lies outside the 96 x 80 frame and shows nothing (far)")) << off.err;
+    EXPECT_TRUE(mentions(off.err, "drawn for 192 x 160 but the bank's clip is 96 x 80")) << off.err;
+
     // A drawing that does not hold the bank's lines.
     write_text(dir + "/other.svg", R"(<svg xmlns="http://www.w3.org/2000/svg" width="96" height="80">
   <g id="input"><path id="river" d="M 10,0 L 10,80"/></g>

@@ -116,6 +116,13 @@ private:
 
 // ---- schedule ----------------------------------------------------------------------------------
 
+std::string some_line_ids(const std::vector<std::string>& ids) {
+    std::string text;
+    for (std::size_t i = 0; i < ids.size() && i < 3; ++i) text += (i ? ", " : "") + ids[i];
+    if (ids.size() > 3) text += ", ...";
+    return text;
+}
+
 Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSettings& settings) {
     Schedule schedule;
     std::map<std::string, std::vector<std::pair<int, int>>> by_line;  // id -> (start, particle index)
@@ -134,15 +141,9 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
     }
     if (lines.empty()) throw std::invalid_argument("the bank has no particle to synthesize from");
     // Summaries, not one warning per line: a densified bank has hundreds.
-    const auto some = [](const std::vector<std::string>& ids) {
-        std::string text;
-        for (std::size_t i = 0; i < ids.size() && i < 3; ++i) text += (i ? ", " : "") + ids[i];
-        if (ids.size() > 3) text += ", ...";
-        return text;
-    };
     if (!empty_lines.empty())
         schedule.warnings.push_back(std::to_string(empty_lines.size()) + " of " + std::to_string(bank.lines.size()) +
-                                    " lines have no tracked particle and are not synthesized (" + some(empty_lines) + ")");
+                                    " lines have no tracked particle and are not synthesized (" + some_line_ids(empty_lines) + ")");
 
     int step = 0;
     int first_start = std::numeric_limits<int>::max(), last_start = std::numeric_limits<int>::min();
@@ -326,7 +327,7 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
             what += (what.empty() ? "" : ", ") + std::to_string(substituted - borrowed) +
                     " are left empty (their neighbours cover them)";
         schedule.warnings.push_back(std::to_string(substituted) + " of " + std::to_string(k * static_cast<int>(schedule.lines.size())) +
-                                    " particle slots (on " + std::to_string(affected.size()) + " lines: " + some(affected) +
+                                    " particle slots (on " + std::to_string(affected.size()) + " lines: " + some_line_ids(affected) +
                                     ") had no complete particle of their start frame: " + what);
     }
     return schedule;

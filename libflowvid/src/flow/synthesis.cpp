@@ -643,7 +643,17 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
                                     m_plan->width, m_plan->height);
         m_plan->carry_lines.push_back(std::move(carry));
     };
+    std::vector<std::string> off_frame, too_short;
     for (OutputLine& output : outputs) {
+        // A line drawn off the frame, or shorter than a pixel (in every key), shows nothing: say so.
+        double longest_px = 0.0, longest_inside_px = 0.0;
+        const auto measure = [&](const std::vector<Eigen::Vector2d>& points) {
+            longest_px = std::max(longest_px, formats::polyline_length(points));
+            longest_inside_px = std::max(longest_inside_px, length_inside_frame(points, m_plan->width, m_plan->height));
+        };
+        if (!output.line.is_time_varying()) measure(output.line.points);
+        for (const formats::FlowLineKey& key : output.line.keys) measure(key.points);
+        if (longest_inside_px < 1.0) (longest_px < 1.0 ? too_short : off_frame).push_back(output.line.id);
         const int stream = m_streams->stream_index(output.from);
         if (stream >= 0) {
             add_carry(output.line, m_streams->geometry(stream).points());
@@ -688,6 +698,14 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
             if (!empty) add(std::move(part), seg.stream);
         }
     }
+    const auto show_nothing = [&](const std::vector<std::string>& ids, const std::string& why) {
+        if (ids.empty()) return;
+        m_warnings.push_back(std::to_string(ids.size()) + (ids.size() == 1 ? " output line " : " output lines ") + why +
+                             " and show" + (ids.size() == 1 ? "s" : "") + " nothing (" + some_line_ids(ids) + ")");
+    };
+    show_nothing(off_frame, (off_frame.size() == 1 ? "lies" : "lie") + std::string(" outside the ") +
+                                std::to_string(m_plan->width) + " x " + std::to_string(m_plan->height) + " frame");
+    show_nothing(too_short, too_short.size() == 1 ? "is shorter than a pixel" : "are shorter than a pixel");
     if (!m_plan->carry_lines.empty())
         m_plan->carry_allowed = carry_allowed_map(*m_streams, m_plan->width, m_plan->height, patch);
     // Fixed lines over a still plate carry the same background every frame:

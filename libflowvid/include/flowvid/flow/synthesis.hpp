@@ -193,6 +193,10 @@ struct Schedule {
     std::vector<std::string> warnings;
 };
 
+// The first three ids, and ", ..." when there are more: warnings summarise
+// lines (a densified bank or a particle system has hundreds).
+std::string some_line_ids(const std::vector<std::string>& ids);
+
 // Chooses the K-particle window for every line of the bank. Throws
 // std::invalid_argument when no line has a particle.
 Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSettings& settings);
