@@ -37,6 +37,29 @@ FileKind kind_from_json_format(const std::string& format) {
     return FileKind::unknown;
 }
 
+// The "format" a JSON file declares near its start ("" when none).
+std::string declared_json_format(const std::string& head) {
+    const std::size_t format_key = head.find("\"format\"");
+    if (format_key == std::string::npos) return {};
+    const std::size_t colon = head.find(':', format_key);
+    const std::size_t open = colon == std::string::npos ? colon : head.find('"', colon);
+    const std::size_t close = open == std::string::npos ? open : head.find('"', open + 1);
+    return close == std::string::npos ? std::string() : head.substr(open + 1, close - open - 1);
+}
+
+// Why a file is not one flowvid reads: a JSON file declaring a format flowvid
+// does not know is told which formats it does know.
+Problem unrecognised_file(const std::string& path, const std::string& fix) {
+    std::string format;
+    std::error_code ec;
+    if (!fs::is_directory(path, ec)) format = declared_json_format(read_head(path, 4096));
+    if (!format.empty())
+        return Problem{Problem::Severity::error, path, "/format", "\"" + format + "\" is not a format flowvid reads",
+                       "flowvid's JSON formats are flowvid.fabric (fabric presets), flowvid.flowlines, "
+                       "flowvid.capture (a capture folder's capture.json) and flowvid.fit_shard"};
+    return Problem{Problem::Severity::error, path, "", "not a flowvid file (unrecognised content)", fix};
+}
+
 }  // namespace
 
 const char* file_kind_name(FileKind kind) {
@@ -69,15 +92,8 @@ FileKind detect_file_kind(const std::string& path) {
     }
     if (head.rfind("glTF", 0) == 0) return FileKind::motion_gltf;
     if (head.find("<svg") != std::string::npos || ends_with(path, ".svg")) return FileKind::flowline_svg;
-    const std::size_t format_key = head.find("\"format\"");
-    if (format_key != std::string::npos) {
-        const std::size_t open = head.find('"', head.find(':', format_key));
-        const std::size_t close = open == std::string::npos ? open : head.find('"', open + 1);
-        if (close != std::string::npos) {
-            FileKind kind = kind_from_json_format(head.substr(open + 1, close - open - 1));
-            if (kind != FileKind::unknown) return kind;
-        }
-    }
+    const FileKind declared = kind_from_json_format(declared_json_format(head));
+    if (declared != FileKind::unknown) return declared;
     if (ends_with(path, ".fabric.json")) return FileKind::fabric_preset;
     if (ends_with(path, ".flowlines.json")) return FileKind::flowline_set;
     if (ends_with(path, "capture.json")) return FileKind::capture_folder;
@@ -103,9 +119,8 @@ std::vector<Problem> validate_any_file(const std::string& path, Strictness stric
         case FileKind::capture_folder: return validate_capture_folder(path, strictness);
         case FileKind::unknown: break;
     }
-    return {Problem{Problem::Severity::error, path, "", "not a flowvid file (unrecognised content)",
-                    "give a *.fabric.json, *.flowlines.json, flow-line SVG, bank or vertex-animation EXR, "
-                    ".glb, or a capture folder"}};
+    return {unrecognised_file(path, "give a *.fabric.json, *.flowlines.json, flow-line SVG, bank or vertex-animation "
+                                    "EXR, .glb, or a capture folder")};
 }
 
 nlohmann::json summarize_any_file(const std::string& path) {
@@ -121,8 +136,7 @@ nlohmann::json summarize_any_file(const std::string& path) {
         case FileKind::capture_folder: summary = summarize_capture(read_capture(path)); break;
         case FileKind::fit_shard: summary = summarize_fit_shard(read_fit_shard(path)); break;
         case FileKind::unknown:
-            throw ValidationError({Problem{Problem::Severity::error, path, "", "not a flowvid file (unrecognised content)",
-                                           "run 'flowvid validate' on it for details"}});
+            throw ValidationError({unrecognised_file(path, "run 'flowvid validate' on it for details")});
     }
     summary["path"] = path;
     summary["kind"] = file_kind_name(kind);

@@ -58,6 +58,16 @@ TEST(Cli, ValidateValidAndInvalidFiles) {
     CliResult missing = run_flowvid({"validate", dir + "/missing.fabric.json"});
     EXPECT_EQ(missing.exit_code, 3);
     EXPECT_TRUE(mentions(missing.err, dir + "/missing.fabric.json")) << missing.err;
+
+    // A JSON file declaring a format flowvid does not read is told which ones it does.
+    const std::string misnamed = dir + "/preset.json";
+    write_text(misnamed, R"({"format": "flowvid.fabric_preset", "version": 1})");
+    for (const char* command : {"validate", "info"}) {
+        CliResult r = run_flowvid({command, misnamed});
+        EXPECT_EQ(r.exit_code, 3) << command;
+        EXPECT_TRUE(mentions(r.err, misnamed + ": /format: \"flowvid.fabric_preset\" is not a format")) << r.err;
+        EXPECT_TRUE(mentions(r.err, "flowvid.fabric (fabric presets)")) << r.err;
+    }
 }
 
 TEST(Cli, InfoForPeopleAndMachines) {
