@@ -233,7 +233,10 @@ void add_common(CLI::App& app, RenderOptions& o) {
     app.add_option("--bank", o.bank, "particle bank written by flowvid track (.exr)")->required();
     app.add_option("--frames", o.frames, "N (frames 1..N) or A:B (frames A..B of the infinite sequence)")
         ->capture_default_str();
-    app.add_option("--out", o.out, "image pattern (out/%06d.png, .exr, .tif), folder, video (.mp4, .avi), or for one frame an image (still.png)")->required();
+    app.add_option("--out", o.out,
+                   "image pattern (out/%06d.png, .exr, .tif), folder, video (.mp4, .avi), or for one frame an image "
+                   "(still.png)")
+        ->required();
     app.add_option("--capture,--clip", o.capture, "the source clip (default: the one recorded in the bank)");
     app.add_option("--background", o.background,
                    "where no line reaches: median (static plate), loop (the clip), replay (the clip in step with the "

@@ -116,7 +116,9 @@ struct TrackingResult {
 // Tracks particles along `lines` (input lines, fixed points, in the frames'
 // pixel coordinates) through every frame of `frames`. Deterministic: the same
 // input gives the same bank whatever the thread count.
-// Throws std::invalid_argument for settings out of range or a line with keys.
+// Throws std::invalid_argument for settings out of range, a line with keys,
+// a clip of fewer than 2 frames, a patch larger than the frame, or a line
+// lying wholly off the frame.
 TrackingResult track_particles(FrameSequence& frames, const std::vector<formats::FlowLine>& lines,
                                const TrackingSettings& settings, const TrackingProgressCallback& progress = {});
 
