@@ -108,11 +108,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     const flow::TextureLayer layer = flow::texture_layer_from_string(options.texture);
     const flow::BackgroundMode background_mode = flow::background_mode_from_string(options.background);
     const bool moving = layer == flow::TextureLayer::moving;
-    if (moving && background_mode != flow::BackgroundMode::median) {
-        log_message("error: --texture moving screens the flames over the clip's dark plate, and the " +
-                    options.background + " background already shows them: use --background median");
-        return kExitUsage;
-    }
+    if (moving_layer_refused(layer, background_mode, options.background, false)) return kExitUsage;
     flow::SynthesisSettings settings = synthesis_settings(options.synthesis);
     settings.texture_layer = layer;
     const std::vector<std::vector<Eigen::Vector2d>> input_points =

@@ -13,6 +13,16 @@ namespace {
 nlohmann::json number_or_null(double value) { return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value); }
 }  // namespace
 
+bool moving_layer_refused(flow::TextureLayer layer, flow::BackgroundMode mode, const std::string& background_option,
+                          bool none_allowed) {
+    if (layer != flow::TextureLayer::moving || (mode != flow::BackgroundMode::loop && mode != flow::BackgroundMode::replay))
+        return false;
+    log_message("error: --texture moving screens the flames over a still background, and the " + background_option +
+                " background already shows them: use --background median (the clip's dark plate)" +
+                (none_allowed ? " or none" : ""));
+    return true;
+}
+
 void report_schedule(const flow::Schedule& schedule) {
     for (const std::string& w : schedule.warnings) log_message("warning: " + w);
     const flow::Schedule::Window& longest = schedule.longest_window;

@@ -33,6 +33,12 @@ void add_synthesis_options(CLI::App& app, SynthesisOptions& options);
 // The library settings those options give (the rest at their defaults).
 flow::SynthesisSettings synthesis_settings(const SynthesisOptions& options);
 
+// --texture moving screens the flow over a still background; the looped or
+// replayed clip already shows it. Logs why and returns true when `mode` is
+// one of those (the caller exits with kExitUsage before reading the clip).
+bool moving_layer_refused(flow::TextureLayer layer, flow::BackgroundMode mode, const std::string& background_option,
+                          bool none_allowed);
+
 // Logs the schedule's warnings and, when the window was shortened for a
 // better-joining wrap, which window was taken over the longest and why.
 void report_schedule(const flow::Schedule& schedule);

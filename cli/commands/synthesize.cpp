@@ -83,11 +83,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     const flow::BackgroundMode mode = flow::background_mode_from_string(options.background);
     const flow::TextureLayer layer = flow::texture_layer_from_string(options.texture);
     const bool moving = layer == flow::TextureLayer::moving;
-    if (moving && (mode == flow::BackgroundMode::loop || mode == flow::BackgroundMode::replay)) {
-        log_message("error: --texture moving screens the flames over a still background, and the " + options.background +
-                    " background already shows them: use --background median (the clip's dark plate) or none");
-        return kExitUsage;
-    }
+    if (moving_layer_refused(layer, mode, options.background, true)) return kExitUsage;
     if ((mode != flow::BackgroundMode::none || moving) && !capture) {
         log_message("error: " + options.bank + ": " +
                     (moving ? std::string("--texture moving needs the source clip's still plate")

@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <limits>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -247,6 +248,7 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
     std::vector<const std::vector<std::pair<int, int>>*> line_starts;
     for (const auto* line : lines) line_starts.push_back(&by_line[line->id]);
     const WrapJoin join(bank, line_starts);
+    std::optional<double> chosen_join_error;  // measured while choosing the default window
     if (settings.first_start_frame < 0 && settings.seed == 0 && !fitting.empty()) {
         std::vector<std::pair<int, int>> candidates;  // (count, first slot)
         if (wanted > 0) {
@@ -275,10 +277,12 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
                 best = {count, f};
             }
         }
+        chosen_join_error = longest;
         if (best != std::make_pair(k, first_slot) && best_error < kMinJoinGain * longest) {
             schedule.longest_window = {k, first_start + first_slot * step, longest};
             k = best.first;
             first_slot = best.second;
+            chosen_join_error = best_error;
         }
     }
     const int s0 = first_start + first_slot * step;
@@ -286,7 +290,7 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
     schedule.start_every = step;
     schedule.first_start_frame = s0;
     schedule.period_frames = k * step;
-    schedule.wrap_join_error = join.error(s0, step, k);
+    schedule.wrap_join_error = chosen_join_error ? *chosen_join_error : join.error(s0, step, k);
     for (const auto* line : lines) {
         const auto& starts = by_line[line->id];
         LineSchedule ls;
