@@ -195,6 +195,26 @@ void speed_table() {
     for (int threads : {1, 2})
         row("  weighted mean (plain, sharpness 1), " + std::to_string(threads) + " thread(s)",
             frames_of(mixed_synth, threads));
+    // --background relit: the plate darkened frame by frame as a replayed
+    // clip is lit (a short random clip, replayed modulo its length).
+    auto relit_clip = std::make_shared<ClipFrames>(1280, 720, 25.0, "bench");
+    {
+        std::mt19937 rng(2);
+        std::uniform_real_distribution<float> u(0.0f, 1.0f);
+        RgbImage frame(1280, 720);
+        for (int i = 0; i < 8; ++i) {
+            for (float& v : frame.rgb) v = u(rng);
+            relit_clip->append(frame);
+        }
+    }
+    const Schedule& schedule = scene_streams()->schedule();
+    const Synthesizer relit_synth(scene_streams(), {},
+                                  Background::relit(relit_clip, scene().plate, schedule.first_start_frame,
+                                                    schedule.period_frames, schedule.start_every, 12.0),
+                                  SynthesisSettings{});
+    for (int threads : {1, 2})
+        row("  relit background (--background relit), " + std::to_string(threads) + " thread(s)",
+            frames_of(relit_synth, threads));
     SynthesisSettings carry;
     carry.carry_background = true;
     const Synthesizer edit_carry(scene_streams(), bent_outputs(), Background::plate(scene().plate), carry);

@@ -32,7 +32,7 @@ def _arguments(argv):
     parser.add_argument("--frames", type=_frame_range,
                         help="A:B (default: the scene's frame range); frames are named by their number, so farm "
                              "tasks rendering chunks of one range join seamlessly")
-    parser.add_argument("--background", choices=("median", "loop", "replay", "none"),
+    parser.add_argument("--background", choices=("median", "loop", "replay", "relit", "none"),
                         help="with --bank: what shows where no line reaches (flowvid edit --background; default median)")
     parser.add_argument("--texture", choices=("whole", "moving"),
                         help="with --bank: what a particle's patch carries (flowvid edit --texture; default whole): "

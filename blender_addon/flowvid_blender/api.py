@@ -679,7 +679,7 @@ def run_flowvid_tool(*arguments):
 
 def synthesize(bank, flowlines, frame_start, frame_end, out_dir, extra=(), background=None, texture=None):
     """flowvid edit for the frame range: PNG frames out_dir/%06d.png; returns the first frame's path.
-    background: median, loop, replay or none (flowvid edit --background; None: the tool's default).
+    background: median, loop, replay, relit or none (flowvid edit --background; None: the tool's default).
     texture: whole or moving (flowvid edit --texture: moving keeps only the light flames or smoke add to
     the scene, screened over its dark plate or over black; None: the tool's default, whole)."""
     os.makedirs(out_dir, exist_ok=True)

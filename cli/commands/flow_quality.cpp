@@ -141,7 +141,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     } else if (background_mode == flow::BackgroundMode::median) {
         background = flow::Background::plate(plate);
     } else {
-        background = flow::make_background(background_mode, clip_frames, streams->schedule());
+        background = flow::make_background(background_mode, clip_frames, streams->schedule(), streams->patch_size());
     }
     const flow::Synthesizer synth(streams, {}, std::move(*background), settings);
 
@@ -249,8 +249,8 @@ const RegisterCommand registration{Command{
             ->check(CLI::NonNegativeNumber);
         add_synthesis_options(app, options->synthesis);  // as synth renders
         app.add_option("--background", options->background,
-                       "our synthesis's background where no line reaches: median, loop or replay (as in synth)")
-            ->check(CLI::IsMember({"median", "loop", "replay"}))
+                       "our synthesis's background where no line reaches: median, loop, replay or relit (as in synth)")
+            ->check(CLI::IsMember({"median", "loop", "replay", "relit"}))
             ->capture_default_str();
         app.add_option("--texture", options->texture,
                        "what our synthesis's patches carry: whole, or moving (the light the flow adds, screened over "

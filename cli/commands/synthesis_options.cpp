@@ -15,11 +15,12 @@ nlohmann::json number_or_null(double value) { return std::isnan(value) ? nlohman
 
 bool moving_layer_refused(flow::TextureLayer layer, flow::BackgroundMode mode, const std::string& background_option,
                           bool none_allowed) {
-    if (layer != flow::TextureLayer::moving || (mode != flow::BackgroundMode::loop && mode != flow::BackgroundMode::replay))
-        return false;
+    const bool still = mode == flow::BackgroundMode::median || mode == flow::BackgroundMode::none;
+    if (layer != flow::TextureLayer::moving || still) return false;
     log_message("error: --texture moving screens the flames over a still background, and the " + background_option +
-                " background already shows them: use --background median (the clip's dark plate)" +
-                (none_allowed ? " or none" : ""));
+                " background already " +
+                (mode == flow::BackgroundMode::relit ? "carries their light" : "shows them") +
+                ": use --background median (the clip's dark plate)" + (none_allowed ? " or none" : ""));
     return true;
 }
 

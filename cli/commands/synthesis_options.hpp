@@ -34,8 +34,9 @@ void add_synthesis_options(CLI::App& app, SynthesisOptions& options);
 flow::SynthesisSettings synthesis_settings(const SynthesisOptions& options);
 
 // --texture moving screens the flow over a still background; the looped or
-// replayed clip already shows it. Logs why and returns true when `mode` is
-// one of those (the caller exits with kExitUsage before reading the clip).
+// replayed clip already shows it, and the relit plate its light. Logs why and
+// returns true when `mode` is one of those (the caller exits with kExitUsage
+// before reading the clip).
 bool moving_layer_refused(flow::TextureLayer layer, flow::BackgroundMode mode, const std::string& background_option,
                           bool none_allowed);
 

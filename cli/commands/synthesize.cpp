@@ -139,7 +139,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     report_schedule(streams->schedule());
     flow::Background background = moving && mode == flow::BackgroundMode::median
                                       ? flow::Background::plate(*still_plate)
-                                      : flow::make_background(mode, clip, streams->schedule());
+                                      : flow::make_background(mode, clip, streams->schedule(), streams->patch_size());
 
     std::vector<flow::OutputLine> outputs;
     nlohmann::json summary;
@@ -236,8 +236,9 @@ void add_common(CLI::App& app, RenderOptions& o) {
     app.add_option("--capture,--clip", o.capture, "the source clip (default: the one recorded in the bank)");
     app.add_option("--background", o.background,
                    "where no line reaches: median (static plate), loop (the clip), replay (the clip in step with the "
-                   "particles: the input frame they show), none")
-        ->check(CLI::IsMember({"median", "loop", "replay", "none"}))
+                   "particles: the input frame they show), relit (the plate darkened where that frame is: the light of "
+                   "flames comes and goes on the scene, and patch ends meet it), none")
+        ->check(CLI::IsMember({"median", "loop", "replay", "relit", "none"}))
         ->capture_default_str();
     app.add_option("--texture", o.texture,
                    "what a patch carries: whole (everything in it: water and the rock it passes), or moving (only the "

@@ -275,7 +275,7 @@ TEST(CliFlow, TheMovingLayerNeedsAStillBackground) {
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(nlohmann::json::parse(r.out)["texture"], "moving");
     EXPECT_TRUE(fs::exists(dir + "/0002.png"));
-    for (const char* background : {"loop", "replay"}) {
+    for (const char* background : {"loop", "replay", "relit"}) {
         const CliResult refused = run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "2:2", "--texture", "moving",
                                                "--background", background, "--out", dir + "/r%04d.png"});
         EXPECT_EQ(refused.exit_code, 2) << background;

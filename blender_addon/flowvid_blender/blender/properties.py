@@ -40,6 +40,8 @@ class FlowvidSceneSettings(bpy.types.PropertyGroup):
         ("median", "Median plate", "Where no line reaches: the clip's static median frame"),
         ("loop", "Looped clip", "Where no line reaches: the clip itself, looped"),
         ("replay", "Replayed clip", "Where no line reaches: the clip frame the particles show"),
+        ("relit", "Relit plate", "Where no line reaches: the median plate, darkened where the frame the particles "
+                                 "show is darker (the light of flames comes and goes on the scene)"),
         ("none", "Black", "Where no line reaches: black, to add the texture over a render"),
     ), description="What shows where no output line carries texture (flowvid edit --background)")
     texture: EnumProperty(name="Texture", default="whole", items=(

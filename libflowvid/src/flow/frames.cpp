@@ -5,6 +5,7 @@
 
 #include <OpenImageIO/imageio.h>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
 #include <algorithm>
@@ -303,6 +304,7 @@ const char* to_string(BackgroundMode mode) {
         case BackgroundMode::median: return "median";
         case BackgroundMode::loop: return "loop";
         case BackgroundMode::replay: return "replay";
+        case BackgroundMode::relit: return "relit";
         case BackgroundMode::none: return "none";
     }
     return "?";
@@ -312,8 +314,9 @@ BackgroundMode background_mode_from_string(const std::string& text) {
     if (text == "median") return BackgroundMode::median;
     if (text == "loop") return BackgroundMode::loop;
     if (text == "replay") return BackgroundMode::replay;
+    if (text == "relit") return BackgroundMode::relit;
     if (text == "none") return BackgroundMode::none;
-    throw std::invalid_argument("unknown background mode '" + text + "' (median, loop, replay or none)");
+    throw std::invalid_argument("unknown background mode '" + text + "' (median, loop, replay, relit or none)");
 }
 
 Background Background::plate(RgbImage linear_plate) {
@@ -342,6 +345,58 @@ Background Background::replayed(std::shared_ptr<const ClipFrames> clip, int firs
     return b;
 }
 
+namespace {
+
+// `image` reduced by `scale` (area average) and blurred with a Gaussian of
+// sigma_px (full-size pixels): light varies smoothly, so it is measured small.
+RgbImage reduced_light(const RgbImage& image, int scale, double sigma_px) {
+    const cv::Mat full(image.height, image.width, CV_32FC3, const_cast<float*>(image.rgb.data()));
+    const int w = std::max(1, (image.width + scale - 1) / scale), h = std::max(1, (image.height + scale - 1) / scale);
+    cv::Mat small;
+    cv::resize(full, small, cv::Size(w, h), 0.0, 0.0, cv::INTER_AREA);
+    cv::GaussianBlur(small, small, cv::Size(0, 0), std::max(0.5, sigma_px / scale), 0.0, cv::BORDER_REFLECT);
+    RgbImage out(w, h);
+    std::copy(small.ptr<float>(), small.ptr<float>() + out.rgb.size(), out.rgb.begin());
+    return out;
+}
+
+}  // namespace
+
+Background Background::relit(std::shared_ptr<const ClipFrames> clip, RgbImage linear_plate, int first_frame,
+                             int period_frames, int dissolve_frames, double light_radius_px) {
+    if (!(light_radius_px > 0.0)) throw std::invalid_argument("a relit background needs a light radius above 0 px");
+    Background b = replayed(std::move(clip), first_frame, period_frames, dissolve_frames);
+    b.m_mode = BackgroundMode::relit;
+    b.m_plate = std::move(linear_plate);
+    // A quarter of the radius per reduced pixel keeps the Gaussian smooth.
+    b.m_light_scale = std::max(1, static_cast<int>(light_radius_px / 4.0));
+    if (!b.m_clip || b.m_clip->count() == 0 || b.m_plate.width != b.m_clip->width() ||
+        b.m_plate.height != b.m_clip->height())
+        return b;  // fill() shows black, as for a replay without its clip
+    // The light of every frame the background can show, measured once (a
+    // period of small images): ratio of blurred frame to blurred plate, at
+    // most 1, light only taken away. Brightening the plate where the frame
+    // has a flame draws a glow without the flame wherever no particle carries
+    // it (fire frame 140 viewed: a haze over the ground beside the flames at
+    // a gain of 1.5). The small floor keeps black regions of the plate from
+    // amplifying noise.
+    constexpr float kDarkFloor = 2e-3f;
+    const RgbImage plate_light = reduced_light(b.m_plate, b.m_light_scale, light_radius_px);
+    const int n = b.m_clip->count();
+    b.m_light_gains.resize(static_cast<std::size_t>(n));
+    // The window's frames, and after it those the particles still on the
+    // lines at the wrap show (Synthesizer::fill_background follows them).
+    for (int r = 0; r < std::max(b.m_period, n - b.m_first_frame); ++r) {
+        const int index = r < b.m_period ? (b.m_first_frame + r) % n : b.m_first_frame + r;
+        if (index >= n || !b.m_light_gains[static_cast<std::size_t>(index)].empty()) continue;
+        RgbImage gain = reduced_light(b.m_clip->linear(index), b.m_light_scale, light_radius_px);
+        for (std::size_t i = 0; i < gain.rgb.size(); ++i)
+            gain.rgb[i] = std::min(1.0f, (gain.rgb[i] + kDarkFloor) / (plate_light.rgb[i] + kDarkFloor));
+        b.m_light_gains[static_cast<std::size_t>(index)] = std::move(gain);
+    }
+    return b;
+}
+
 void Background::fill(int frame, int width, int height, RgbImage& out) const {
     const auto fits = [&](const RgbImage& image) { return image.width == width && image.height == height; };
     if (m_mode == BackgroundMode::median && fits(m_plate)) {
@@ -365,12 +420,28 @@ void Background::fill(int frame, int width, int height, RgbImage& out) const {
         }
         return;
     }
+    if (m_mode == BackgroundMode::relit && have_clip && fits(m_plate)) {
+        const ReplayFrames frames = replay_frames(frame);
+        RgbImage gain = m_light_gains[static_cast<std::size_t>(frames.now)];
+        if (frames.continuing >= 0 && frames.dissolve_share > 0.0f) {
+            const float after = frames.dissolve_share;
+            const RgbImage& before = m_light_gains[static_cast<std::size_t>(frames.continuing)];
+            for (std::size_t i = 0; i < gain.rgb.size(); ++i) gain.rgb[i] += after * (before.rgb[i] - gain.rgb[i]);
+        }
+        out = RgbImage(width, height);
+        cv::Mat lit(height, width, CV_32FC3, out.rgb.data());
+        cv::resize(cv::Mat(gain.height, gain.width, CV_32FC3, gain.rgb.data()), lit, lit.size(), 0.0, 0.0,
+                   cv::INTER_LINEAR);
+        cv::multiply(lit, cv::Mat(height, width, CV_32FC3, const_cast<float*>(m_plate.rgb.data())), lit);
+        return;
+    }
     out = RgbImage(width, height);
 }
 
 Background::ReplayFrames Background::replay_frames(int frame) const {
     ReplayFrames frames;
-    if (m_mode != BackgroundMode::replay || !m_clip || m_clip->count() == 0) return frames;
+    if ((m_mode != BackgroundMode::replay && m_mode != BackgroundMode::relit) || !m_clip || m_clip->count() == 0)
+        return frames;
     const int n = m_clip->count();
     const int r = (((frame - 1) % m_period) + m_period) % m_period;
     frames.now = (m_first_frame + r) % n;
@@ -389,6 +460,29 @@ void Background::fill_replay(int frame, int width, int height, const std::vector
     if (frames.continuing < 0 || m_clip->width() != width || m_clip->height() != height ||
         continuing_share.size() != pixels) {
         fill(frame, width, height, out);
+        return;
+    }
+    if (m_mode == BackgroundMode::relit) {
+        // The two frames' light, enlarged, mixed per pixel, on the plate.
+        if (!(m_plate.width == width && m_plate.height == height)) {
+            fill(frame, width, height, out);
+            return;
+        }
+        const auto enlarged = [&](int index) {
+            const RgbImage& gain = m_light_gains[static_cast<std::size_t>(index)];
+            RgbImage full(width, height);
+            cv::resize(cv::Mat(gain.height, gain.width, CV_32FC3, const_cast<float*>(gain.rgb.data())),
+                       cv::Mat(height, width, CV_32FC3, full.rgb.data()), cv::Size(width, height), 0.0, 0.0,
+                       cv::INTER_LINEAR);
+            return full;
+        };
+        out = enlarged(frames.now);
+        const RgbImage after = enlarged(frames.continuing);
+        for (std::size_t i = 0; i < pixels; ++i) {
+            const float a = continuing_share[i];
+            for (std::size_t k = 3 * i; k < 3 * i + 3; ++k)
+                out.rgb[k] = m_plate.rgb[k] * (out.rgb[k] + a * (after.rgb[k] - out.rgb[k]));
+        }
         return;
     }
     out = m_clip->linear(frames.now);

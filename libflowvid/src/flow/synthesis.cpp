@@ -507,10 +507,18 @@ TextureLayer texture_layer_from_string(const std::string& text) {
     throw std::invalid_argument("unknown texture layer '" + text + "' (whole or moving)");
 }
 
-Background make_background(BackgroundMode mode, std::shared_ptr<const ClipFrames> clip, const Schedule& schedule) {
+Background make_background(BackgroundMode mode, std::shared_ptr<const ClipFrames> clip, const Schedule& schedule,
+                           int patch_size_px) {
     if (mode == BackgroundMode::none || !clip) return Background();
     if (mode == BackgroundMode::median) return Background::plate(median_plate(*clip));
     if (mode == BackgroundMode::loop) return Background::looped(std::move(clip));
+    if (mode == BackgroundMode::relit) {
+        // Light measured at the scale of a patch: what a lone patch's round
+        // end shows against the plate.
+        RgbImage plate = median_plate(*clip);
+        return Background::relit(std::move(clip), std::move(plate), schedule.first_start_frame, schedule.period_frames,
+                                 std::max(1, schedule.start_every), 0.5 * std::max(2, patch_size_px));
+    }
     // The particles already on a line when it wraps go on showing the frames
     // after the window until they leave; following them would keep two
     // frames mixed for most of a period. The background changes over the
@@ -533,9 +541,10 @@ struct Synthesizer::Plan {
         int time_offset_frames = 0;  // shows the particles of frame + this
         formats::FlowLine line;  // keyed lines: geometry per frame
         WarpTable warp;          // fixed, non-identity lines
-        // Whether a replayed background follows its particles (fill_background).
+        // Whether a replayed or relit background follows its particles (fill_background).
         bool followed_by(const Background& background) const {
-            return background.mode() == BackgroundMode::replay && identity && time_offset_frames == 0;
+            const BackgroundMode mode = background.mode();
+            return (mode == BackgroundMode::replay || mode == BackgroundMode::relit) && identity && time_offset_frames == 0;
         }
     };
     std::vector<Line> lines;
@@ -597,7 +606,8 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
       m_settings(settings) {
     if (!m_streams) throw std::invalid_argument("no particle streams");
     if (settings.texture_layer == TextureLayer::moving &&
-        (m_background.mode() == BackgroundMode::loop || m_background.mode() == BackgroundMode::replay))
+        (m_background.mode() == BackgroundMode::loop || m_background.mode() == BackgroundMode::replay ||
+         m_background.mode() == BackgroundMode::relit))
         throw std::invalid_argument(std::string("the moving texture layer needs a still background (median or none), not ") +
                                     to_string(m_background.mode()) + ": the clip already shows the flames it would add");
     const formats::ParticleBank& bank = m_streams->bank();
@@ -758,7 +768,7 @@ int Synthesizer::height() const { return m_plan->height; }
 
 RgbImage Synthesizer::render(int frame) const { return render(frame, nullptr); }
 
-// A replayed background follows the ladder: after the wrap, the particles
+// A replayed (or relit) background follows the ladder: after the wrap, the particles
 // still on a line from before it show the frames after the window, ahead of
 // the first new particle, and the background around them shows those too, so
 // texture and background agree where patches end on both sides of the

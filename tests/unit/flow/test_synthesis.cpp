@@ -288,8 +288,8 @@ TEST(FlowSynthesis, AReplayedBackgroundShowsTheFrameTheParticlesShow) {
     const Schedule& schedule = streams->schedule();
     const int s0 = schedule.first_start_frame, period = schedule.period_frames;
     ASSERT_LT(s0 + period, f.clip->count());  // the clip goes on past the window: the wrap dissolves
-    const Synthesizer replayed(streams, {}, make_background(BackgroundMode::replay, f.clip, schedule), settings);
-    const Synthesizer median(streams, {}, make_background(BackgroundMode::median, f.clip, schedule), settings);
+    const Synthesizer replayed(streams, {}, make_background(BackgroundMode::replay, f.clip, schedule, f.bank->patch_size_px), settings);
+    const Synthesizer median(streams, {}, make_background(BackgroundMode::median, f.clip, schedule, f.bank->patch_size_px), settings);
     const int dissolve = schedule.start_every;
     ASSERT_GE(dissolve, 2);
     // Away from the wrap: after the particles on the line when it wrapped have left.
@@ -332,6 +332,7 @@ TEST(FlowSynthesis, AReplayedBackgroundShowsTheFrameTheParticlesShow) {
     // the ladder step show the frames after the window, and so does the
     // background around them (the dissolve alone would show the window's
     // frame there: where their coverage ends, the texture's edge would show).
+    ASSERT_GE(s0 + period, 40);  // the frames after the window are dim: a plate only darkens
     const int half = streams->patch_size() / 2;
     int checked = 0;
     double worst_ladder = 0.0, frames_differ = 0.0;
@@ -368,6 +369,157 @@ TEST(FlowSynthesis, AReplayedBackgroundShowsTheFrameTheParticlesShow) {
     EXPECT_LT(worst_ladder, 0.02);
     EXPECT_GT(frames_differ, 0.1);
     EXPECT_EQ(background_mode_from_string("replay"), BackgroundMode::replay);
+}
+
+// --background relit: the median plate darkened where the replayed frame is
+// darker than it. A scene whose light comes and goes as a whole (a factor
+// a(t) on every pixel, as flames light a pot) around a narrow flowing band:
+// away from the band the relit plate is the frame itself on dim frames
+// (a(t) / a_median times the plate) and the plate unchanged on bright ones
+// (never brightened); where patches end, the output meets the frame the
+// particles show instead of the plate's typical light.
+TEST(FlowSynthesis, ARelitBackgroundDarkensThePlateAsTheReplayedFrameIs) {
+    SyntheticFlowSpec spec;
+    spec.width = 144;
+    spec.height = 96;
+    spec.frames = 60;
+    spec.curve = {{72.0, -8.0}, {72.0, 104.0}};
+    spec.band_px = 4.0;  // narrower than a patch: patches end over the still scene
+    spec.speed_px_per_frame = [](double) { return 8.0; };  // lives shorter than the period
+    spec.feature_px = 6.0;
+    spec.seed = 5;
+    const SyntheticFlow truth(spec);
+    // 0.2 .. 1, and dim at the end of the clip (the frames after the window).
+    const auto light = [](int t) { return t < 40 ? 0.6 + 0.4 * std::cos(2.0 * M_PI * t / 13.0) : 0.25; };
+    std::vector<RgbImage> display;
+    for (int t = 0; t < spec.frames; ++t) {
+        RgbImage linear = to_linear(truth.frame(t));
+        for (float& v : linear.rgb) v *= static_cast<float>(light(t));
+        display.push_back(to_display(linear));
+    }
+    MemoryFrames frames(display, spec.fps);
+    formats::FlowLine line;
+    line.id = "in-1";
+    line.points = spec.curve;
+    TrackingSettings tracking;
+    tracking.start_every = 2;
+    tracking.max_path_frames = -1;
+    auto bank = std::make_shared<formats::ParticleBank>(track_particles(frames, {line}, tracking).bank);
+    auto clip = std::make_shared<ClipFrames>(ClipFrames::read_all(frames));
+
+    SynthesisSettings settings;
+    auto streams = std::make_shared<ParticleStreams>(bank, std::vector<std::vector<Eigen::Vector2d>>{line.points}, settings);
+    const Schedule& schedule = streams->schedule();
+    const int s0 = schedule.first_start_frame, period = schedule.period_frames;
+    const Background relit = make_background(BackgroundMode::relit, clip, schedule, bank->patch_size_px);
+    ASSERT_EQ(relit.mode(), BackgroundMode::relit);
+    const RgbImage plate = median_plate(*clip);
+    std::vector<double> factors;
+    for (int i = 0; i < spec.frames; i += std::max(1, spec.frames / 64)) factors.push_back(light(i));
+    std::nth_element(factors.begin(), factors.begin() + factors.size() / 2, factors.end());
+    const double median_light = factors[factors.size() / 2];
+
+    const Synthesizer with_relit(streams, {}, relit, settings);
+    const Synthesizer with_median(streams, {}, Background::plate(plate), settings);
+    int dim_frames = 0, bright_frames = 0;
+    double relit_error = 0.0, median_error = 0.0, worst_scene = 0.0, worst_bright = 0.0;
+    // After the particles on the line at the wrap have left (they show the
+    // frames after the window; below), to the end of the period.
+    const int settled = schedule.lines[0].max_life;
+    for (int t = settled + 1; t <= period; ++t) {
+        const int input = s0 + (t - 1) % period;
+        const double gain = light(input) / median_light;
+        RgbImage background;
+        relit.fill(t, spec.width, spec.height, background);
+        // The static scene, well clear of the band (light is measured over half a patch).
+        for (int y = 0; y < spec.height; ++y)
+            for (int x : {4, 20, 36, 108, 124, 139})
+                for (int ch = 0; ch < 3; ++ch) {
+                    const float p = plate.pixel(x, y)[ch], b = background.pixel(x, y)[ch];
+                    if (gain < 1.0) worst_scene = std::max(worst_scene, std::fabs(b - gain * p) / std::max(p, 0.02f));
+                    else if (gain > 1.1) worst_bright = std::max(worst_bright, static_cast<double>(std::fabs(b - p)));
+                }
+        if (gain > 0.9) {
+            bright_frames += gain >= 1.0;
+            continue;
+        }
+        ++dim_frames;
+        // Where coverage is partial over the still scene (inside the band the
+        // plate's texture is not the frame's, relit or not): the output
+        // against the frame the particles show.
+        std::vector<float> coverage;
+        const RgbImage out = with_relit.render(t, &coverage), plate_out = with_median.render(t);
+        const RgbImage frame = clip->linear(input);
+        for (std::size_t i = 0; i < coverage.size(); ++i) {
+            const double x = static_cast<double>(i % static_cast<std::size_t>(spec.width));
+            if (coverage[i] <= 0.05f || coverage[i] >= 0.95f || std::fabs(x - 72.0) < spec.band_px + 2.0) continue;
+            for (std::size_t k = 3 * i; k < 3 * i + 3; ++k) {
+                relit_error += std::fabs(out.rgb[k] - frame.rgb[k]);
+                median_error += std::fabs(plate_out.rgb[k] - frame.rgb[k]);
+            }
+        }
+    }
+    std::printf("relit plate on %d dim frames: largest relative error of the scene %.4f; on %d bright frames: largest "
+                "change %.6f; partial coverage, summed difference from the frame shown: relit %.2f, median %.2f\n",
+                dim_frames, worst_scene, bright_frames, worst_bright, relit_error, median_error);
+    ASSERT_GT(dim_frames, 3);
+    ASSERT_GT(bright_frames, 3);
+    EXPECT_LT(worst_scene, 0.03);
+    EXPECT_LT(worst_bright, 1e-6);
+    EXPECT_LT(relit_error, 0.3 * median_error);
+
+    // Until they have left, the relit plate around the particles still on the
+    // line from before the wrap is lit as the frame they show (the frames
+    // after the window), as a replayed background follows them.
+    ASSERT_GE(s0 + period, 40);  // the frames after the window are dim: a plate only darkens
+    const int half = streams->patch_size() / 2;
+    int checked = 0;
+    double ladder_error = 0.0, dissolve_error = 0.0;
+    for (int r = schedule.start_every + 1; r < settled; ++r) {
+        const int t = period + 1 + r, continuing = s0 + period + r;
+        if (continuing >= clip->count()) break;
+        std::vector<float> coverage;
+        const RgbImage out = with_relit.render(t, &coverage);
+        RgbImage dissolved;  // the plate lit as the window's frame, as without following
+        relit.fill(t, spec.width, spec.height, dissolved);
+        RgbImage wanted;  // the plate lit as the frame after the window: a one-frame window of it
+        Background::relit(clip, plate, continuing, 1, 0, 0.5 * bank->patch_size_px).fill(1, spec.width, spec.height, wanted);
+        std::vector<ParticleStreams::Visible> visible;
+        streams->visible(0, t, visible);
+        const RgbImage after = clip->linear(continuing);
+        for (int y = 0; y < spec.height; ++y)
+            for (int x = 0; x < spec.width; ++x) {
+                const float c = coverage[static_cast<std::size_t>(y) * spec.width + x];
+                if (c <= 0.05f || c >= 0.95f || std::fabs(x - 72.0) < spec.band_px + 2.0) continue;
+                bool under_continuing = false;
+                double to_new = std::numeric_limits<double>::infinity();
+                for (const auto& v : visible) {
+                    const double d = std::max(std::fabs(x - v.centre.x()), std::fabs(y - v.centre.y()));
+                    if (v.input_frame == continuing) under_continuing = under_continuing || d < half;
+                    else to_new = std::min(to_new, d);
+                }
+                if (!under_continuing || to_new < 4 * half) continue;
+                ++checked;
+                // The patch carries the frame it shows; the plate under it is lit as that frame.
+                for (int ch = 0; ch < 3; ++ch) {
+                    const float tex = after.pixel(x, y)[ch];
+                    ladder_error += std::fabs(out.pixel(x, y)[ch] - ((1.0f - c) * wanted.pixel(x, y)[ch] + c * tex));
+                    dissolve_error += std::fabs((1.0f - c) * (dissolved.pixel(x, y)[ch] - wanted.pixel(x, y)[ch]));
+                }
+            }
+    }
+    std::printf("after the wrap, %d partly covered pixels ahead of the ladder step: summed difference from the plate lit "
+                "as the frame their particles show %.4f (lit as the window's frame: %.4f)\n",
+                checked, ladder_error, dissolve_error);
+    EXPECT_GT(checked, 60);
+    EXPECT_LT(ladder_error, 0.1 * dissolve_error);
+
+    // Frame t + period is frame t, relit too.
+    RgbImage a, b;
+    relit.fill(5, spec.width, spec.height, a);
+    relit.fill(5 + period, spec.width, spec.height, b);
+    EXPECT_EQ(a.rgb, b.rgb);
+    EXPECT_EQ(background_mode_from_string("relit"), BackgroundMode::relit);
 }
 
 TEST(FlowSynthesis, MissingSlotsAreLeftEmptyUnlessANearStartMayBeBorrowed) {

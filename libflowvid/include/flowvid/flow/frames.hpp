@@ -157,10 +157,11 @@ RgbImage quantile_plate(const ClipFrames& clip, double quantile, int max_samples
 
 // How regions no flow line covers are filled (issue: "a static median plate
 // or the looped clip"). replay: the looped clip in step with the synthesis,
-// showing the input frame its particles show (Background::replayed).
-enum class BackgroundMode { median, loop, replay, none };
+// showing the input frame its particles show (Background::replayed). relit:
+// the median plate darkened where that frame is darker (Background::relit).
+enum class BackgroundMode { median, loop, replay, relit, none };
 const char* to_string(BackgroundMode mode);
-// "median", "loop", "replay", "none"; throws std::invalid_argument otherwise.
+// "median", "loop", "replay", "relit", "none"; throws std::invalid_argument otherwise.
 BackgroundMode background_mode_from_string(const std::string& text);
 
 // The background of every output frame (linear light).
@@ -181,11 +182,21 @@ public:
     // the clip has the former.
     static Background replayed(std::shared_ptr<const ClipFrames> clip, int first_frame, int period_frames,
                                int dissolve_frames);
+    // The still plate darkened, frame by frame, where the replayed clip frame
+    // (same frames as `replayed`; after the wrap, through fill_replay, the
+    // frames the particles still on the lines show) is darker than it: the
+    // plate times the ratio of that frame to the plate, both blurred with a
+    // Gaussian of sigma light_radius_px, at most 1. Where flames die down the
+    // scene they lit darkens with them, so a patch carrying that moment meets
+    // a plate lit as it was; the scene's detail stays the plate's, so the
+    // clip's own transitions are not replayed.
+    static Background relit(std::shared_ptr<const ClipFrames> clip, RgbImage linear_plate, int first_frame,
+                            int period_frames, int dissolve_frames, double light_radius_px);
     BackgroundMode mode() const { return m_mode; }
     // Writes the background of output frame `frame` into `out` (resized).
     void fill(int frame, int width, int height, RgbImage& out) const;
 
-    // Replay only. The clip frames output frame `frame` may show: the
+    // Replay and relit only. The clip frames output frame `frame` may show: the
     // window's (`now`) and the one after the window that the particles still
     // on the lines from before the wrap show (`continuing`, -1 where the
     // clip has none), with the dissolve's share of the latter (0 once it is
@@ -196,10 +207,10 @@ public:
         float dissolve_share = 0.0f;
     };
     ReplayFrames replay_frames(int frame) const;
-    // Replay with the continuing frame mixed in per pixel by
-    // `continuing_share` (width x height, 0..1) instead of the dissolve: the
-    // synthesizer follows the ladder, showing behind each particle the frame
-    // it shows (Synthesizer::render).
+    // Replay (relit: the plate lit as) with the continuing frame mixed in per
+    // pixel by `continuing_share` (width x height, 0..1) instead of the
+    // dissolve: the synthesizer follows the ladder, showing behind each
+    // particle the frame it shows (Synthesizer::render).
     void fill_replay(int frame, int width, int height, const std::vector<float>& continuing_share, RgbImage& out) const;
 
 private:
@@ -209,6 +220,10 @@ private:
     int m_first_frame = 0;  // replay
     int m_period = 0;
     int m_dissolve = 0;
+    int m_light_scale = 1;  // relit: light is measured on frames reduced by this factor
+    // relit: per clip frame the background can show, its light relative to
+    // the plate's (at most 1), reduced; empty for the others.
+    std::vector<RgbImage> m_light_gains;
 };
 
 // ---- writing frames ------------------------------------------------------------------

@@ -206,8 +206,11 @@ Schedule make_schedule(const formats::ParticleBank& bank, const SynthesisSetting
 // after the wrap, the particles still on the lines from before it show the
 // frames after the window until they leave, and the Synthesizer shows those
 // around them too; elsewhere the background dissolves to the window's first
-// frames over the entry spacing, as the new particles fade in); none: black.
-Background make_background(BackgroundMode mode, std::shared_ptr<const ClipFrames> clip, const Schedule& schedule);
+// frames over the entry spacing, as the new particles fade in); relit: the
+// median plate darkened as that frame is, light measured over half a patch
+// (`patch_size_px`, the bank's); none: black.
+Background make_background(BackgroundMode mode, std::shared_ptr<const ClipFrames> clip, const Schedule& schedule,
+                           int patch_size_px);
 
 // The still plate of the moving layer: quantile_plate at kMovingLayerStillQuantile.
 RgbImage moving_layer_still_plate(const ClipFrames& clip);
