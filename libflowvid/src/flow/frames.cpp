@@ -360,6 +360,15 @@ RgbImage reduced_light(const RgbImage& image, int scale, double sigma_px) {
     return out;
 }
 
+// `small` (light measured by reduced_light) enlarged to width x height, bilinearly.
+RgbImage enlarged_light(const RgbImage& small, int width, int height) {
+    RgbImage full(width, height);
+    cv::Mat out(height, width, CV_32FC3, full.rgb.data());
+    cv::resize(cv::Mat(small.height, small.width, CV_32FC3, const_cast<float*>(small.rgb.data())), out, out.size(), 0.0,
+               0.0, cv::INTER_LINEAR);
+    return full;
+}
+
 }  // namespace
 
 Background Background::relit(std::shared_ptr<const ClipFrames> clip, RgbImage linear_plate, int first_frame,
@@ -428,11 +437,8 @@ void Background::fill(int frame, int width, int height, RgbImage& out) const {
             const RgbImage& before = m_light_gains[static_cast<std::size_t>(frames.continuing)];
             for (std::size_t i = 0; i < gain.rgb.size(); ++i) gain.rgb[i] += after * (before.rgb[i] - gain.rgb[i]);
         }
-        out = RgbImage(width, height);
-        cv::Mat lit(height, width, CV_32FC3, out.rgb.data());
-        cv::resize(cv::Mat(gain.height, gain.width, CV_32FC3, gain.rgb.data()), lit, lit.size(), 0.0, 0.0,
-                   cv::INTER_LINEAR);
-        cv::multiply(lit, cv::Mat(height, width, CV_32FC3, const_cast<float*>(m_plate.rgb.data())), lit);
+        out = enlarged_light(gain, width, height);
+        for (std::size_t i = 0; i < out.rgb.size(); ++i) out.rgb[i] *= m_plate.rgb[i];
         return;
     }
     out = RgbImage(width, height);
@@ -468,16 +474,8 @@ void Background::fill_replay(int frame, int width, int height, const std::vector
             fill(frame, width, height, out);
             return;
         }
-        const auto enlarged = [&](int index) {
-            const RgbImage& gain = m_light_gains[static_cast<std::size_t>(index)];
-            RgbImage full(width, height);
-            cv::resize(cv::Mat(gain.height, gain.width, CV_32FC3, const_cast<float*>(gain.rgb.data())),
-                       cv::Mat(height, width, CV_32FC3, full.rgb.data()), cv::Size(width, height), 0.0, 0.0,
-                       cv::INTER_LINEAR);
-            return full;
-        };
-        out = enlarged(frames.now);
-        const RgbImage after = enlarged(frames.continuing);
+        out = enlarged_light(m_light_gains[static_cast<std::size_t>(frames.now)], width, height);
+        const RgbImage after = enlarged_light(m_light_gains[static_cast<std::size_t>(frames.continuing)], width, height);
         for (std::size_t i = 0; i < pixels; ++i) {
             const float a = continuing_share[i];
             for (std::size_t k = 3 * i; k < 3 * i + 3; ++k)
