@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <condition_variable>
+#include <cstring>
 #include <exception>
 #include <limits>
 #include <mutex>
@@ -74,6 +75,26 @@ void sample_patch_bicubic(const float* texture, int patch, float u, float v, flo
     const int iu = static_cast<int>(fu), iv = static_cast<int>(fv);
     const auto wu = catmull_rom_weights(u - fu);
     const auto wv = catmull_rom_weights(v - fv);
+    if (iu >= 1 && iv >= 1 && iu + 2 < patch && iv + 2 < patch) {
+        // All 16 taps inside: the four channels of a pixel as one 4-lane
+        // vector (the same additions in the same order as below, so the same
+        // result; most samples of a warped patch land here).
+        using Rgba = float __attribute__((vector_size(16)));
+        const auto load = [](const float* t) {
+            Rgba x;
+            std::memcpy(&x, t, sizeof x);
+            return x;
+        };
+        Rgba sum = {0.0f, 0.0f, 0.0f, 0.0f};
+        const float* t = texture + (static_cast<std::size_t>(iv - 1) * patch + (iu - 1)) * 4;
+        for (int b = 0; b < 4; ++b, t += static_cast<std::size_t>(patch) * 4) {
+            Rgba row = {0.0f, 0.0f, 0.0f, 0.0f};
+            for (int a = 0; a < 4; ++a) row += wu[static_cast<std::size_t>(a)] * load(t + 4 * a);
+            sum += wv[static_cast<std::size_t>(b)] * row;
+        }
+        std::memcpy(out, &sum, sizeof sum);
+        return;
+    }
     out[0] = out[1] = out[2] = out[3] = 0.0f;
     for (int b = 0; b < 4; ++b) {
         const int y = iv - 1 + b;
@@ -201,6 +222,7 @@ void splat_patch(Accumulator& acc, const ParticleStreams::Visible& v, int patch,
 // Output pixels near an output line, mapped into the input frame.
 struct WarpEntry {
     int pixel = 0;
+    int row = 0;                 // pixel / width, kept: rendering reads it per sample
     float qx = 0.0f, qy = 0.0f;  // input-frame position
     float fade = 1.0f;
     // Weight of the background carried from around the input line: a patch's
@@ -280,6 +302,7 @@ WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, 
             const Eigen::Vector2d q_in = in_line.point(s_in) + static_cast<double>(best_n[k]) * in_line.normal(s_in);
             WarpEntry entry;
             entry.pixel = y * width + x;
+            entry.row = y;
             entry.qx = static_cast<float>(q_in.x());
             entry.qy = static_cast<float>(q_in.y());
             // Particles carried past the end of a shorter output line fade out
@@ -308,7 +331,7 @@ WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, 
     for (const auto& e : entries) {
         const auto b = static_cast<std::size_t>(bucket_of(e.first));
         table.entries[static_cast<std::size_t>(fill[b]++)] = e.second;
-        const int row = e.second.pixel / width;
+        const int row = e.second.row;
         table.bucket_row_lo[b] = std::min(table.bucket_row_lo[b], row);
         table.bucket_row_hi[b] = std::max(table.bucket_row_hi[b], row);
     }
@@ -1011,15 +1034,16 @@ void splat_patch_rows(RenderBuffers& s, bool groups, const Splat& p, int patch, 
 // The entries of a warped patch on rows [lo, hi) (as splat_warped).
 void splat_warped_rows(RenderBuffers& s, bool groups, const Splat& p, int patch, int lo, int hi) {
     const WarpTable& table = *p.warp;
-    const int pixel_lo = lo * s.width, pixel_hi = hi * s.width;
-    const auto before = [](const WarpEntry& e, int pixel) { return e.pixel < pixel; };
+    const auto before = [](const WarpEntry& e, int row) { return e.row < row; };
+    // Ring row of image row y in [lo, hi) without a division per sample.
+    const int lo_ring = lo % s.ring_rows;
     for (int b = p.b0; b <= p.b1; ++b) {
         const auto bi = static_cast<std::size_t>(b);
         if (table.bucket_row_hi[bi] < lo || table.bucket_row_lo[bi] >= hi) continue;
         const WarpEntry* first = table.entries.data() + table.bucket_start[bi];
         const WarpEntry* last = table.entries.data() + table.bucket_start[bi + 1];
-        if (table.bucket_row_lo[bi] < lo) first = std::lower_bound(first, last, pixel_lo, before);
-        if (table.bucket_row_hi[bi] >= hi) last = std::lower_bound(first, last, pixel_hi, before);
+        if (table.bucket_row_lo[bi] < lo) first = std::lower_bound(first, last, lo, before);
+        if (table.bucket_row_hi[bi] >= hi) last = std::lower_bound(first, last, hi, before);
         for (const WarpEntry* e = first; e != last; ++e) {
             const float u = e->qx - p.cx, v = e->qy - p.cy;
             if (u <= -0.5f || v <= -0.5f || u >= patch - 0.5f || v >= patch - 0.5f) continue;
@@ -1027,8 +1051,10 @@ void splat_warped_rows(RenderBuffers& s, bool groups, const Splat& p, int patch,
             if (w <= 0.0f) continue;
             float c[4];
             sample_patch_bicubic(p.texture, patch, u, v, c);
-            const int y = e->pixel / s.width, x = e->pixel - y * s.width;
-            const std::size_t pixel = s.ring_pixel(y, x);
+            const int x = e->pixel - e->row * s.width;
+            int ring_row = e->row - lo + lo_ring;
+            if (ring_row >= s.ring_rows) ring_row -= s.ring_rows;
+            const std::size_t pixel = static_cast<std::size_t>(ring_row) * static_cast<std::size_t>(s.width) + static_cast<std::size_t>(x);
             float* d = s.rgbw.data() + pixel * 4;
             const float alpha = std::clamp(c[3], 0.0f, 1.0f);
             d[0] += w * c[0];
