@@ -1,6 +1,8 @@
 #include "output.hpp"
 
+#include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -82,6 +84,21 @@ void prepare_output_folder(const std::string& file_path) {
     if (error || !std::filesystem::is_directory(folder))
         throw IoError(file_path, "", "cannot create the folder " + folder.string() + ": " + error.message(),
                       "choose a writable location");
+}
+
+CLI::Validator file_name_ending(std::vector<std::string> endings, const std::string& what, const std::string& example) {
+    std::string listed;
+    for (const std::string& ending : endings) listed += (listed.empty() ? "" : " or ") + ending;
+    return CLI::Validator(
+        [endings, what, example, listed](std::string& name) -> std::string {
+            std::string lower = name;
+            std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
+            for (const std::string& ending : endings)
+                if (lower.size() >= ending.size() && lower.compare(lower.size() - ending.size(), ending.size(), ending) == 0)
+                    return {};
+            return name + ": this writes " + what + "; name it " + listed + " (e.g. " + example + ")";
+        },
+        "FILE" + listed, "file_name_ending");
 }
 
 namespace {

@@ -34,6 +34,12 @@ private:
 // naming the option's path when it cannot.
 void prepare_output_folder(const std::string& file_path);
 
+// A check for a file option (`->check(...)`): the name must end in one of
+// `endings` (any case), e.g. {".exr"}, so a bank is not written as an EXR
+// file named "bank.png". `what` says what the file is ("a particle bank, an
+// OpenEXR file"), `example` a good name.
+CLI::Validator file_name_ending(std::vector<std::string> endings, const std::string& what, const std::string& example);
+
 // Ctrl-C during long work: while one of these lives, SIGINT sets a flag the
 // work's progress callback polls (so it can stop cleanly and write nothing)
 // instead of killing the process. The previous handler comes back on exit.

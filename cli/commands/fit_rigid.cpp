@@ -38,6 +38,7 @@ nlohmann::json summary_of(const rigid::RigidFitRecord& record, const rigid::Rigi
 }
 
 int run_fit_rigid(const FitRigidOptions& options, const GlobalOptions& global) {
+    prepare_output_folder(options.out);
     const formats::Capture capture = read_capture_of_kind(options.capture, {"rigid.toss"}, "flowvid fit rigid");
     const std::optional<std::pair<int, int>> frames = resolve_frames(options.frames, capture);
     if (!frames) return kExitUsage;

@@ -86,6 +86,7 @@ void write_series_csv(const std::string& path, const flow::Comparison& result) {
 }
 
 int run_quality(const QualityOptions& options, const GlobalOptions& global) {
+    if (!options.series_csv.empty()) prepare_output_folder(options.series_csv);
     std::vector<Problem> warnings;
     auto bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(options.bank, &warnings));
     print_problems(warnings);

@@ -73,6 +73,10 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
         log_message("error: --frames " + options.frames + ": give N (frames 1..N) or A:B (frames A..B, A >= 1)");
         return kExitUsage;
     }
+    // Said before any work: an output the name alone rules out, or a folder that cannot be made.
+    flow::FrameWriter::check_target(options.out, options.loop ? 0 : last - first + 1);
+    prepare_output_folder(options.out);  // out/%06d.png or a video: its folder, made when missing
+    if (!options.dense_out.empty()) prepare_output_folder(options.dense_out);
     std::vector<Problem> warnings;
     auto bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(options.bank, &warnings));
     print_problems(warnings);
@@ -170,7 +174,6 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
             summary["interpolated_lines"] = interpolated;
             summary["correspondence_cost"] = plan.total_cost;
             if (!options.dense_out.empty()) {
-                prepare_output_folder(options.dense_out);
                 formats::write_flowline_set(options.dense_out, flow::plan_to_flowlines(drawing, plan));
             }
         }
@@ -188,7 +191,6 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
         last = synthesizer.period_frames();
     }
 
-    prepare_output_folder(options.out);  // out/%06d.png or a video: its folder, made when missing
     flow::FrameWriter writer(options.out, synthesizer.width(), synthesizer.height(), bank->fps, last - first + 1);
     Progress progress(global, edit ? "edit" : "synth");
     std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs
@@ -318,7 +320,8 @@ const RegisterCommand edit_registration{Command{
         app.add_flag("--carry-background", options->carry_background,
                      "under the particles of a line moved off the flow, show the background around its input line "
                      "(smoothed): fills the gaps its particles leave (for water; not for fire)");
-        app.add_option("--dense-out", options->dense_out, "write the dense output lines with their inputs (*.flowlines.json)");
+        app.add_option("--dense-out", options->dense_out, "write the dense output lines with their inputs (*.flowlines.json)")
+            ->check(file_name_ending({".json"}, "flow lines as JSON", "dense.flowlines.json"));
         return [options](const GlobalOptions& global) { return render(*options, global, true); };
     }}};
 

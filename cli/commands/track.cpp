@@ -44,6 +44,8 @@ struct TrackOptions {
 };
 
 int run_track(const TrackOptions& options, const GlobalOptions& global) {
+    prepare_output_folder(options.out);
+    if (!options.dense_out.empty()) prepare_output_folder(options.dense_out);
     const formats::Capture capture = flow::open_clip(options.capture, options.fps);
     std::string lines_path = options.flowlines;
     if (lines_path.empty()) {
@@ -220,7 +222,9 @@ const RegisterCommand registration{Command{
             "  flowvid track --capture fire/ --dynamics non-stationary --patch 48 --densify 24 --out fire.bank.exr --json");
         app.add_option("--capture,--clip", options->capture, "capture folder, video file or image pattern")->required();
         app.add_option("--flowlines", options->flowlines, "input flow lines (SVG or *.flowlines.json); default: the capture's");
-        app.add_option("--out", options->out, "bank to write (.exr)")->required();
+        app.add_option("--out", options->out, "bank to write (.exr)")
+            ->required()
+            ->check(file_name_ending({".exr"}, "a particle bank (an OpenEXR file)", "waterfall.bank.exr"));
         app.add_option("--fps", options->fps, "frame rate of a clip that records none (image sequences: 25)");
         app.add_option("--frames", options->frames, "use only the first N frames (0 = all)")->check(CLI::NonNegativeNumber);
         app.add_option("--patch", options->patch, "patch side in pixels (the thesis: 24, 100 for flames)")
@@ -252,7 +256,8 @@ const RegisterCommand registration{Command{
         app.add_option("--particles-per-line", options->particles_per_line,
                        "keep at most the first K complete particles per line (0 = all)");
         app.add_option("--dense-out", options->dense_out,
-                       "also write the lines particles ran on (segments, interpolated lines) as *.flowlines.json");
+                       "also write the lines particles ran on (segments, interpolated lines) as *.flowlines.json")
+            ->check(file_name_ending({".json"}, "flow lines as JSON", "tracked.flowlines.json"));
         app.add_option("--threads", options->threads, "worker threads (0 = all cores)");
         app.add_flag("--json", options->json, "print the report as JSON");
         return [options](const GlobalOptions& global) { return run_track(*options, global); };

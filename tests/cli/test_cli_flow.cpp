@@ -307,6 +307,28 @@ TEST(CliFlow, BadInputExitCodesNameTheProblem) {
         EXPECT_FALSE(fs::exists(dir + "/no.bank.exr"));
     }
 
+    // Outputs the name alone rules out are refused before any work: nothing is read or written.
+    const CliResult png_bank = run_flowvid({"track", "--capture", tiny_capture(), "--out", dir + "/bank.png"});
+    EXPECT_EQ(png_bank.exit_code, 2) << png_bank.err;
+    EXPECT_TRUE(mentions(png_bank.err, "name it .exr")) << png_bank.err;
+    EXPECT_FALSE(fs::exists(dir + "/bank.png"));
+    const CliResult svg_dense = run_flowvid({"edit", "--bank", tiny_bank(), "--out", dir + "/e/%04d.png", "--dense-out",
+                                             dir + "/dense.svg"});
+    EXPECT_EQ(svg_dense.exit_code, 2) << svg_dense.err;
+    EXPECT_TRUE(mentions(svg_dense.err, "name it .json")) << svg_dense.err;
+    for (const std::string& out : {dir + "/seq/%04d.xyz", dir + "/seq/one.png"}) {
+        // The bank named does not exist: the output is what is reported, first.
+        const CliResult r = run_flowvid({"synth", "--bank", dir + "/none.bank.exr", "--frames", "3", "--out", out});
+        EXPECT_EQ(r.exit_code, 4) << r.err;
+        EXPECT_TRUE(mentions(r.err, out)) << r.err;
+        EXPECT_FALSE(mentions(r.err, "none.bank.exr")) << r.err;
+    }
+    EXPECT_FALSE(fs::exists(dir + "/seq"));
+    // A bank's folder is made when missing, before tracking.
+    const CliResult nested = run_flowvid({"track", "--capture", tiny_capture(), "--out", dir + "/new/folder/tiny.bank.exr"});
+    EXPECT_EQ(nested.exit_code, 0) << nested.err;
+    EXPECT_TRUE(fs::exists(dir + "/new/folder/tiny.bank.exr"));
+
     const CliResult missing = run_flowvid({"synth", "--bank", dir + "/none.bank.exr", "--out", dir + "/%04d.png"});
     EXPECT_EQ(missing.exit_code, 4);
     EXPECT_TRUE(mentions(missing.err, dir + "/none.bank.exr")) << missing.err;

@@ -540,39 +540,73 @@ struct FrameWriter::Impl {
     cv::VideoWriter writer;
 };
 
+namespace {
+
+// What an output target names, decided from the name alone (no files touched).
+struct OutputForm {
+    bool video = false;
+    bool single_image = false;  // one frame to a plain file name
+    bool folder = false;        // a folder: frames go to folder/%06d.png
+    std::string pattern;        // image sequences and single images
+};
+
+OutputForm output_form(const std::string& target, int frame_count) {
+    OutputForm form;
+    const std::string ext = lower_extension(target);
+    if (is_video_extension(ext)) {
+        form.video = true;
+    } else if (has_integer_conversion(target)) {
+        form.pattern = target;
+    } else if (frame_count == 1 && !ext.empty()) {
+        form.single_image = true;
+        form.pattern = target;
+    } else if (ext.empty()) {
+        form.folder = true;
+        form.pattern = (fs::path(target) / "%06d.png").string();
+    } else {
+        throw IoError(target, "", "an image output of more than one frame needs a frame number in its name",
+                      "write e.g. out/%06d.png, a folder, or a video file (.mp4, .avi); a plain name such as "
+                      "still.png takes one frame (--frames A:A)");
+    }
+    return form;
+}
+
+}  // namespace
+
+void FrameWriter::check_target(const std::string& target, int frame_count) {
+    const OutputForm form = output_form(target, frame_count);
+    if (form.video) return;
+    if (!OIIO::ImageOutput::create(form.pattern))
+        throw IoError(target, "", "no image writer for the file type " + lower_extension(form.pattern),
+                      "write .png, .exr, .tif or .jpg frames, or a video (.mp4, .avi)");
+}
+
 FrameWriter::FrameWriter(const std::string& target, int width, int height, double fps, int frame_count)
     : m_impl(std::make_unique<Impl>()) {
     m_impl->target = target;
     m_impl->width = width;
     m_impl->height = height;
     m_impl->fps = fps > 0.0 ? fps : 25.0;
-    const std::string ext = lower_extension(target);
+    const OutputForm form = output_form(target, frame_count);
     std::error_code ec;
-    if (is_video_extension(ext)) {
+    if (form.video) {
         m_impl->video = true;
         const fs::path parent = fs::path(target).parent_path();
         if (!parent.empty() && !fs::is_directory(parent, ec))
             throw IoError(target, "", "the folder " + parent.string() + " does not exist", "create it first");
-        const int fourcc = ext == ".avi" ? cv::VideoWriter::fourcc('M', 'J', 'P', 'G') : cv::VideoWriter::fourcc('m', 'p', '4', 'v');
+        const int fourcc = lower_extension(target) == ".avi" ? cv::VideoWriter::fourcc('M', 'J', 'P', 'G')
+                                                              : cv::VideoWriter::fourcc('m', 'p', '4', 'v');
         m_impl->writer.open(target, cv::CAP_FFMPEG, fourcc, m_impl->fps, cv::Size(width, height), true);
         if (!m_impl->writer.isOpened())
             throw IoError(target, "", "cannot open the video for writing", "use .mp4 or .avi, or write an image sequence");
         return;
     }
-    if (has_integer_conversion(target)) {
-        m_impl->pattern = target;
-    } else if (frame_count == 1 && !ext.empty()) {
-        m_impl->single_image = true;
-        m_impl->pattern = target;
-    } else if (ext.empty()) {
+    if (form.folder) {
         fs::create_directories(target, ec);
         if (ec) throw IoError(target, "", "cannot create the folder: " + ec.message(), "check permissions");
-        m_impl->pattern = (fs::path(target) / "%06d.png").string();
-    } else {
-        throw IoError(target, "", "an image output of more than one frame needs a frame number in its name",
-                      "write e.g. out/%06d.png, a folder, or a video file (.mp4, .avi); a plain name such as "
-                      "still.png takes one frame (--frames A:A)");
     }
+    m_impl->single_image = form.single_image;
+    m_impl->pattern = form.pattern;
     const fs::path parent = fs::path(m_impl->pattern).parent_path();
     if (!parent.empty() && !fs::is_directory(parent, ec))
         throw IoError(target, "", "the folder " + parent.string() + " does not exist", "create it first");

@@ -238,6 +238,11 @@ private:
 class FrameWriter {
 public:
     FrameWriter(const std::string& target, int width, int height, double fps, int frame_count = 0);
+    // Throws the IoError the constructor or the first write would, for what
+    // the name alone decides (a sequence without a frame number, an image
+    // type nothing writes), so commands can say so before long work.
+    // `frame_count` as for the constructor (0 = not known yet: several).
+    static void check_target(const std::string& target, int frame_count);
     ~FrameWriter();
     FrameWriter(const FrameWriter&) = delete;
     FrameWriter& operator=(const FrameWriter&) = delete;
