@@ -217,7 +217,7 @@ int run_diagnose(DiagnoseOptions& options, const GlobalOptions& global) {
         return kExitUsage;
     }
     for (const std::string& name : options.effects) gap::find_effect(name);  // unknown names fail before the work
-    std::filesystem::create_directories(options.out);
+    prepare_output_folder((std::filesystem::path(options.out) / "diagnosis.json").string());  // the report folder
     Progress progress(global, "diagnose");
     const InterruptWatch interrupt;
     progress.update(0.0, "floors");
