@@ -333,7 +333,11 @@ void print_quality(const char* clip, const std::vector<QualityRow>& rows) {
         std::printf("%-9s %9.2f %9.3f %7.2f | %8.3f %8.3f | %9.4f %9.4f %8.2f | %7.2f\n", r.name, r.report.max_transition_ratio,
                     r.report.share_above_p99, r.report.seam_spike, r.report.pulsing, r.report.clip_pulsing,
                     r.report.patch_distance, r.report.clip_self_distance, r.report.hf_power_ratio, r.report.motion_ratio);
-    if (!rows.empty()) std::printf("clip's own spike (largest / median transition): %.2f\n", rows.front().report.clip_seam_spike);
+    if (rows.empty()) return;
+    const QualityReport& clip_itself = rows.front().report;
+    std::printf("%-9s %9.2f %9s %7.2f | %8.3f %8s | %9s %9.4f %8.2f | %7.2f\n", "clip", clip_itself.clip_max_ratio, "-",
+                clip_itself.clip_seam_spike, clip_itself.clip_pulsing, "", "-", clip_itself.clip_self_distance, 1.0, 1.0);
+    std::printf("clip's transitions span %.2f..%.2f x its p95\n", clip_itself.clip_min_ratio, clip_itself.clip_max_ratio);
 }
 
 void quality_on(const std::string& name, formats::ParticleDynamics dynamics, int patch_px, double densify_px) {

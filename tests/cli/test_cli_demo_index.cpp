@@ -54,8 +54,10 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
                                                   {"frames", {(out / "garment" / "frames" / "0001.png").string()}}});
     fs::create_directories(out / "video");
     std::ofstream(out / "video" / "loop.mp4") << "stand-in";
-    write_json(out / "video" / "quality.json", {{"methods", {{"ours", {{"seam_max_ratio", 0.954}, {"share_above_clip_p99", 0.0}}},
-                                                             {"loop", {{"seam_max_ratio", 5.52}, {"share_above_clip_p99", 0.02}}}}}});
+    write_json(out / "video" / "quality.json",
+               {{"methods", {{"ours", {{"seam_max_ratio", 0.954}, {"share_above_clip_p99", 0.0}, {"motion_ratio", 0.973}}},
+                             {"loop", {{"seam_max_ratio", 5.52}, {"share_above_clip_p99", 0.02}, {"motion_ratio", 1.0}}}}},
+                {"clip_reference", {{"seam_max_ratio", 1.117}, {"smallest_transition_ratio", 0.745}}}});
     write_json(out / "diagnosis" / "diagnose.json", {{"verdict", "named"},
                                                      {"message", "the gap is explained by wind"},
                                                      {"held_out_over_floor", 7.5},
@@ -76,7 +78,7 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
         EXPECT_EQ(targets.count(expected), 1u) << expected << " not linked";
     for (const std::string& target : targets) EXPECT_TRUE(fs::exists(out / target)) << target;
     // Key figures, as the stages reported them.
-    for (const char* figure : {"11000", "9030", "1230", "151", "382", "20.9", "0.954", "5.52", "verdict: named", "43%",
+    for (const char* figure : {"11000", "9030", "1230", "151", "382", "20.9", "0.954", "5.52", "0.973", "1.12", "verdict: named", "43%",
                                "the gap is explained by wind"})
         EXPECT_NE(index.find(figure), std::string::npos) << figure << " missing from index.html";
 

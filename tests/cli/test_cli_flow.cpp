@@ -389,6 +389,13 @@ TEST(CliFlow, QualityPrintsOursAgainstBothBaselines) {
     EXPECT_LT(ours.at("seam_max_ratio").get<double>(), loop.at("seam_max_ratio").get<double>());
     EXPECT_NEAR(loop.at("hf_power_ratio").get<double>(), 1.0, 0.02);  // 60 frames: the clip's first 20 twice
     EXPECT_TRUE(j.at("methods").contains("flow map"));
+    // The clip against itself: its largest transition is at least its p95,
+    // its smallest at most; the table prints it as its own row.
+    const auto& clip = j.at("clip_reference");
+    EXPECT_GE(clip.at("seam_max_ratio").get<double>(), 1.0);
+    EXPECT_LE(clip.at("smallest_transition_ratio").get<double>(), 1.0);
+    EXPECT_GT(clip.at("smallest_transition_ratio").get<double>(), 0.0);
+    EXPECT_TRUE(mentions(table.out, "changes less than the clip at every frame")) << table.out;
 
     const CliResult missing = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", own_dir("cli_flow_q") + "/nothing"});
     EXPECT_NE(missing.exit_code, 0);

@@ -134,6 +134,10 @@ QualityReport quality_from_stats(const SequenceStats& clip, const SequenceStats&
     r.clip_p95 = percentile(clip.transitions, 0.95);
     r.clip_p99 = percentile(clip.transitions, 0.99);
     r.clip_max = clip.transitions.empty() ? 0.0 : *std::max_element(clip.transitions.begin(), clip.transitions.end());
+    if (r.clip_p95 > 0.0 && !clip.transitions.empty()) {
+        r.clip_max_ratio = r.clip_max / r.clip_p95;
+        r.clip_min_ratio = *std::min_element(clip.transitions.begin(), clip.transitions.end()) / r.clip_p95;
+    }
     r.transitions = static_cast<int>(out.transitions.size());
     if (!out.transitions.empty() && r.clip_p95 > 0.0) {
         r.max_transition_ratio = *std::max_element(out.transitions.begin(), out.transitions.end()) / r.clip_p95;

@@ -80,6 +80,25 @@ TEST(FlowQuality, CrossFadingPulsesAndBlurLowersHighFrequencyPower) {
     EXPECT_GT(blur.patch_distance, 0.0);
 }
 
+TEST(FlowQuality, TheClipsOwnTransitionsBoundTheSeamOfAnOutputThatMovesLikeIt) {
+    // Flat frames whose brightness steps by 0.01, 0.02, ..., 0.20: the clip's
+    // transitions are known exactly (p95 by linear interpolation: 0.1905).
+    std::vector<std::vector<float>> clip;
+    float level = 0.0f;
+    const std::size_t pixels = static_cast<std::size_t>(kW) * kH;
+    clip.emplace_back(pixels, 0.5f);
+    for (int step = 1; step <= 20; ++step) {
+        level += (step % 2 ? 1.0f : -1.0f) * 0.01f * static_cast<float>(step);  // stays within 0.5 +- 0.1
+        clip.emplace_back(pixels, 0.5f + level);
+    }
+    const QualityReport same = measure_quality(clip, clip, kW, kH, everywhere());
+    EXPECT_NEAR(same.clip_p95, 0.1905, 1e-6);
+    EXPECT_NEAR(same.clip_max_ratio, 0.20 / 0.1905, 1e-5);
+    EXPECT_NEAR(same.clip_min_ratio, 0.01 / 0.1905, 1e-5);
+    // Replaying the clip scores the clip's own seam max.
+    EXPECT_NEAR(same.max_transition_ratio, same.clip_max_ratio, 1e-9);
+}
+
 TEST(FlowQuality, BandMaskAndStats) {
     const auto mask = line_band_mask({{{10.0, 0.0}, {10.0, 47.0}}}, kW, kH, 3.0);
     int inside = 0;

@@ -57,6 +57,12 @@ struct QualityReport {
     double clip_p95 = 0.0;               // clip transitions, 95th and 99th percentiles
     double clip_p99 = 0.0;
     double clip_max = 0.0;
+    // The clip's own transitions against its p95: its largest (the clip's
+    // own "seam max") and its smallest. An output whose largest transition
+    // is below clip_min_ratio changes less, at every frame, than the
+    // footage ever does.
+    double clip_max_ratio = 0.0;
+    double clip_min_ratio = 0.0;
     double max_transition_ratio = 0.0;   // largest output transition / clip_p95
     double share_above_p99 = 0.0;        // of output transitions above clip_p99
     double pulsing = 0.0;                // coefficient of variation of output HF energy
