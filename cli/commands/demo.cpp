@@ -219,7 +219,7 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
         if (quality.contains("clip_reference"))
             std::cout << "  the clip itself: seam max " << html::format_number(quality["clip_reference"].value("seam_max_ratio", NAN))
                       << ", its calmest change " << html::format_number(quality["clip_reference"].value("smallest_transition_ratio", NAN))
-                      << " (an output moving like the clip cannot score below that)\n";
+                      << " (an output scoring below that changes less than the clip at every frame)\n";
     }
     std::cout << "  loop: " << (out / "loop.mp4").string() << "; edit along " << summary.value("lines", 0)
               << " particle lines: " << summary.value("video", "") << '\n';
