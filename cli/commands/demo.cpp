@@ -210,12 +210,14 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
     if (status != kExitOk) return status;
     const nlohmann::json quality = read_json_file(out / "quality.json");
     if (!quality.is_discarded() && quality.contains("methods")) {
-        for (const char* method : {"ours", "loop", "flow map"})
-            if (quality["methods"].contains(method))
-                std::cout << "  " << method << ": loop-seam max " << html::format_number(quality["methods"][method].value("seam_max_ratio", NAN))
-                          << " (of the clip's 95th-percentile change), share above the clip's 99th "
-                          << html::format_percent(quality["methods"][method].value("share_above_clip_p99", NAN)) << ", motion "
-                          << html::format_number(quality["methods"][method].value("motion_ratio", NAN)) << " (of the clip's)\n";
+        for (const char* method : {"ours", "loop", "flow map"}) {
+            if (!quality["methods"].contains(method)) continue;
+            const nlohmann::json& measures = quality["methods"][method];
+            std::cout << "  " << method << ": loop-seam max " << html::format_number(measures.value("seam_max_ratio", NAN))
+                      << " (of the clip's 95th-percentile change), share above the clip's 99th "
+                      << html::format_percent(measures.value("share_above_clip_p99", NAN)) << ", motion "
+                      << html::format_number(measures.value("motion_ratio", NAN)) << " (of the clip's)\n";
+        }
         if (quality.contains("clip_reference"))
             std::cout << "  the clip itself: seam max " << html::format_number(quality["clip_reference"].value("seam_max_ratio", NAN))
                       << ", its calmest change " << html::format_number(quality["clip_reference"].value("smallest_transition_ratio", NAN))
@@ -376,11 +378,13 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
                             "the clip's (an output that barely moves, motion well below 1, scores a low seam max without "
                             "hiding any seam)";
             table.header = {"method", "seam max", "share above the clip's 99th percentile", "motion"};
-            for (const char* method : {"ours", "loop", "flow map"})
-                if (quality["methods"].contains(method))
-                    table.rows.push_back({method, html::format_number(quality["methods"][method].value("seam_max_ratio", NAN)),
-                                          html::format_percent(quality["methods"][method].value("share_above_clip_p99", NAN)),
-                                          html::format_number(quality["methods"][method].value("motion_ratio", NAN))});
+            for (const char* method : {"ours", "loop", "flow map"}) {
+                if (!quality["methods"].contains(method)) continue;
+                const nlohmann::json& measures = quality["methods"][method];
+                table.rows.push_back({method, html::format_number(measures.value("seam_max_ratio", NAN)),
+                                      html::format_percent(measures.value("share_above_clip_p99", NAN)),
+                                      html::format_number(measures.value("motion_ratio", NAN))});
+            }
             if (quality.contains("clip_reference"))
                 table.rows.push_back({"the clip itself", html::format_number(quality["clip_reference"].value("seam_max_ratio", NAN)),
                                       "", "1"});
