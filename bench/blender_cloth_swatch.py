@@ -33,6 +33,20 @@ def parse_args():
                    help="untimed frames before capture frame 1: the pins slide in from the flat width over 24 "
                         "frames and the cloth settles, as the captures were made, so that the timed frames start "
                         "near equilibrium like flowvid's")
+    p.add_argument("--slide-frames", type=int, default=24,
+                   help="preroll frames over which the pins slide in from the flat width (at most the preroll)")
+    p.add_argument("--initial-bow-m", type=float, default=0.0,
+                   help="start the flat swatch bowed by this depth (m, along +y, largest at the top edge's middle): "
+                        "picks which way the slack between the pins buckles, as a capture's first frame shows")
+    p.add_argument("--start-positions", default="",
+                   help="optional: raw float64 x, y, z per vertex (r*cols + c) to start from, e.g. a measured first "
+                        "frame resampled to this grid; the flat grid stays the rest shape (a basis shape key) and "
+                        "the pins hold their first positions through the preroll (no slide)")
+    p.add_argument("--preset-from", default="",
+                   help="optional: another capture whose truth/truth.json preset values to use (a wrong fabric on "
+                        "this capture's experiment)")
+    p.add_argument("--vertex-mass", type=float, default=0.0,
+                   help="Blender's per-vertex mass (0: the preset's); to hold the total mass across grids")
     p.add_argument("--positions-out", default="", help="optional: write the baked vertex positions (raw float64)")
     return p.parse_args(argv)
 
@@ -42,7 +56,7 @@ def main():
     with open(os.path.join(args.capture, "capture.json")) as f:
         capture = json.load(f)
     preset = {}
-    truth_path = os.path.join(args.capture, "truth", "truth.json")
+    truth_path = os.path.join(args.preset_from or args.capture, "truth", "truth.json")
     if os.path.exists(truth_path):
         with open(truth_path) as f:
             preset = json.load(f).get("blender_preset_values", {})
@@ -57,7 +71,7 @@ def main():
     scene = bpy.context.scene
     scene.render.fps = int(round(fps))
     preroll = max(args.preroll, 0)
-    slide = min(24, preroll)
+    slide = min(args.slide_frames, preroll)
     total = preroll + frames
     scene.frame_start = 1
     scene.frame_end = total
@@ -71,7 +85,8 @@ def main():
         v = r / (rows - 1)
         for c in range(cols):
             u = c / (cols - 1)
-            verts.append(((u - 0.5) * width, 0.0, top_z - (1.0 - v) * height))
+            bow = args.initial_bow_m * math.sin(math.pi * u) * v
+            verts.append(((u - 0.5) * width, bow, top_z - (1.0 - v) * height))
     faces = [(r * cols + c, r * cols + c + 1, (r + 1) * cols + c + 1, (r + 1) * cols + c)
              for r in range(rows - 1) for c in range(cols - 1)]
     mesh = bpy.data.meshes.new("swatch")
@@ -79,6 +94,21 @@ def main():
     mesh.update()
     obj = bpy.data.objects.new("swatch", mesh)
     scene.collection.objects.link(obj)
+    start = None
+    if args.start_positions:
+        import struct
+        with open(args.start_positions, "rb") as f:
+            raw = f.read()
+        if len(raw) != 24 * rows * cols:
+            sys.exit("--start-positions: expected %d float64 values, found %d" % (3 * rows * cols, len(raw) // 8))
+        values = struct.unpack("<%dd" % (3 * rows * cols), raw)
+        start = [tuple(values[3 * i:3 * i + 3]) for i in range(rows * cols)]
+        basis = obj.shape_key_add(name="Basis")
+        moved = obj.shape_key_add(name="start")
+        for i, co in enumerate(start):
+            moved.data[i].co = co
+        moved.value = 1.0
+        slide = 0
 
     group = obj.vertex_groups.new(name="pin")
     for k, pin in enumerate(pins):
@@ -92,9 +122,9 @@ def main():
         hook = obj.modifiers.new("hook%d" % k, "HOOK")
         hook.object = empty
         hook.vertex_indices_set([index])
-        rest = verts[index]
+        rest = start[index] if start else verts[index]
         first = pin["positions"][0]
-        if preroll > 0:
+        if preroll > 0 and slide > 0:
             empty.location = (0.0, 0.0, 0.0)
             empty.keyframe_insert("location", frame=1)
             empty.location = (first[0] - rest[0], first[1] - rest[1], first[2] - rest[2])
@@ -109,7 +139,7 @@ def main():
     cloth = obj.modifiers.new("cloth", "CLOTH")
     s = cloth.settings
     s.quality = args.quality
-    s.mass = preset.get("mass", 0.3)
+    s.mass = args.vertex_mass if args.vertex_mass > 0 else preset.get("mass", 0.3)
     s.tension_stiffness = preset.get("tension_stiffness", 15.0)
     s.compression_stiffness = preset.get("compression_stiffness", 15.0)
     s.shear_stiffness = preset.get("shear_stiffness", 15.0)
@@ -120,6 +150,8 @@ def main():
     s.air_damping = preset.get("air_damping", 1.0)
     s.time_scale = math.sqrt(1000.0) / fps  # gravity 9.81 m/s^2 at this fps, as the captures
     s.vertex_group_mass = "pin"
+    if start:
+        s.rest_shape_key = obj.data.shape_keys.key_blocks["Basis"]
     cloth.collision_settings.use_collision = False
     cloth.collision_settings.use_self_collision = False
     cloth.point_cache.frame_start = 1

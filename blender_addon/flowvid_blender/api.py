@@ -65,13 +65,17 @@ def mesh_stats(obj):
     edge_total = sum((points[e.vertices[0]] - points[e.vertices[1]]).length for e in mesh.edges)
     area = 0.0
     quads = 0
+    faces_of_edge = {}
     for polygon in mesh.polygons:
         corners = [points[i] for i in polygon.vertices]
         for k in range(1, len(corners) - 1):
             area += 0.5 * (corners[k] - corners[0]).cross(corners[k + 1] - corners[0]).length
         quads += len(corners) == 4
+        for key in polygon.edge_keys:
+            faces_of_edge[key] = faces_of_edge.get(key, 0) + 1
+    boundary = sum((points[a] - points[b]).length for (a, b), count in faces_of_edge.items() if count == 1)
     return mapping.MeshStats(vertex_count=len(points), mean_edge_length_m=edge_total / len(mesh.edges),
-                             area_m2=area, quad_fraction=quads / len(mesh.polygons))
+                             area_m2=area, quad_fraction=quads / len(mesh.polygons), boundary_length_m=boundary)
 
 
 def cloth_modifier(obj, create=True):
@@ -199,7 +203,8 @@ class Calibration:
         width = edge * (n - 1)
         self.experiments = cal.swatch_experiments(width_m=width, height_m=width, separation_m=0.8 * width, fps=fps,
                                                   amplitude_m=0.2 * width)
-        swatch_stats = mapping.MeshStats(vertex_count=n * n, mean_edge_length_m=edge, area_m2=width * width)
+        swatch_stats = mapping.MeshStats(vertex_count=n * n, mean_edge_length_m=edge, area_m2=width * width,
+                                         boundary_length_m=4.0 * width)
         self.base = mapping.map_preset(preset["parameters"], swatch_stats, fps, quality=quality,
                                        limits=blender_limits()).settings
         self.garment_edge = edge

@@ -35,6 +35,7 @@ struct FitClothOptions {
     std::string name;
     std::string drag = "nonlinear";
     std::string metric = "xor";
+    std::string fit_to = "footage";       // or "tracks": the captures' measured 3D points
     std::uint64_t seed = 1;
     long long evaluations = 400;
     int variability_runs = 4;
@@ -71,6 +72,7 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
     video::ClothFitRequest request;
     request.captures = std::move(captures);
     request.name = options.name.empty() ? std::filesystem::path(out).stem().stem().string() : options.name;
+    request.load.target = options.fit_to == "tracks" ? video::FitTarget::tracks : video::FitTarget::footage;
     request.load.waving_frames = options.frames;
     request.load.full_weight_frames = options.full_weight_frames;
     request.load.half_life_frames = options.half_life_frames;
@@ -107,13 +109,24 @@ nlohmann::json trials_with_floors(const video::ClothFitOutcome& outcome, const v
     nlohmann::json trials = nlohmann::json::array();
     total_floor = 0.0;
     for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i) {
-        const video::PredictabilityFloor f =
-            video::estimate_floor(outcome.trials[i], outcome.fitted, request.problem, floor, request.threads);
-        const double trial_floor = video::weighted_floor(outcome.trials[i], f);
-        total_floor += trial_floor;
-        trials.push_back({{"capture", outcome.trial_names[i]},
-                          {"final_error", outcome.final_evaluation.trials[i].error},
-                          {"floor", trial_floor}});
+        nlohmann::json trial = {{"capture", outcome.trial_names[i]}, {"final_error", outcome.final_evaluation.trials[i].error}};
+        if (outcome.trials[i].tracks)
+            // A tracks fit's error is a weighted mean square (mm^2): its root reads as a distance.
+            trial["final_rms_mm"] = video::tracks_rms_mm(outcome.trials[i], outcome.final_evaluation.trials[i].error);
+        // The floor re-solves the fitted fabric's equilibrium from scratch;
+        // when that fails the fit is still good: report it without a floor.
+        try {
+            const video::PredictabilityFloor f =
+                video::estimate_floor(outcome.trials[i], outcome.fitted, request.problem, floor, request.threads);
+            const double trial_floor = video::weighted_floor(outcome.trials[i], f);
+            total_floor += trial_floor;
+            trial["floor"] = trial_floor;
+            if (outcome.trials[i].tracks) trial["floor_rms_mm"] = video::tracks_rms_mm(outcome.trials[i], trial_floor);
+        } catch (const std::runtime_error& error) {
+            log_message("warning: no predictability floor for " + outcome.trial_names[i] + ": " + error.what());
+            trial["floor"] = nullptr;
+        }
+        trials.push_back(trial);
     }
     return trials;
 }
@@ -126,8 +139,6 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     std::optional<cloth::SwatchOptions> swatch = swatch_options(options.run);
     if (!swatch) return kExitUsage;
     const bool sharded = !options.shard.empty() || options.shards > 0;
-    if (options.drag == "linear" && !options.out.empty() && !global.quiet && options.shard.empty())
-        log_message("note: a linear-drag fit has no fabric preset form; --out gets the fit summary (JSON) instead");
     std::vector<formats::Capture> captures;
     for (const std::string& path : options.captures)
         captures.push_back(read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid fit cloth"));
@@ -165,6 +176,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     nlohmann::json trials = trials_with_floors(outcome, request, total_floor);
     for (std::size_t i = 0; i < trials.size(); ++i) trials[i]["start_error"] = outcome.start_evaluation.trials[i].error;
     nlohmann::json summary = {{"out", options.out},
+                              {"fit_to", video::fit_target_name(request.load.target)},
                               {"drag", video::drag_model_name(request.drag)},
                               {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
                               {"start_error", outcome.start_evaluation.total},
@@ -202,7 +214,7 @@ std::optional<video::ClothFitShard> parse_shard(const std::string& text) {
 // the shards of one fit must agree on every one (threads, names and the
 // variability restarts, which the merge runs, are not among them).
 nlohmann::json result_options(const FitClothOptions& o) {
-    return {{"drag", o.drag},
+    nlohmann::json options = {{"drag", o.drag},
             {"metric", o.metric},
             {"seed", o.seed},
             {"evaluations", o.evaluations},
@@ -213,6 +225,9 @@ nlohmann::json result_options(const FitClothOptions& o) {
             {"resolution", o.run.resolution},
             {"integrator", o.run.integrator},
             {"initial-bow", o.run.initial_bow}};
+    // Only tracks fits say what they fitted to, so footage shards keep the bytes older ones had.
+    if (o.fit_to != "footage") options["fit-to"] = o.fit_to;
+    return options;
 }
 
 // The options back from a shard's request; every malformed one is reported
@@ -234,6 +249,7 @@ FitClothOptions options_from_shard(const formats::FitShardFile& file) {
     };
     one_of("drag", {"nonlinear", "linear"}, o.drag);
     one_of("metric", {"xor", "edge"}, o.metric);
+    if (view.has("fit-to")) one_of("fit-to", {"footage", "tracks"}, o.fit_to);  // shards older than tracks fits: footage
     one_of("integrator", {"rk4", "dopri54", "bs32", "implicit", "bdf2"}, o.run.integrator);
     if (view.has("seed") && view.json().at("seed").is_number_unsigned()) o.seed = view.json().at("seed").get<std::uint64_t>();
     else o.seed = static_cast<std::uint64_t>(view.integer("seed", 0, std::numeric_limits<std::int64_t>::max()).value_or(1));
@@ -244,7 +260,7 @@ FitClothOptions options_from_shard(const formats::FitShardFile& file) {
     o.half_life_frames = view.number("half-life-frames", formats::NumberRange::non_negative("frames")).value_or(0.0);
     o.run.resolution = view.string("resolution").value_or(o.run.resolution);
     o.run.initial_bow = view.number("initial-bow", formats::NumberRange::closed(-2.0, 2.0)).value_or(o.run.initial_bow);
-    view.check_known_keys({"drag", "metric", "seed", "evaluations", "budget-seconds", "frames", "full-weight-frames",
+    view.check_known_keys({"drag", "metric", "fit-to", "seed", "evaluations", "budget-seconds", "frames", "full-weight-frames",
                            "half-life-frames", "resolution", "integrator", "initial-bow"});
     diagnostics.throw_if_errors();
     return o;
@@ -455,7 +471,10 @@ const RegisterFitKind registration{FitKind{
         app.footer(
             "Simulates the capture's swatch experiments with candidate fabrics, renders each frame\n"
             "through the capture's camera under its stripe projector, and compares angle maps and\n"
-            "silhouettes with the footage (thesis eq. 2.20-2.24). Several captures are fitted jointly:\n"
+            "silhouettes with the footage (thesis eq. 2.20-2.24). With --fit-to tracks it compares the\n"
+            "capture's measured 3D points instead (capture.json \"tracks\": motion-capture markers, a\n"
+            "scanner): the error is then a weighted mean square distance in mm^2, and the summary gives\n"
+            "each trial's RMS in mm. Several captures are fitted jointly:\n"
             "give the static drape(s) and the waving test(s) of one fabric. Static drapes alone fit the\n"
             "6 stiffness and damping parameters; with a waving test the 3 drag parameters too (9).\n"
             "The search is a Halton design, then simulated annealing from its best point, then a\n"
@@ -510,7 +529,11 @@ const RegisterFitKind registration{FitKind{
         app.add_option("--metric", options->metric, "silhouette term: xor (pixel count) or edge (edge distance, eq. 2.6)")
             ->check(CLI::IsMember({"xor", "edge"}))
             ->capture_default_str();
-        app.add_option("--drag", options->drag, "nonlinear (thesis) or linear (comparison; writes a summary, not a preset)")
+        app.add_option("--fit-to", options->fit_to,
+                       "footage: the frames (angle maps and silhouettes); tracks: the captures' measured 3D points")
+            ->check(CLI::IsMember({"footage", "tracks"}))
+            ->capture_default_str();
+        app.add_option("--drag", options->drag, "nonlinear (thesis: kN, kf, kT) or linear (the comparison model: kL, kT)")
             ->check(CLI::IsMember({"nonlinear", "linear"}))
             ->capture_default_str();
         add_cloth_run_options(app, options->run);

@@ -212,6 +212,26 @@ std::size_t count_errors(const Diagnostics& diag) {
     }));
 }
 
+// The tracks' rows must be the capture's frames and their columns the grid's points.
+std::vector<Problem> tracks_shape_problems(const VertexAnimation& animation, const TracksSpec& tracks,
+                                           const FramesSpec& frames, const std::string& json_path) {
+    std::vector<Problem> problems;
+    const std::int64_t points = std::int64_t(tracks.rows) * tracks.cols;
+    if (animation.vertex_count != points)
+        problems.push_back({Problem::Severity::error, json_path, "/tracks/rows",
+                            "tracks file \"" + tracks.file + "\" has " + std::to_string(animation.vertex_count) +
+                                " columns (points) but the grid " + std::to_string(tracks.rows) + " x " +
+                                std::to_string(tracks.cols) + " has " + std::to_string(points),
+                            "set \"rows\" and \"cols\" to the uv grid the points were measured on (one column per point, "
+                            "r*cols + c)"});
+    if (animation.frame_count != frames.count)
+        problems.push_back({Problem::Severity::error, json_path, "/tracks/file",
+                            "tracks file \"" + tracks.file + "\" has " + std::to_string(animation.frame_count) +
+                                " rows (frames) but the capture has " + std::to_string(frames.count) + " frames",
+                            "write one row per capture frame (NaN for a frame where no point was seen)"});
+    return problems;
+}
+
 class CaptureParser {
 public:
     CaptureParser(const std::string& folder, Diagnostics& diag, Strictness strictness, CaptureFileChecks checks)
@@ -224,7 +244,7 @@ public:
         JsonView root(document, "", m_diag, m_strictness);
         if (!check_header(root)) return std::nullopt;
         root.check_known_keys({"format", "version", "kind", "fps", "frames", "background", "masks", "camera", "world",
-                               "projector", "swatch", "rigid", "flowlines", "source"});
+                               "projector", "swatch", "rigid", "flowlines", "tracks", "source"});
 
         if (std::optional<std::string> kind = root.string("kind")) {
             if (is_known_kind(*kind)) m_capture.kind = *kind;
@@ -264,6 +284,13 @@ public:
         block(root, "projector", cloth, "cloth.* captures", [&](const JsonView& view) { parse_projector(view); });
         block(root, "swatch", cloth, "cloth.* captures", [&](const JsonView& view) { parse_swatch(view); });
         block(root, "rigid", rigid, "rigid.toss captures", [&](const JsonView& view) { parse_rigid(view); });
+        if (root.has("tracks")) {
+            if (!cloth && kind_known)
+                m_diag.warning("/tracks", "\"tracks\" is only read for cloth.* captures, not " + kind + " (ignored)",
+                               "remove it or correct \"kind\"");
+            else if (std::optional<JsonView> tracks = root.object("tracks", false))
+                parse_tracks(*tracks);
+        }
         if (root.has("flowlines") || video) {
             if (!video && kind_known) {
                 m_diag.warning("/flowlines", "flow lines are only read for video.flow captures (ignored)", "");
@@ -492,6 +519,25 @@ private:
         if (ok) m_capture.projector = projector;
     }
 
+    void parse_tracks(const JsonView& view) {
+        view.check_known_keys({"file", "rows", "cols"});
+        TracksSpec tracks;
+        const std::size_t errors_before = count_errors(m_diag);
+        tracks.file = view.string("file").value_or("");
+        if (view.has("file") && view.json()["file"].is_string() && tracks.file.empty())
+            m_diag.error("/tracks/file", "empty path", "name the EXR file of the tracks, e.g. \"tracks.exr\"");
+        const std::int64_t most = kMaxVertexAnimationVertices;
+        tracks.rows = static_cast<int>(view.integer("rows", 2, most).value_or(0));
+        tracks.cols = static_cast<int>(view.integer("cols", 2, most).value_or(0));
+        if (tracks.rows > 0 && tracks.cols > 0 && std::int64_t(tracks.rows) * tracks.cols > most)
+            m_diag.error("/tracks/rows",
+                         "a " + std::to_string(tracks.rows) + " x " + std::to_string(tracks.cols) +
+                             " grid has more points than a vertex-animation file may hold (" + std::to_string(most) + ")",
+                         "give the grid the tracks were measured on");
+        if (count_errors(m_diag) > errors_before) return;
+        m_capture.tracks = tracks;
+    }
+
     void parse_swatch(const JsonView& view) {
         view.check_known_keys({"width_m", "height_m", "mass_kg", "initial", "pins"});
         SwatchSpec swatch;
@@ -707,6 +753,32 @@ private:
             check_image_size("/background", "background image", m_capture.background, width, height, "/camera");
         if (!m_mesh.empty() && check_file("/rigid/mesh", "mesh", m_mesh) && content) check_mesh();
         if (!m_capture.flowlines.empty()) check_file("/flowlines", "flow-line SVG", m_capture.flowlines);
+        if (m_capture.tracks && check_file("/tracks/file", "tracks file", m_capture.tracks->file) && content)
+            check_tracks();
+    }
+
+    // The tracks must be one row per frame and one column per grid point.
+    void check_tracks() {
+        const TracksSpec& tracks = *m_capture.tracks;
+        const std::string path = resolve(tracks.file);
+        std::vector<Problem> problems = validate_vertex_animation_file(path, Strictness::lenient, MissingPoints::allow_nan);
+        const bool unreadable = std::any_of(problems.begin(), problems.end(),
+                                            [](const Problem& p) { return p.severity == Problem::Severity::error; });
+        m_diag.merge(problems);
+        if (unreadable) {
+            m_diag.error("/tracks/file", "tracks file \"" + tracks.file + "\" is not a valid positions EXR (problems listed for " +
+                                             path + ")",
+                         "write the tracks as float32 R, G, B: one row per frame, one column per point, NaN where unseen");
+            return;
+        }
+        const VertexAnimation animation = read_vertex_animation(path, nullptr, MissingPoints::allow_nan);
+        for (const Problem& p : tracks_shape_problems(animation, tracks, m_capture.frames, m_capture.json_path))
+            m_diag.error(p.field, p.message, p.fix);
+        const bool any_seen = std::any_of(animation.positions_m.begin(), animation.positions_m.end(),
+                                          [](const Eigen::Vector3f& p) { return p.allFinite(); });
+        if (!any_seen)
+            m_diag.warning("/tracks/file", "tracks file \"" + tracks.file + "\" has no seen point (all NaN)",
+                           "write the measured positions, or drop \"tracks\"");
     }
 
     void check_video() {
@@ -885,6 +957,8 @@ nlohmann::json capture_to_json(const Capture& capture) {
                               {"initial", capture.swatch->initial},
                               {"pins", pins}};
     }
+    if (capture.tracks)
+        document["tracks"] = {{"file", capture.tracks->file}, {"rows", capture.tracks->rows}, {"cols", capture.tracks->cols}};
     if (capture.rigid)
         document["rigid"] = {{"mesh", capture.rigid->mesh},
                              {"mass_kg", capture.rigid->mass_kg},
@@ -958,10 +1032,36 @@ nlohmann::json summarize_capture(const Capture& capture) {
         summary["rigid"] = rigid;
     }
     if (!capture.flowlines.empty()) summary["flowlines"] = capture.flowlines;
+    if (capture.tracks) {
+        nlohmann::json tracks = {{"file", capture.tracks->file}, {"rows", capture.tracks->rows}, {"cols", capture.tracks->cols}};
+        try {
+            const VertexAnimation animation = *read_capture_tracks(capture);
+            const auto seen = std::count_if(animation.positions_m.begin(), animation.positions_m.end(),
+                                            [](const Eigen::Vector3f& p) { return p.allFinite(); });
+            tracks["seen_share"] = animation.positions_m.empty()
+                                       ? 0.0
+                                       : static_cast<double>(seen) / static_cast<double>(animation.positions_m.size());
+        } catch (const Error&) {
+            // validate reports why; the summary just lacks the share.
+        }
+        summary["tracks"] = tracks;
+    }
     if (!capture.source.is_null()) summary["source"] = capture.source;
     std::error_code ec;
     summary["has_truth"] = fs::is_directory(capture.resolve("truth"), ec);
     return summary;
+}
+
+std::optional<VertexAnimation> read_capture_tracks(const Capture& capture) {
+    if (!capture.tracks) return std::nullopt;
+    const TracksSpec& tracks = *capture.tracks;
+    VertexAnimation animation = read_vertex_animation(capture.resolve(tracks.file), nullptr, MissingPoints::allow_nan);
+    const std::vector<Problem> problems = tracks_shape_problems(animation, tracks, capture.frames, capture.json_path);
+    if (!problems.empty()) throw ValidationError(problems);
+    animation.grid_rows = tracks.rows;
+    animation.grid_cols = tracks.cols;
+    if (animation.fps == 0.0) animation.fps = capture.fps;
+    return animation;
 }
 
 std::optional<VertexAnimation> read_capture_truth_positions(const Capture& capture) {

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <ostream>
 #include <regex>
+#include <string>
 
 namespace flowvid::formats {
 
@@ -29,9 +30,21 @@ const std::vector<FabricParameterInfo>& fabric_parameter_table() {
          &P::drag_degradation_s2_per_m2},
         {"drag_tangential_kg_per_m2_s", "kg/(m^2 s)", true, "kT: linear drag on the tangential relative velocity",
          &P::drag_tangential_kg_per_m2_s},
+        {"stretch_warp_compression_ratio", "1", false,
+         "compressive over tensile warp stiffness (1: symmetric; woven fabric buckles, so < 1)",
+         &P::stretch_warp_compression_ratio, "1.1", 1.0},
+        {"stretch_weft_compression_ratio", "1", false, "compressive over tensile weft stiffness",
+         &P::stretch_weft_compression_ratio, "1.1", 1.0},
+        {"drag_linear_normal_kg_per_m2_s", "kg/(m^2 s)", true, "kL: linear drag on the normal relative velocity",
+         &P::drag_linear_normal_kg_per_m2_s, "1.1", 0.0},
+        {"hem_line_density_kg_per_m", "kg/m", true,
+         "extra mass per metre of the cloth's free boundary (a hem or selvedge), on top of the areal density",
+         &P::hem_line_density_kg_per_m, "1.1", 0.0},
     };
     return table;
 }
+
+bool FabricParameterInfo::optional() const { return std::string(since) != "1.0"; }
 
 bool FabricParameters::operator==(const FabricParameters& other) const {
     for (const FabricParameterInfo& info : fabric_parameter_table())
@@ -44,6 +57,7 @@ namespace {
 constexpr const char* kMethods[] = {"fit", "manual", "adapter_export"};
 
 std::optional<FabricParameter> parse_parameter(const JsonView& parameters, const FabricParameterInfo& info) {
+    if (info.optional() && !parameters.has(info.key)) return FabricParameter{info.neutral, {}, {}};
     std::optional<JsonView> entry = parameters.object(info.key);
     if (!entry) return std::nullopt;
     entry->check_known_keys({"value", "uncertainty", "range"});

@@ -304,12 +304,21 @@ bool check_header(const Imf::Header& header, std::uint64_t byte_count, Diagnosti
     return !had_errors();
 }
 
-void check_finite_positions(const VertexAnimation& animation, Diagnostics& diag, const char* field) {
+void check_finite_positions(const VertexAnimation& animation, Diagnostics& diag, const char* field,
+                            MissingPoints missing) {
     std::size_t bad = 0;
     std::size_t first = 0;
     int first_channel = 0;
+    std::size_t partial = 0;
+    std::size_t first_partial = 0;
     for (std::size_t i = 0; i < animation.positions_m.size(); ++i) {
         const Eigen::Vector3f& p = animation.positions_m[i];
+        if (missing == MissingPoints::allow_nan && p.array().isNaN().any()) {
+            // An unseen point is NaN in all three channels; one NaN beside
+            // numbers is a broken export, not a gap.
+            if (!p.array().isNaN().all() && partial++ == 0) first_partial = i;
+            continue;
+        }
         for (int c = 0; c < 3; ++c) {
             if (std::isfinite(p[c])) continue;
             if (bad == 0) {
@@ -319,17 +328,28 @@ void check_finite_positions(const VertexAnimation& animation, Diagnostics& diag,
             ++bad;
         }
     }
-    if (bad == 0) return;
     const std::size_t vertices = static_cast<std::size_t>(std::max(animation.vertex_count, 1));
-    diag.error(field,
-               std::to_string(bad) + " NaN or infinite value(s), the first at frame row " +
-                   std::to_string(first / vertices) + ", vertex " + std::to_string(first % vertices) + ", channel " +
-                   kPositionChannels[first_channel],
-               "positions must be finite metres: fix the simulation or export that wrote them");
+    if (partial > 0)
+        diag.error(field,
+                   std::to_string(partial) + " point(s) are NaN in some channels but not all, the first at frame row " +
+                       std::to_string(first_partial / vertices) + ", point " + std::to_string(first_partial % vertices),
+                   "write an unseen point as NaN in all of R, G and B, a seen one as three finite metres");
+    if (bad == 0) return;
+    if (missing == MissingPoints::allow_nan)
+        diag.error(field,
+                   std::to_string(bad) + " infinite value(s), the first at frame row " + std::to_string(first / vertices) +
+                       ", point " + std::to_string(first % vertices) + ", channel " + kPositionChannels[first_channel],
+                   "positions must be finite metres, or NaN in all three channels where a point was not seen");
+    else
+        diag.error(field,
+                   std::to_string(bad) + " NaN or infinite value(s), the first at frame row " +
+                       std::to_string(first / vertices) + ", vertex " + std::to_string(first % vertices) + ", channel " +
+                       kPositionChannels[first_channel],
+                   "positions must be finite metres: fix the simulation or export that wrote them");
 }
 
 std::optional<VertexAnimation> parse_exr(Imf::IStream& stream, std::uint64_t byte_count, Diagnostics& diag,
-                                         Strictness strictness) {
+                                         Strictness strictness, MissingPoints missing) {
     VertexAnimation animation;
     std::unique_ptr<Imf::InputFile> file;
     try {
@@ -365,12 +385,13 @@ std::optional<VertexAnimation> parse_exr(Imf::IStream& stream, std::uint64_t byt
                    "the file is truncated or corrupt: write it again");
         return std::nullopt;
     }
-    check_finite_positions(animation, diag, "pixels");
+    check_finite_positions(animation, diag, "pixels", missing);
     if (diag.has_errors()) return std::nullopt;
     return animation;
 }
 
-std::optional<VertexAnimation> parse_file(const std::string& path, Diagnostics& diag, Strictness strictness) {
+std::optional<VertexAnimation> parse_file(const std::string& path, Diagnostics& diag, Strictness strictness,
+                                          MissingPoints missing = MissingPoints::refuse) {
     std::error_code ec;
     if (!fs::exists(path, ec)) throw IoError(path, "", "no such file", "check the path");
     if (fs::is_directory(path, ec)) throw IoError(path, "", "is a folder, not a file", "name an .exr file");
@@ -389,24 +410,25 @@ std::optional<VertexAnimation> parse_file(const std::string& path, Diagnostics& 
     in.clear();
     in.seekg(0);
     FileIStream stream(path, in);
-    return parse_exr(stream, byte_count, diag, strictness);
+    return parse_exr(stream, byte_count, diag, strictness, missing);
 }
 
-std::optional<VertexAnimation> parse_bytes(const std::string& bytes, Diagnostics& diag, Strictness strictness) {
+std::optional<VertexAnimation> parse_bytes(const std::string& bytes, Diagnostics& diag, Strictness strictness,
+                                           MissingPoints missing = MissingPoints::refuse) {
     if (!has_exr_magic(bytes.data(), bytes.size())) {
         diag.error("", "not an OpenEXR file (wrong magic number)", "write the positions as an OpenEXR image");
         return std::nullopt;
     }
     if (!peek_header(bytes, bytes.size(), diag)) return std::nullopt;
     MemoryIStream stream(diag.file(), bytes);
-    return parse_exr(stream, bytes.size(), diag, strictness);
+    return parse_exr(stream, bytes.size(), diag, strictness, missing);
 }
 
 }  // namespace
 
-VertexAnimation read_vertex_animation(const std::string& path, std::vector<Problem>* warnings) {
+VertexAnimation read_vertex_animation(const std::string& path, std::vector<Problem>* warnings, MissingPoints missing) {
     Diagnostics diag(path);
-    std::optional<VertexAnimation> animation = parse_file(path, diag, Strictness::lenient);
+    std::optional<VertexAnimation> animation = parse_file(path, diag, Strictness::lenient, missing);
     diag.throw_if_errors();
     if (warnings) *warnings = diag.warnings();
     return std::move(*animation);
@@ -421,7 +443,8 @@ VertexAnimation read_vertex_animation_from_memory(const std::string& bytes, cons
     return std::move(*animation);
 }
 
-std::vector<Problem> check_vertex_animation(const VertexAnimation& animation, const std::string& file) {
+std::vector<Problem> check_vertex_animation(const VertexAnimation& animation, const std::string& file,
+                                            MissingPoints missing) {
     Diagnostics diag(file);
     bool sizes_ok = true;
     if (animation.frame_count < 1 || animation.frame_count > kMaxVertexAnimationFrames) {
@@ -447,7 +470,7 @@ std::vector<Problem> check_vertex_animation(const VertexAnimation& animation, co
                        "holds " + std::to_string(animation.positions_m.size()) + " positions, expected frame_count x " +
                            "vertex_count = " + std::to_string(samples),
                        "store one position per vertex per frame, frame-major");
-        else check_finite_positions(animation, diag, "positions_m");
+        else check_finite_positions(animation, diag, "positions_m", missing);
     }
     if (animation.grid_rows.has_value() != animation.grid_cols.has_value())
         diag.error("grid_rows", "only one of grid_rows and grid_cols is set", "set both or neither");
@@ -465,9 +488,9 @@ std::vector<Problem> check_vertex_animation(const VertexAnimation& animation, co
     return diag.problems();
 }
 
-void write_vertex_animation(const std::string& path, const VertexAnimation& animation) {
+void write_vertex_animation(const std::string& path, const VertexAnimation& animation, MissingPoints missing) {
     Diagnostics diag(path);
-    diag.merge(check_vertex_animation(animation, path));
+    diag.merge(check_vertex_animation(animation, path, missing));
     diag.throw_if_errors();
 
     Imf::Header header(animation.vertex_count, animation.frame_count);
@@ -501,10 +524,11 @@ void write_vertex_animation(const std::string& path, const VertexAnimation& anim
     });
 }
 
-std::vector<Problem> validate_vertex_animation_file(const std::string& path, Strictness strictness) {
+std::vector<Problem> validate_vertex_animation_file(const std::string& path, Strictness strictness,
+                                                    MissingPoints missing) {
     Diagnostics diag(path);
     try {
-        parse_file(path, diag, strictness);
+        parse_file(path, diag, strictness, missing);
     } catch (const Error& error) {
         diag.error(error.field(), error.what(), error.fix());
     }
@@ -528,17 +552,28 @@ nlohmann::json summarize_vertex_animation(const VertexAnimation& animation) {
     }
     if (animation.grid_rows) summary["grid"] = {{"rows", *animation.grid_rows}, {"cols", *animation.grid_cols}};
     if (!animation.positions_m.empty() && animation.vertex_count > 0) {
-        Eigen::Vector3f lo = animation.positions_m.front(), hi = lo;
+        // Gaps (NaN points of measured tracks) are left out of every figure.
+        const float inf = std::numeric_limits<float>::infinity();
+        Eigen::Vector3f lo = Eigen::Vector3f::Constant(inf), hi = Eigen::Vector3f::Constant(-inf);
+        std::size_t seen = 0;
         for (const Eigen::Vector3f& p : animation.positions_m) {
+            if (!p.allFinite()) continue;
             lo = lo.cwiseMin(p);
             hi = hi.cwiseMax(p);
+            ++seen;
         }
-        summary["bbox_min_m"] = {lo.x(), lo.y(), lo.z()};
-        summary["bbox_max_m"] = {hi.x(), hi.y(), hi.z()};
+        if (seen > 0) {
+            summary["bbox_min_m"] = {lo.x(), lo.y(), lo.z()};
+            summary["bbox_max_m"] = {hi.x(), hi.y(), hi.z()};
+        }
+        if (seen < animation.positions_m.size())
+            summary["seen_share"] = static_cast<double>(seen) / static_cast<double>(animation.positions_m.size());
         float largest = 0.0f;
         const std::size_t vertices = static_cast<std::size_t>(animation.vertex_count);
-        for (std::size_t i = vertices; i < animation.positions_m.size(); ++i)
-            largest = std::max(largest, (animation.positions_m[i] - animation.positions_m[i % vertices]).norm());
+        for (std::size_t i = vertices; i < animation.positions_m.size(); ++i) {
+            const Eigen::Vector3f move = animation.positions_m[i] - animation.positions_m[i % vertices];
+            if (move.allFinite()) largest = std::max(largest, move.norm());
+        }
         summary["max_displacement_from_first_frame_m"] = largest;
     }
     return summary;

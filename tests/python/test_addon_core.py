@@ -43,8 +43,37 @@ class MappingTest(unittest.TestCase):
         for key in ("stretch_warp_stiffness_N_per_m", "shear_stiffness_N_per_m", "bend_stiffness_N_m",
                     "stretch_warp_damping_N_s_per_m", "bend_damping_N_m_s"):
             self.assertAlmostEqual(back[key] / cotton()[key]["value"], 1.0, places=9, msg=key)
-        # Drag comes back as the linear drag of the reference speed.
+        # Drag comes back as the linear drag of the reference speed, on the normal (kL) and tangent (kT).
         self.assertAlmostEqual(back["drag_tangential_kg_per_m2_s"], 0.6 * 0.5 / (1 + 0.1 * 0.25), places=9)
+        self.assertAlmostEqual(back["drag_linear_normal_kg_per_m2_s"], 0.6 * 0.5 / (1 + 0.1 * 0.25), places=9)
+        self.assertEqual(back["drag_normal_kg_per_m3"], 0.0)
+        self.assertAlmostEqual(back["stretch_warp_compression_ratio"], 1.0, places=9)
+
+    def test_format_1_1_parameters(self):
+        # Softer compression sets Blender's compression springs; kL adds to its linear air damping;
+        # a hem's mass is spread over the vertices (and noted); a 1.0 preset maps as before.
+        stats = mapping.MeshStats(576, 0.3 / 23, 0.09, boundary_length_m=1.2)
+        old = cotton()
+        for key in mapping.OPTIONAL_PARAMETERS:
+            old.pop(key, None)
+        base = mapping.map_preset(old, stats, 30.0)
+        self.assertEqual(base.settings, mapping.map_preset(cotton(), stats, 30.0).settings)
+        parameters = cotton()
+        parameters["stretch_warp_compression_ratio"]["value"] = 0.2
+        parameters["stretch_weft_compression_ratio"]["value"] = 0.2
+        parameters["drag_linear_normal_kg_per_m2_s"]["value"] = 0.3
+        parameters["hem_line_density_kg_per_m"]["value"] = 0.001
+        result = mapping.map_preset(parameters, stats, 30.0)
+        self.assertAlmostEqual(result.settings["compression_stiffness"] / base.settings["compression_stiffness"], 0.2,
+                               places=12)
+        damping = mapping.DEFAULT_MASS_SCALE / mapping.SQRT_1000
+        added_drag = 0.3 * (0.09 / 576) * damping / mapping.BLENDER_AIR_DAMPING_SCALE
+        self.assertAlmostEqual(result.settings["air_damping"] - base.settings["air_damping"], added_drag, places=9)
+        self.assertAlmostEqual(result.settings["mass"] / base.settings["mass"], (0.15 * 0.09 + 0.001 * 1.2) / (0.15 * 0.09),
+                               places=12)
+        self.assertIn("hem", " ".join(result.not_represented))
+        back = mapping.parameters_from_settings(result.settings, stats, areal_density_kg_per_m2=0.15)
+        self.assertAlmostEqual(back["stretch_warp_compression_ratio"], 0.2, places=9)
 
     def test_clamps_and_notes(self):
         parameters = cotton()

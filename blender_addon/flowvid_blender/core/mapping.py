@@ -20,7 +20,14 @@ it. In short:
   over the wing polygons; on quads of size L the hinge moment is
   k_angle * theta * L / 2, so a plate bending stiffness D (N m) needs
   bending = 20 D / L^2.
-* Air damping: f = -0.01 * air_damping * v per vertex, linear and isotropic.
+* Air damping: f = -0.01 * air_damping * v per vertex, linear and isotropic:
+  the preset's linear normal drag kL plus its quadratic normal drag matched
+  at a reference speed.
+* Mass is uniform per vertex (Blender has no per-vertex cloth mass): a
+  preset's hem cannot be placed on the boundary, so its mass is spread.
+
+Presets of format 1.0 lack the 1.1 parameters: they take their neutral values
+(compression ratio 1, kL 0, hem 0).
 """
 from dataclasses import dataclass, field
 import math
@@ -69,6 +76,7 @@ class MeshStats:
     mean_edge_length_m: float       # mean structural edge length (Blender's avg_spring_len)
     area_m2: float
     quad_fraction: float = 1.0      # faces with 4 corners / all faces (the formulas assume quads)
+    boundary_length_m: float = 0.0  # free boundary (edges of one face): where a preset's hem lies
 
 
 @dataclass
@@ -78,9 +86,19 @@ class Mapping:
     derived: dict = field(default_factory=dict)      # intermediate quantities (tau, spring constants, ...)
 
 
+# Parameters added in format 1.1 and their neutral values (a 1.0 preset lacks them).
+OPTIONAL_PARAMETERS = {
+    "stretch_warp_compression_ratio": 1.0,
+    "stretch_weft_compression_ratio": 1.0,
+    "drag_linear_normal_kg_per_m2_s": 0.0,
+    "hem_line_density_kg_per_m": 0.0,
+}
+
+
 def parameter_values(parameters):
-    """Preset `parameters` ({"key": {"value": ...}} or {"key": number}) -> {key: float}."""
-    values = {}
+    """Preset `parameters` ({"key": {"value": ...}} or {"key": number}) -> {key: float}; the 1.1
+    parameters a 1.0 preset lacks get their neutral values."""
+    values = dict(OPTIONAL_PARAMETERS)
     for key, entry in parameters.items():
         values[key] = float(entry["value"] if isinstance(entry, dict) else entry)
     return values
@@ -99,11 +117,12 @@ def gravity_time_scale(fps):
 def linear_drag_per_area(values, reference_speed_m_per_s):
     """Linear drag coefficient (kg/(m^2 s)) equal to the preset's normal drag at the reference speed.
 
-    The library's normal drag is kN v^2 / (1 + kf v^2); a linear drag c v with
-    c = kN v_ref / (1 + kf v_ref^2) gives the same force at v_ref (less below,
-    more above)."""
+    The library's normal drag is kL v + kN v^2 / (1 + kf v^2); a linear drag c v with
+    c = kL + kN v_ref / (1 + kf v_ref^2) gives the same force at v_ref (less below,
+    more above; exactly the same at every speed when kN = 0)."""
     v = reference_speed_m_per_s
-    return values["drag_normal_kg_per_m3"] * v / (1.0 + values["drag_degradation_s2_per_m2"] * v * v)
+    return (values.get("drag_linear_normal_kg_per_m2_s", 0.0)
+            + values["drag_normal_kg_per_m3"] * v / (1.0 + values["drag_degradation_s2_per_m2"] * v * v))
 
 
 def _check(values, mesh, fps):
@@ -114,7 +133,7 @@ def _check(values, mesh, fps):
         "stretch_weft_damping_N_s_per_m", "shear_damping_N_s_per_m", "bend_damping_N_m_s",
         "drag_normal_kg_per_m3", "drag_degradation_s2_per_m2", "drag_tangential_kg_per_m2_s",
     )
-    for key in required:
+    for key in required + tuple(OPTIONAL_PARAMETERS):
         if key not in values:
             problems.append("/parameters/%s: missing (load a valid *.fabric.json)" % key)
         elif not math.isfinite(values[key]) or values[key] < 0.0:
@@ -124,6 +143,9 @@ def _check(values, mesh, fps):
             problems.append("/parameters/areal_density_kg_per_m2: must be > 0")
         if values["bend_stiffness_N_m"] <= 0.0:
             problems.append("/parameters/bend_stiffness_N_m: must be > 0")
+        for key in ("stretch_warp_compression_ratio", "stretch_weft_compression_ratio"):
+            if values[key] <= 0.0:
+                problems.append("/parameters/%s: must be > 0" % key)
     if mesh.vertex_count < 3 or not mesh.mean_edge_length_m > 0.0 or not mesh.area_m2 > 0.0:
         problems.append("mesh: needs faces with non-zero area and edge length (got %d vertices, mean edge %g m, "
                         "area %g m^2)" % (mesh.vertex_count, mesh.mean_edge_length_m, mesh.area_m2))
@@ -169,6 +191,13 @@ def map_preset(parameters, mesh, fps, quality=None, mass_scale=DEFAULT_MASS_SCAL
         notes.append("anisotropic stretch damping averaged to %g N s/m" % d_stretch)
     bend = values["bend_stiffness_N_m"]
     bend_damping = values["bend_damping_N_m_s"]
+    r_warp = values["stretch_warp_compression_ratio"]
+    r_weft = values["stretch_weft_compression_ratio"]
+    compression_ratio = 0.5 * (r_warp + r_weft)
+    if abs(r_warp - r_weft) > 0.05 * compression_ratio:
+        notes.append("anisotropic compression (warp ratio %g, weft %g) averaged to %g: Blender's springs are isotropic"
+                     % (r_warp, r_weft, compression_ratio))
+    hem = values["hem_line_density_kg_per_m"]
 
     # Shear springs (quad diagonals) carry 2 k_shear and add k_shear to the
     # stretch stiffness in tension (diagonals are tension-only in Blender).
@@ -184,6 +213,9 @@ def map_preset(parameters, mesh, fps, quality=None, mass_scale=DEFAULT_MASS_SCAL
                  "drag (%.3g kg/(m^2 s)) is replaced by the same isotropic value" % (reference_speed_m_per_s,
                                                                                      c_drag, k_tangential))
     notes.append("mass is uniform per vertex in Blender (the library lumps it by area, so edges are lighter there)")
+    if hem > 0.0:
+        notes.append("the hem (%.3g kg per m of boundary) is spread over every vertex: Blender has no per-vertex cloth "
+                     "mass" % hem)
     if mesh.quad_fraction < 0.9:
         notes.append("the mesh is %.0f%% triangles: the spring formulas assume quads (triangles have no shear "
                      "springs in Blender); run Calibrate for this mesh" % (100.0 * (1.0 - mesh.quad_fraction)))
@@ -193,9 +225,9 @@ def map_preset(parameters, mesh, fps, quality=None, mass_scale=DEFAULT_MASS_SCAL
     settings = {
         "quality": max(int(quality or 0), int(min_quality)),
         "time_scale": time_scale,
-        "mass": s * values["areal_density_kg_per_m2"] * mesh.area_m2 / n,
+        "mass": s * (values["areal_density_kg_per_m2"] * mesh.area_m2 + hem * mesh.boundary_length_m) / n,
         "tension_stiffness": tension_spring * force * L,
-        "compression_stiffness": k_stretch * force * L,
+        "compression_stiffness": compression_ratio * k_stretch * force * L,
         "shear_stiffness": shear_spring * force * L,
         "bending_stiffness": bending,
         "tension_damping": d_stretch * damping,
@@ -237,9 +269,9 @@ def parameters_from_settings(settings, mesh, areal_density_kg_per_m2=0.15,
     force = s * tau * tau
     damping = s * tau
     k_shear = settings["shear_stiffness"] / (2.0 * force * L)
-    tension_reading = settings["tension_stiffness"] / (force * L) + k_shear
-    compression_reading = settings["compression_stiffness"] / (force * L)
-    k_stretch = 0.5 * (tension_reading + compression_reading)
+    # Tension: the structural springs and the diagonals; compression: the structural springs alone.
+    k_stretch = settings["tension_stiffness"] / (force * L) + k_shear
+    compression_ratio = settings["compression_stiffness"] / (force * L) / k_stretch
     bend = settings["bending_stiffness"] * L * L / (20.0 * force)
     c_drag = settings["air_damping"] * BLENDER_AIR_DAMPING_SCALE / (damping * mesh.area_m2 / n)
     d_stretch = 0.5 * (settings["tension_damping"] + settings["compression_damping"]) / damping
@@ -255,10 +287,14 @@ def parameters_from_settings(settings, mesh, areal_density_kg_per_m2=0.15,
         "stretch_weft_damping_N_s_per_m": d_stretch,
         "shear_damping_N_s_per_m": 0.5 * settings["shear_damping"] / damping,
         "bend_damping_N_m_s": bend_damping,
-        # Blender's drag is linear: kf = 0 and kN v_ref equal to it at the reference speed.
-        "drag_normal_kg_per_m3": c_drag / reference_speed_m_per_s,
+        # Blender's drag is linear and isotropic: kL = kT = c, no quadratic part.
+        "drag_normal_kg_per_m3": 0.0,
         "drag_degradation_s2_per_m2": 0.0,
         "drag_tangential_kg_per_m2_s": c_drag,
+        "stretch_warp_compression_ratio": compression_ratio,
+        "stretch_weft_compression_ratio": compression_ratio,
+        "drag_linear_normal_kg_per_m2_s": c_drag,
+        "hem_line_density_kg_per_m": 0.0,
     }
 
 

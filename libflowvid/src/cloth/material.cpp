@@ -26,6 +26,10 @@ const Binding kBindings[] = {
     {&formats::FabricParameters::drag_normal_kg_per_m3, &ClothMaterial::drag_normal_kg_per_m3},
     {&formats::FabricParameters::drag_degradation_s2_per_m2, &ClothMaterial::drag_degradation_s2_per_m2},
     {&formats::FabricParameters::drag_tangential_kg_per_m2_s, &ClothMaterial::drag_tangential_kg_per_m2_s},
+    {&formats::FabricParameters::stretch_warp_compression_ratio, &ClothMaterial::stretch_warp_compression_ratio},
+    {&formats::FabricParameters::stretch_weft_compression_ratio, &ClothMaterial::stretch_weft_compression_ratio},
+    {&formats::FabricParameters::drag_linear_normal_kg_per_m2_s, &ClothMaterial::drag_linear_normal_kg_per_m2_s},
+    {&formats::FabricParameters::hem_line_density_kg_per_m, &ClothMaterial::hem_line_density_kg_per_m},
 };
 
 const char* preset_key(formats::FabricParameter formats::FabricParameters::*member) {

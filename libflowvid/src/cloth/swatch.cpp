@@ -121,7 +121,16 @@ Swatch build_swatch(const SwatchExperiment& experiment, int rows, int cols) {
 
 ClothMaterial experiment_material(const SwatchExperiment& experiment, const ClothMaterial& material) {
     ClothMaterial m = material;
-    if (experiment.mass_kg > 0.0) m.areal_density_kg_per_m2 = experiment.mass_kg / (experiment.width_m * experiment.height_m);
+    if (experiment.mass_kg > 0.0) {
+        // The swatch's mass is what was weighed: a hem takes its share off
+        // the area's (capped so that the cloth itself keeps 5 %).
+        double cloth_mass = experiment.mass_kg;
+        if (m.hem_line_density_kg_per_m != 0.0) {
+            const double hem_mass = m.hem_line_density_kg_per_m * 2.0 * (experiment.width_m + experiment.height_m);
+            cloth_mass = std::max(experiment.mass_kg - hem_mass, 0.05 * experiment.mass_kg);
+        }
+        m.areal_density_kg_per_m2 = cloth_mass / (experiment.width_m * experiment.height_m);
+    }
     return m;
 }
 

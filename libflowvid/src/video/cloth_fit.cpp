@@ -19,7 +19,6 @@ namespace {
 
 constexpr const char* kStretchTie = "stretch_stiffness_N_per_m";
 constexpr const char* kStretchDampingTie = "stretch_damping_N_s_per_m";
-constexpr const char* kLinearNormalDrag = "drag_linear_normal_kg_per_m2_s";
 
 const formats::FabricParameterInfo* preset_entry(const std::string& key) {
     for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table())
@@ -28,10 +27,9 @@ const formats::FabricParameterInfo* preset_entry(const std::string& key) {
 }
 
 void require_known(const std::string& key) {
-    if (key != kStretchTie && key != kStretchDampingTie && key != kLinearNormalDrag && !preset_entry(key))
+    if (key != kStretchTie && key != kStretchDampingTie && !preset_entry(key))
         throw std::invalid_argument("unknown cloth parameter '" + key +
-                                    "' (a fabric preset key, stretch_stiffness_N_per_m, stretch_damping_N_s_per_m or "
-                                    "drag_linear_normal_kg_per_m2_s)");
+                                    "' (a fabric preset key, stretch_stiffness_N_per_m or stretch_damping_N_s_per_m)");
 }
 
 }  // namespace
@@ -46,22 +44,20 @@ void set_material_parameter(cloth::ClothMaterial& material, const std::string& k
         material.stretch_warp_damping_N_s_per_m = material.stretch_weft_damping_N_s_per_m = value;
         return;
     }
-    if (key == kLinearNormalDrag) {
-        material.drag_linear_normal_kg_per_m2_s = value;
-        return;
-    }
-    const double linear_normal_drag = material.drag_linear_normal_kg_per_m2_s;  // not a preset key
+    // Through the preset's table, so every preset key is settable; the
+    // optional gap-diagnosis terms (not preset keys) are kept.
+    const double bias = material.bias_angle_rad, memory = material.bend_memory_rate_per_s;
     formats::FabricParameters parameters = cloth::fabric_from_material(material);
     (parameters.*(preset_entry(key)->member)).value = value;
     material = cloth::material_from_fabric(parameters);
-    material.drag_linear_normal_kg_per_m2_s = linear_normal_drag;
+    material.bias_angle_rad = bias;
+    material.bend_memory_rate_per_s = memory;
 }
 
 double material_parameter(const cloth::ClothMaterial& material, const std::string& key) {
     require_known(key);
     if (key == kStretchTie) return material.stretch_warp_N_per_m;
     if (key == kStretchDampingTie) return material.stretch_warp_damping_N_s_per_m;
-    if (key == kLinearNormalDrag) return material.drag_linear_normal_kg_per_m2_s;
     const formats::FabricParameters parameters = cloth::fabric_from_material(material);
     return (parameters.*(preset_entry(key)->member)).value;
 }
@@ -85,7 +81,87 @@ std::vector<FittedParameter> waving_test_parameters() {
     return p;
 }
 
+const char* fit_target_name(FitTarget target) { return target == FitTarget::tracks ? "tracks" : "footage"; }
+
+namespace {
+
+// Simulate only as far as needed, plus two frames so that the pins' spline
+// keeps its tangents up to the last compared frame (its ends are at rest).
+void truncate_experiment(ClothTrial& trial, int compared_frames) {
+    const int simulated = trial.is_static ? 1 : std::min(compared_frames + 2, trial.experiment.frame_count);
+    trial.experiment.frame_count = simulated;
+    for (cloth::PinTrajectory& pin : trial.experiment.pins)
+        if (static_cast<int>(pin.positions_m.size()) > simulated) pin.positions_m.resize(static_cast<std::size_t>(simulated));
+}
+
+int compared_frame_count(const ClothTrial& trial, const TrialLoadSettings& settings, int available) {
+    const int wanted = trial.is_static ? settings.static_frames : settings.waving_frames;
+    return std::clamp(wanted, 1, available);
+}
+
+std::vector<double> frame_weights(const ClothTrial& trial, const TrialLoadSettings& settings, int count) {
+    return trial.is_static ? std::vector<double>(static_cast<std::size_t>(count), 1.0)
+                           : metrics::decaying_frame_weights(count, settings.full_weight_frames, settings.half_life_frames);
+}
+
+// A tracks trial: the capture's measured 3D points instead of its footage.
+ClothTrial load_tracks_trial(const formats::Capture& capture, const TrialLoadSettings& settings) {
+    std::optional<formats::VertexAnimation> tracks = formats::read_capture_tracks(capture);
+    if (!tracks) {
+        Diagnostics diagnostics(capture.json_path);
+        diagnostics.error("/tracks", "this capture has no 3D tracks to fit to",
+                          "add a \"tracks\" entry (measured positions of swatch points, see the capture contract), "
+                          "or fit to the footage (--fit-to footage)");
+        diagnostics.throw_if_errors();
+    }
+    ClothTrial trial;
+    trial.name = capture.folder;
+    trial.is_static = capture.kind == "cloth.static";
+    trial.experiment = cloth::experiment_from_capture(capture);
+    if (capture.camera) trial.camera = *capture.camera;
+    if (capture.projector) trial.projector = *capture.projector;
+    const int count = compared_frame_count(trial, settings, tracks->frame_count);
+    const std::vector<double> weights = frame_weights(trial, settings, count);
+    TrackReference reference;
+    reference.rows = *tracks->grid_rows;
+    reference.cols = *tracks->grid_cols;
+    const double diagonal_mm = 1000.0 * std::hypot(trial.experiment.width_m, trial.experiment.height_m);
+    reference.missing_frame_error_mm2 = diagonal_mm * diagonal_mm;
+    for (int k = 0; k < count; ++k) {
+        metrics::ReferenceFrame frame;
+        frame.number = k + 1;
+        frame.weight = weights[static_cast<std::size_t>(k)];
+        trial.frames.push_back(std::move(frame));
+        Eigen::MatrixX3d positions(tracks->vertex_count, 3);
+        for (int v = 0; v < tracks->vertex_count; ++v) positions.row(v) = tracks->position(k, v).cast<double>().transpose();
+        reference.positions_m.push_back(std::move(positions));
+    }
+    trial.tracks = std::move(reference);
+    truncate_experiment(trial, count);
+    return trial;
+}
+
+}  // namespace
+
+double track_frame_error_mm2(const Eigen::MatrixX3d& measured_m, const Eigen::MatrixX3d& simulated_m) {
+    double sum = 0.0;
+    long long seen = 0;
+    for (Eigen::Index i = 0; i < measured_m.rows() && i < simulated_m.rows(); ++i) {
+        if (!measured_m.row(i).allFinite()) continue;
+        sum += (measured_m.row(i) - simulated_m.row(i)).squaredNorm();
+        ++seen;
+    }
+    return seen > 0 ? 1e6 * sum / static_cast<double>(seen) : 0.0;
+}
+
+double tracks_rms_mm(const ClothTrial& trial, double weighted_error) {
+    double weights = 0.0;
+    for (const metrics::ReferenceFrame& f : trial.frames) weights += f.weight;
+    return weights > 0.0 ? std::sqrt(std::max(0.0, weighted_error) / weights) : 0.0;
+}
+
 ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& settings) {
+    if (settings.target == FitTarget::tracks) return load_tracks_trial(capture, settings);
     ClothFootage footage(capture, settings.segmentation);
     ClothTrial trial;
     trial.name = capture.folder;
@@ -95,11 +171,8 @@ ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& 
     trial.projector = footage.projector();
     const double period = settings.stripe_period_px.value_or(expected_stripe_period_px(capture));
     trial.angle_map = AngleMapSettings::for_stripe_period(period);
-    const int wanted = trial.is_static ? settings.static_frames : settings.waving_frames;
-    const int count = std::clamp(wanted, 1, footage.count());
-    const std::vector<double> weights =
-        trial.is_static ? std::vector<double>(static_cast<std::size_t>(count), 1.0)
-                        : metrics::decaying_frame_weights(count, settings.full_weight_frames, settings.half_life_frames);
+    const int count = compared_frame_count(trial, settings, footage.count());
+    const std::vector<double> weights = frame_weights(trial, settings, count);
     AngleMapper mapper(trial.angle_map);
     for (int k = 0; k < count; ++k) {
         const ClothFrame frame = footage.frame(footage.first() + k);
@@ -111,12 +184,7 @@ ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& 
         if (settings.silhouette_term == metrics::SilhouetteTerm::edge_distance) metrics::prepare_reference(reference);
         trial.frames.push_back(std::move(reference));
     }
-    // Simulate only as far as needed, plus two frames so that the pins' spline
-    // keeps its tangents up to the last compared frame (its ends are at rest).
-    const int simulated = trial.is_static ? 1 : std::min(count + 2, trial.experiment.frame_count);
-    trial.experiment.frame_count = simulated;
-    for (cloth::PinTrajectory& pin : trial.experiment.pins)
-        if (static_cast<int>(pin.positions_m.size()) > simulated) pin.positions_m.resize(static_cast<std::size_t>(simulated));
+    truncate_experiment(trial, count);
     return trial;
 }
 
@@ -128,8 +196,30 @@ int usable_frames(const cloth::SwatchRun& run) {
     return usable;
 }
 
+namespace {
+
+std::vector<metrics::FrameError> compare_tracks(const ClothTrial& trial, const cloth::SwatchRun& run) {
+    const TrackReference& tracks = *trial.tracks;
+    const int usable = usable_frames(run);
+    const cloth::UvSampler sampler(run.swatch.mesh, tracks.rows, tracks.cols);
+    std::vector<metrics::FrameError> errors;
+    for (std::size_t k = 0; k < trial.frames.size(); ++k) {
+        const int index = trial.frames[k].number - 1;
+        metrics::FrameError fe;
+        fe.total = index >= 0 && index < usable
+                       ? track_frame_error_mm2(tracks.positions_m[k], sampler.sample(run.simulation.frames[static_cast<std::size_t>(index)]))
+                       : tracks.missing_frame_error_mm2;
+        errors.push_back(fe);
+    }
+    return errors;
+}
+
+}  // namespace
+
 std::vector<metrics::FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
                                              const metrics::AngleMapMetricSettings& metric) {
+    if (trial.tracks) return compare_tracks(trial, run);
+    if (trial.frames.empty()) return {};  // nothing compared (no camera needed)
     const int usable = usable_frames(run);
     StripeRenderer renderer(trial.camera, trial.projector);
     AngleMapper mapper(trial.angle_map);
@@ -154,6 +244,17 @@ std::vector<metrics::FrameError> compare_run(const ClothTrial& trial, const clot
 
 ClothTrial simulated_trial(const ClothTrial& trial, const cloth::SwatchRun& run, bool edge_distance) {
     ClothTrial out = trial;
+    if (trial.tracks) {
+        const int usable = usable_frames(run);
+        const cloth::UvSampler sampler(run.swatch.mesh, trial.tracks->rows, trial.tracks->cols);
+        for (std::size_t k = 0; k < out.frames.size(); ++k) {
+            const int index = out.frames[k].number - 1;
+            if (index < 0 || index >= usable)
+                throw std::invalid_argument("simulated_trial: the run has no frame " + std::to_string(out.frames[k].number));
+            out.tracks->positions_m[k] = sampler.sample(run.simulation.frames[static_cast<std::size_t>(index)]);
+        }
+        return out;
+    }
     StripeRenderer renderer(trial.camera, trial.projector);
     AngleMapper mapper(trial.angle_map);
     StripeImage rendered;
@@ -171,33 +272,91 @@ ClothTrial simulated_trial(const ClothTrial& trial, const cloth::SwatchRun& run,
     return out;
 }
 
+namespace {
+
+// The first measured frame of a tracks trial on the simulation mesh
+// (bilinear in the tracks' uv grid); vertices whose neighbouring points were
+// not seen keep `fallback`'s position. Empty when frame 1 is not compared.
+Eigen::VectorXd measured_first_frame(const ClothTrial& trial, const cloth::Swatch& swatch, const Eigen::VectorXd& fallback) {
+    if (!trial.tracks || trial.frames.empty() || trial.frames.front().number != 1) return {};
+    const TrackReference& tracks = *trial.tracks;
+    const Eigen::MatrixX3d& measured = tracks.positions_m.front();
+    Eigen::VectorXd start = fallback;
+    int filled = 0;
+    for (int r = 0; r < swatch.rows; ++r)
+        for (int c = 0; c < swatch.cols; ++c) {
+            const double y = static_cast<double>(r) / (swatch.rows - 1) * (tracks.rows - 1);
+            const double x = static_cast<double>(c) / (swatch.cols - 1) * (tracks.cols - 1);
+            const int r0 = std::min(static_cast<int>(y), tracks.rows - 2), c0 = std::min(static_cast<int>(x), tracks.cols - 2);
+            const double fy = y - r0, fx = x - c0;
+            Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
+            bool seen = true;
+            for (int dr = 0; dr < 2 && seen; ++dr)
+                for (int dc = 0; dc < 2 && seen; ++dc) {
+                    const double w = (dr ? fy : 1.0 - fy) * (dc ? fx : 1.0 - fx);
+                    const Eigen::RowVector3d q = measured.row((r0 + dr) * tracks.cols + c0 + dc);
+                    if (w == 0.0) continue;
+                    if (!q.allFinite()) seen = false;
+                    else p += w * q;
+                }
+            if (!seen) continue;
+            start.segment<3>(3 * (r * swatch.cols + c)) = p.transpose();
+            ++filled;
+        }
+    return filled > 0 ? start : Eigen::VectorXd();
+}
+
+}  // namespace
+
 Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::ClothMaterial& material,
                                      const ClothFitSettings& settings, double* chosen_bow) {
     cloth::SwatchExperiment equilibrium_only = trial.experiment;
     equilibrium_only.frame_count = 1;
     for (cloth::PinTrajectory& pin : equilibrium_only.pins) pin.positions_m.resize(std::min<std::size_t>(pin.positions_m.size(), 1));
     ClothTrial first_frame = trial;
-    first_frame.frames.erase(std::remove_if(first_frame.frames.begin(), first_frame.frames.end(),
-                                            [](const metrics::ReferenceFrame& f) { return f.number != 1; }),
-                             first_frame.frames.end());
-    std::vector<double> bows = settings.candidate_bows;
-    if (bows.empty()) bows.push_back(settings.swatch.initial_bow);
+    std::vector<std::size_t> kept;
+    for (std::size_t k = 0; k < trial.frames.size(); ++k)
+        if (trial.frames[k].number == 1) kept.push_back(k);
+    first_frame.frames.clear();
+    if (first_frame.tracks) first_frame.tracks->positions_m.clear();
+    for (const std::size_t k : kept) {
+        first_frame.frames.push_back(trial.frames[k]);
+        if (first_frame.tracks) first_frame.tracks->positions_m.push_back(trial.tracks->positions_m[k]);
+    }
+    // Candidate starts: the bows, and for a tracks trial the measured first
+    // frame itself (the solve then finds the equilibrium nearest to what was
+    // seen, whichever way it folds).
+    struct Candidate {
+        double bow = 0.0;
+        bool measured = false;
+    };
+    std::vector<Candidate> candidates;
+    for (const double bow : settings.candidate_bows) candidates.push_back({bow, false});
+    if (candidates.empty()) candidates.push_back({settings.swatch.initial_bow, false});
+    const bool choose = !first_frame.frames.empty();
+    if (choose && trial.tracks) candidates.push_back({settings.swatch.initial_bow, true});
     Eigen::VectorXd best;
     double best_error = std::numeric_limits<double>::infinity();
-    for (const double bow : bows) {
+    for (const Candidate& candidate : candidates) {
         cloth::SwatchOptions options = settings.swatch;
         options.simulation.threads = 1;
-        options.initial_bow = bow;
+        options.initial_bow = candidate.bow;
         options.initial_positions.resize(0);
+        if (candidate.measured) {
+            const cloth::Swatch swatch = cloth::build_swatch(equilibrium_only, options.rows, options.cols);
+            options.initial_positions =
+                measured_first_frame(trial, swatch, cloth::hanging_start(swatch, equilibrium_only, candidate.bow));
+            if (options.initial_positions.size() == 0) continue;
+        }
         const cloth::SwatchRun run = cloth::simulate_swatch(equilibrium_only, material, options);
         if (!run.equilibrium.converged || run.simulation.frames.empty()) continue;
         double error = 0.0;
         for (const metrics::FrameError& e : compare_run(first_frame, run, settings.metric)) error += e.total;
-        if (first_frame.frames.empty() || bows.size() == 1) error = 0.0;  // nothing to choose by
+        if (!choose || candidates.size() == 1) error = 0.0;  // nothing to choose by
         if (error < best_error) {
             best_error = error;
             best = run.simulation.frames.front();
-            if (chosen_bow) *chosen_bow = bow;
+            if (chosen_bow) *chosen_bow = candidate.bow;
         }
     }
     return best;
@@ -283,6 +442,60 @@ ClothEvaluation ClothFitProblem::evaluate(const cloth::ClothMaterial& material, 
     return out;
 }
 
+bool ClothFitProblem::all_tracks() const {
+    return std::all_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return t.tracks.has_value(); });
+}
+
+Eigen::VectorXd ClothFitProblem::residuals(const cloth::ClothMaterial& material, int threads) const {
+    if (!all_tracks()) throw std::logic_error("ClothFitProblem::residuals: only tracks trials have residuals");
+    std::vector<std::vector<double>> per_trial(m_trials.size());
+    auto one = [&](std::size_t t, int simulation_threads) {
+        const ClothTrial& trial = m_trials[t];
+        const TrackReference& tracks = *trial.tracks;
+        const cloth::SwatchRun run = simulate(t, material, simulation_threads);
+        const int usable = usable_frames(run);
+        const cloth::UvSampler sampler(run.swatch.mesh, tracks.rows, tracks.cols);
+        std::vector<double>& out = per_trial[t];
+        for (std::size_t k = 0; k < trial.frames.size(); ++k) {
+            const Eigen::MatrixX3d& measured = tracks.positions_m[k];
+            long long seen = 0;
+            for (Eigen::Index i = 0; i < measured.rows(); ++i) seen += measured.row(i).allFinite() ? 1 : 0;
+            if (seen == 0) continue;
+            const double weight = trial.frames[k].weight;
+            const int index = trial.frames[k].number - 1;
+            if (index < 0 || index >= usable) {
+                const double entry = std::sqrt(weight * tracks.missing_frame_error_mm2 / (3.0 * static_cast<double>(seen)));
+                out.insert(out.end(), static_cast<std::size_t>(3 * seen), entry);
+                continue;
+            }
+            const Eigen::MatrixX3d simulated = sampler.sample(run.simulation.frames[static_cast<std::size_t>(index)]);
+            const double scale = 1000.0 * std::sqrt(weight / static_cast<double>(seen));
+            for (Eigen::Index i = 0; i < measured.rows(); ++i) {
+                if (!measured.row(i).allFinite()) continue;
+                for (int c = 0; c < 3; ++c) out.push_back(scale * (simulated(i, c) - measured(i, c)));
+            }
+        }
+    };
+    const bool mixed = std::any_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return t.is_static; }) &&
+                       std::any_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return !t.is_static; });
+    const int available = std::max(threads, 1);
+    const int workers = mixed ? 1 : std::min<int>(available, static_cast<int>(m_trials.size()));
+    const int per_simulation = std::max(1, available / workers);
+    if (workers <= 1) {
+        for (std::size_t t = 0; t < m_trials.size(); ++t) one(t, per_simulation);
+    } else {
+        optim::ThreadPool pool(workers);
+        pool.run(m_trials.size(), [&](std::size_t t, int) { one(t, per_simulation); });
+    }
+    std::size_t length = 0;
+    for (const std::vector<double>& r : per_trial) length += r.size();
+    Eigen::VectorXd all(static_cast<Eigen::Index>(length));
+    Eigen::Index at = 0;
+    for (const std::vector<double>& r : per_trial)
+        for (const double v : r) all(at++) = v;
+    return all;
+}
+
 optim::Objective ClothFitProblem::objective() const {
     return [this](const Eigen::VectorXd& values, const optim::EvaluationContext& context) {
         return evaluate(material(values), context.spare_threads).total;
@@ -296,9 +509,6 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
     if (captures.size() != problem.trials().size())
         throw std::invalid_argument("fitted_preset: " + std::to_string(captures.size()) + " captures for " +
                                     std::to_string(problem.trials().size()) + " trials");
-    if (material.drag_linear_normal_kg_per_m2_s != 0.0)
-        throw std::invalid_argument("fitted_preset: a material with linear normal drag (the comparison model) has no "
-                                    "fabric preset form");
     formats::FabricPreset preset;
     preset.name = name;
     preset.description = "fitted by flowvid from " + std::to_string(captures.size()) + " capture(s)";
@@ -328,10 +538,15 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
     for (const formats::Capture& c : captures)
         prov.captures.push_back({c.folder, c.capture_json_sha256, c.kind == "cloth.static" ? "static" : "waving"});
     const metrics::AngleMapMetricSettings& metric = problem.settings().metric;
-    prov.metric = metric.silhouette_term == metrics::SilhouetteTerm::pixel_xor ? "angle_map+silhouette_xor"
-                                                                                 : "angle_map+silhouette_edge_distance";
-    prov.metric_weights["alpha"] = metric.alpha;
-    if (metric.planar_weight > 0.0) prov.metric_weights["planar_weight"] = metric.planar_weight;
+    if (problem.trials().front().tracks) {
+        // E_k in mm^2: the mean squared distance of the seen track points.
+        prov.metric = "tracks_mean_square_mm2";
+    } else {
+        prov.metric = metric.silhouette_term == metrics::SilhouetteTerm::pixel_xor ? "angle_map+silhouette_xor"
+                                                                                     : "angle_map+silhouette_edge_distance";
+        prov.metric_weights["alpha"] = metric.alpha;
+        if (metric.planar_weight > 0.0) prov.metric_weights["planar_weight"] = metric.planar_weight;
+    }
     prov.optimizer = "simulated_annealing";
     prov.seed = seed;
     for (std::size_t i = 0; i < final.trials.size() && i < captures.size(); ++i)

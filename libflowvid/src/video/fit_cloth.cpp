@@ -22,10 +22,27 @@ std::vector<FittedParameter> linear_drag_test_parameters() {
     return p;
 }
 
+std::vector<FittedParameter> capacity_terms(bool waving, DragModel drag) {
+    std::vector<FittedParameter> p = {
+        {"hem_line_density_kg_per_m", 1e-5, 3e-3, true},
+        {"stretch_warp_compression_ratio", 1e-3, 1.0, true},
+        {"stretch_weft_compression_ratio", 1e-3, 1.0, true},
+    };
+    // The linear-drag model fits kL already.
+    if (waving && drag == DragModel::nonlinear) p.push_back({"drag_linear_normal_kg_per_m2_s", 1e-3, 10.0, true});
+    return p;
+}
+
 std::vector<FittedParameter> parameters_for(const std::vector<ClothTrial>& trials, DragModel drag) {
     const bool any_waving = std::any_of(trials.begin(), trials.end(), [](const ClothTrial& t) { return !t.is_static; });
-    if (!any_waving) return static_test_parameters();
-    return drag == DragModel::linear ? linear_drag_test_parameters() : waving_test_parameters();
+    std::vector<FittedParameter> p = !any_waving                ? static_test_parameters()
+                                     : drag == DragModel::linear ? linear_drag_test_parameters()
+                                                                 : waving_test_parameters();
+    const bool tracks = !trials.empty() && std::all_of(trials.begin(), trials.end(),
+                                                       [](const ClothTrial& t) { return t.tracks.has_value(); });
+    if (tracks)
+        for (const FittedParameter& term : capacity_terms(any_waving, drag)) p.push_back(term);
+    return p;
 }
 
 cloth::ClothMaterial middle_of_ranges(const cloth::ClothMaterial& base, const std::vector<FittedParameter>& parameters) {
@@ -66,7 +83,7 @@ struct FitControl {
 std::vector<ClothTrial> load_fit_trials(const ClothFitRequest& request, ClothFitOutcome& outcome) {
     std::vector<ClothTrial> trials = load_trials(request.captures, request.load);
     for (const ClothTrial& t : trials) outcome.trial_names.push_back(t.name);
-    outcome.parameters = parameters_for(trials, request.drag);
+    outcome.parameters = request.parameters.empty() ? parameters_for(trials, request.drag) : request.parameters;
     return trials;
 }
 
@@ -134,8 +151,7 @@ bool end_fit(const ClothFitRequest& request, const ClothFitProblem& problem, int
     report({"final", 0.99, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
     outcome.fitted = problem.material(best);
     outcome.final_evaluation = problem.evaluate(outcome.fitted, threads);
-    if (request.drag == DragModel::nonlinear)
-        outcome.preset = fitted_preset(request.name, problem, request.captures, outcome.fitted, outcome.final_evaluation,
+    outcome.preset = fitted_preset(request.name, problem, request.captures, outcome.fitted, outcome.final_evaluation,
                                        request.seed, outcome.variability ? &*outcome.variability : nullptr);
     return true;
 }
@@ -238,6 +254,35 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
         outcome.seconds = seconds_since(started);
         report({"final", 1.0, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
         return outcome;
+    }
+
+    // Tracks fits: polish the search's best point by least squares.
+    const long long polish_evaluations =
+        request.polish_evaluations >= 0 ? request.polish_evaluations : (problem.all_tracks() ? 8LL * (n + 1) : 0LL);
+    if (polish_evaluations > 0 && problem.all_tracks()) {
+        optim::LeastSquaresSettings polish;
+        polish.max_evaluations = polish_evaluations;
+        polish.threads = threads;
+        polish.cancel = &cancelled;
+        if (budget > 0.0) polish.budget_seconds = std::max(1.0, 0.5 * (budget - seconds_since(started)));
+        polish.progress = [&](const optim::LeastSquaresProgress& p) {
+            return report({"polish", main_share, outcome.evaluations + p.evaluations, p.best_value, 0.0, 0.0});
+        };
+        const optim::ResidualFunction residuals = [&problem](const Eigen::VectorXd& values, int residual_threads) {
+            return problem.residuals(problem.material(values), residual_threads);
+        };
+        outcome.polish = optim::levenberg_marquardt(residuals, problem.space(), outcome.search.annealing.best_values, polish);
+        outcome.evaluations += outcome.polish->evaluations;
+        if (stop_requested()) {
+            outcome.status = ClothFitOutcome::Status::cancelled;
+            outcome.seconds = seconds_since(started);
+            return outcome;
+        }
+        if (outcome.polish->best_value < outcome.search.annealing.best_value) {
+            outcome.search.annealing.best_value = outcome.polish->best_value;
+            outcome.search.annealing.best_values = outcome.polish->best_values;
+            outcome.search.annealing.best_unit = outcome.polish->best_unit;
+        }
     }
 
     // Re-plan the restarts at the pace the search just measured: when the

@@ -11,6 +11,11 @@
 
 #include <gtest/gtest.h>
 
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfOutputFile.h>
+
 #include <Eigen/Dense>
 
 #include <cmath>
@@ -293,6 +298,113 @@ TEST(CaptureTiny, SummaryNamesTheEssentials) {
     EXPECT_EQ(summary["capture_json_sha256"].get<std::string>().size(), 64u);
     const nlohmann::json rigid = summarize_capture(read_capture(tiny("tiny-rigid")));
     EXPECT_EQ(rigid["rigid"]["mesh_summary"]["triangles"], 4);
+}
+
+// A tiny cloth capture with 3D tracks: `rows` x `cols` points over `frames`
+// frames, point (r, c) at (c, 0, r) cm plus 1 mm per frame, `gaps` NaN.
+std::string capture_with_tracks(const std::string& name, int rows, int cols, int frames,
+                                const std::vector<std::pair<int, int>>& gaps, bool partly_nan = false) {
+    const std::string dir = edited_copy("tiny-cloth", name, [&](nlohmann::json& j) {
+        j["tracks"] = {{"file", "tracks.exr"}, {"rows", rows}, {"cols", cols}};
+    });
+    VertexAnimation tracks;
+    tracks.frame_count = frames;
+    tracks.vertex_count = rows * cols;
+    for (int f = 0; f < frames; ++f)
+        for (int r = 0; r < rows; ++r)
+            for (int c = 0; c < cols; ++c)
+                tracks.positions_m.emplace_back(0.01f * c + 0.001f * f, 0.0f, 0.01f * r);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (const auto& [frame, point] : gaps)
+        tracks.positions_m[static_cast<std::size_t>(frame * rows * cols + point)] =
+            partly_nan ? Eigen::Vector3f(nan, 0.0f, 0.0f) : Eigen::Vector3f::Constant(nan);
+    if (!partly_nan) {
+        write_vertex_animation(dir + "/tracks.exr", tracks, MissingPoints::allow_nan);
+        return dir;
+    }
+    // The writer refuses a partly-NaN point, so this broken export is written with OpenEXR directly.
+    EXPECT_FALSE(validation_messages([&] { write_vertex_animation(dir + "/x.exr", tracks, MissingPoints::allow_nan); }).empty());
+    Imf::Header header(tracks.vertex_count, tracks.frame_count);
+    for (const char* channel : {"R", "G", "B"}) header.channels().insert(channel, Imf::Channel(Imf::FLOAT));
+    Imf::OutputFile file((dir + "/tracks.exr").c_str(), header);
+    char* base = reinterpret_cast<char*>(tracks.positions_m.data());
+    Imf::FrameBuffer buffer;
+    for (int c = 0; c < 3; ++c)
+        buffer.insert(c == 0 ? "R" : c == 1 ? "G" : "B",
+                      Imf::Slice(Imf::FLOAT, base + c * sizeof(float), sizeof(Eigen::Vector3f),
+                                 sizeof(Eigen::Vector3f) * static_cast<std::size_t>(tracks.vertex_count)));
+    file.setFrameBuffer(buffer);
+    file.writePixels(tracks.frame_count);
+    return dir;
+}
+
+TEST(CaptureTracks, GapsAndGridLoad) {
+    const std::string dir = capture_with_tracks("tracks_ok", 2, 3, 3, {{0, 4}, {2, 0}});
+    std::vector<Problem> warnings;
+    const Capture capture = read_capture(dir, &warnings);
+    EXPECT_TRUE(warnings.empty()) << (warnings.empty() ? "" : warnings.front().to_string());
+    ASSERT_TRUE(capture.tracks);
+    EXPECT_EQ(capture.tracks->rows, 2);
+    EXPECT_EQ(capture.tracks->cols, 3);
+    const std::optional<VertexAnimation> tracks = read_capture_tracks(capture);
+    ASSERT_TRUE(tracks);
+    EXPECT_EQ(tracks->grid_rows, 2);
+    EXPECT_EQ(tracks->grid_cols, 3);
+    EXPECT_DOUBLE_EQ(tracks->fps, 30.0);
+    EXPECT_TRUE(tracks->position(0, 4).array().isNaN().all());
+    EXPECT_FLOAT_EQ(tracks->position(1, 5).x(), 0.021f);
+    const nlohmann::json summary = summarize_capture(capture);
+    EXPECT_DOUBLE_EQ(summary["tracks"]["seen_share"].get<double>(), 16.0 / 18.0);
+    EXPECT_EQ(capture_to_json(capture)["tracks"]["file"], "tracks.exr");
+    // A capture without tracks has none to read.
+    EXPECT_FALSE(read_capture_tracks(read_capture(tiny("tiny-cloth"))));
+    // Simulated positions still refuse NaN: only tracks may have gaps.
+    EXPECT_FALSE(validation_messages([&] { read_vertex_animation(dir + "/tracks.exr"); }).empty());
+}
+
+TEST(CaptureTracks, ShapeMismatchesNameTheFieldAndTheFix) {
+    // The grid must match the file's columns, the file's rows the frames.
+    EXPECT_NO_THROW(read_capture(capture_with_tracks("tracks_grid", 2, 3, 3, {})));
+    const std::string wrong_grid_dir = edited_copy("tiny-cloth", "tracks_wrong_grid", [](nlohmann::json& j) {
+        j["tracks"] = {{"file", "tracks.exr"}, {"rows", 3}, {"cols", 3}};
+    });
+    fs::copy_file(capture_with_tracks("tracks_source", 2, 3, 3, {}) + "/tracks.exr", wrong_grid_dir + "/tracks.exr",
+                  fs::copy_options::overwrite_existing);
+    const std::string wrong_grid = validation_messages([&] { read_capture(wrong_grid_dir); });
+    EXPECT_TRUE(mentions(wrong_grid, "capture.json: /tracks/rows")) << wrong_grid;
+    EXPECT_TRUE(mentions(wrong_grid, "6 columns (points) but the grid 3 x 3 has 9")) << wrong_grid;
+    EXPECT_TRUE(mentions(wrong_grid, "fix:")) << wrong_grid;
+
+    const std::string frames = validation_messages([&] { read_capture(capture_with_tracks("tracks_frames", 2, 3, 2, {})); });
+    EXPECT_TRUE(mentions(frames, "/tracks/file")) << frames;
+    EXPECT_TRUE(mentions(frames, "2 rows (frames) but the capture has 3 frames")) << frames;
+
+    const std::string partly = validation_messages([&] { read_capture(capture_with_tracks("tracks_partly", 2, 3, 3, {{1, 2}}, true)); });
+    EXPECT_TRUE(mentions(partly, "tracks.exr: pixels")) << partly;
+    EXPECT_TRUE(mentions(partly, "NaN in some channels but not all")) << partly;
+
+    const std::string missing = cloth_errors("tracks_missing", [](nlohmann::json& j) {
+        j["tracks"] = {{"file", "nowhere.exr"}, {"rows", 2}, {"cols", 3}};
+    });
+    EXPECT_TRUE(mentions(missing, "/tracks/file")) << missing;
+    EXPECT_TRUE(mentions(missing, "does not exist")) << missing;
+
+    const std::string bad_grid = cloth_errors("tracks_bad_grid", [](nlohmann::json& j) {
+        j["tracks"] = {{"file", "tracks.exr"}, {"rows", 1}, {"cols", "three"}};
+    });
+    EXPECT_TRUE(mentions(bad_grid, "/tracks/rows")) << bad_grid;
+    EXPECT_TRUE(mentions(bad_grid, "/tracks/cols")) << bad_grid;
+}
+
+TEST(CaptureTracks, OnlyClothCapturesReadThem) {
+    std::vector<Problem> warnings;
+    const std::string dir = edited_copy("tiny-rigid", "tracks_rigid", [](nlohmann::json& j) {
+        j["tracks"] = {{"file", "tracks.exr"}, {"rows", 2}, {"cols", 2}};
+    });
+    const Capture capture = read_capture(dir, &warnings);
+    EXPECT_FALSE(capture.tracks);
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_EQ(warnings[0].field, "/tracks");
 }
 
 TEST(CaptureTiny, AcceptsTheFolderOrItsCaptureJson) {

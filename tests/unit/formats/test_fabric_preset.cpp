@@ -35,7 +35,43 @@ bool mentions(const std::string& text, const std::string& part) { return text.fi
 
 }  // namespace
 
-TEST(FabricPreset, ExampleOfVersion1_0Loads) {
+TEST(FabricPreset, Version1_0FilesReadAsTheSameFabricWithNeutralNewParameters) {
+    // 1.1 added optional parameters; a 1.0 file lacks them and must read as
+    // the fabric it always was: compression as stiff as tension, no linear drag.
+    std::vector<Problem> warnings;
+    const FabricPreset old = read_fabric_preset(source_path("formats/examples/cotton-1.0.fabric.json"), &warnings);
+    EXPECT_TRUE(warnings.empty()) << (warnings.empty() ? "" : warnings.front().to_string());
+    EXPECT_EQ(old.parameters.stretch_warp_compression_ratio.value, 1.0);
+    EXPECT_EQ(old.parameters.stretch_weft_compression_ratio.value, 1.0);
+    EXPECT_EQ(old.parameters.drag_linear_normal_kg_per_m2_s.value, 0.0);
+    EXPECT_EQ(old.parameters.hem_line_density_kg_per_m.value, 0.0);
+    const FabricPreset current = read_fabric_preset(example_path());
+    for (const FabricParameterInfo& info : fabric_parameter_table())
+        EXPECT_EQ((old.parameters.*info.member).value, (current.parameters.*info.member).value) << info.key;
+    // Written again, it is a 1.1 file with every parameter spelled out.
+    const std::string dir = scratch_dir("fabric_upgrade");
+    write_fabric_preset(dir + "/old.fabric.json", old);
+    const nlohmann::json written = nlohmann::json::parse(read_text(dir + "/old.fabric.json"));
+    EXPECT_EQ(written["version"], "1.1");
+    EXPECT_EQ(written["parameters"]["stretch_weft_compression_ratio"]["value"], 1.0);
+    EXPECT_EQ(read_fabric_preset(dir + "/old.fabric.json").parameters, old.parameters);
+    // Only the parameters added after 1.0 are optional.
+    nlohmann::json missing = example_json();
+    missing["parameters"].erase("shear_stiffness_N_per_m");
+    missing["parameters"].erase("drag_linear_normal_kg_per_m2_s");
+    const std::string path = write_json(dir, missing);
+    const std::string messages = validation_messages([&] { read_fabric_preset(path); });
+    EXPECT_TRUE(mentions(messages, "/parameters/shear_stiffness_N_per_m")) << messages;
+    EXPECT_FALSE(mentions(messages, "drag_linear_normal")) << messages;
+    nlohmann::json zero_ratio = example_json();
+    zero_ratio["parameters"]["stretch_warp_compression_ratio"]["value"] = 0.0;
+    zero_ratio["parameters"]["stretch_warp_compression_ratio"].erase("range");
+    const std::string zero_path = write_json(dir, zero_ratio, "zero.fabric.json");
+    EXPECT_TRUE(mentions(validation_messages([&] { read_fabric_preset(zero_path); }),
+                         "/parameters/stretch_warp_compression_ratio/value"));
+}
+
+TEST(FabricPreset, ExampleOfVersion1_1Loads) {
     std::vector<Problem> warnings;
     const FabricPreset preset = read_fabric_preset(example_path(), &warnings);
     EXPECT_TRUE(warnings.empty());

@@ -87,6 +87,17 @@ struct SwatchSpec {
     std::vector<Pin> pins;
 };
 
+// cloth.*, optional: 3D positions of swatch points measured by other means
+// (motion-capture markers, a multi-view or structured-light reconstruction).
+// The file has the layout of truth/positions.exr: one row per frame, one
+// column per point of a rows x cols uv grid (point r*cols + c at
+// u = c/(cols-1), v = r/(rows-1)), world metres, NaN where a point was not seen.
+struct TracksSpec {
+    std::string file;  // relative to the capture folder
+    int rows = 0;
+    int cols = 0;
+};
+
 struct RigidSpec {
     std::string mesh;  // path as written in capture.json, relative to the capture folder
     double mass_kg = 0.0;
@@ -127,6 +138,7 @@ struct Capture {
     std::optional<WorldSpec> world;        // required except for video.flow
     std::optional<Projector> projector;    // cloth.*
     std::optional<SwatchSpec> swatch;      // cloth.*
+    std::optional<TracksSpec> tracks;      // cloth.*, optional
     std::optional<RigidSpec> rigid;        // rigid.toss
     std::string flowlines;                 // video.flow: SVG path, relative
     nlohmann::json source;                 // free-form object, null when absent
@@ -183,6 +195,13 @@ nlohmann::json summarize_capture(const Capture& capture);
 // capture contract). Returns nullopt when the capture has no truth/positions.exr;
 // throws ValidationError when it is invalid or its row count is not frames.count.
 std::optional<VertexAnimation> read_capture_truth_positions(const Capture& capture);
+
+// A cloth capture's measured 3D tracks (`tracks` in capture.json), with the
+// grid and the capture's fps set; NaN points are gaps. nullopt when the
+// capture declares none. Throws IoError / ValidationError naming the file and
+// the capture.json field when the file is unreadable or does not match the
+// grid or the frame count. Unlike truth/, a fit may read these.
+std::optional<VertexAnimation> read_capture_tracks(const Capture& capture);
 
 // ---- Frames -----------------------------------------------------------------
 

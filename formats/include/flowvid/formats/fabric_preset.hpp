@@ -2,7 +2,9 @@
 // Fabric preset (*.fabric.json): the portable description of a fitted fabric.
 // SI units; every parameter is normalised per rest area (or per edge as stated
 // in formats/specs/fabric_preset.md) so that it does not depend on the mesh
-// resolution it was fitted on. Format name "flowvid.fabric", version 1.0.
+// resolution it was fitted on. Format name "flowvid.fabric", version 1.1
+// (1.1 added optional parameters whose absence means their neutral value, so
+// 1.0 files read as the same fabric).
 
 #include "flowvid/error.hpp"
 #include "flowvid/formats/json_fields.hpp"
@@ -19,7 +21,7 @@
 namespace flowvid::formats {
 
 inline constexpr const char* kFabricFormatName = "flowvid.fabric";
-inline constexpr FormatVersion kFabricFormatVersion{1, 0};
+inline constexpr FormatVersion kFabricFormatVersion{1, 1};
 
 // One fitted quantity: its value, an optional 1-sigma uncertainty (same unit),
 // and an optional valid range [min, max] it was searched or may be used in.
@@ -33,7 +35,8 @@ struct FabricParameter {
     }
 };
 
-// The Baraff-Witkin fabric model with the thesis's three-parameter air drag.
+// The Baraff-Witkin fabric model with the thesis's three-parameter air drag,
+// and (since 1.1) softer compression, linear normal drag and a hem.
 struct FabricParameters {
     FabricParameter areal_density_kg_per_m2;
     FabricParameter stretch_warp_stiffness_N_per_m;   // per rest area: E = k/2 * A * C^2
@@ -47,18 +50,29 @@ struct FabricParameters {
     FabricParameter drag_normal_kg_per_m3;            // kN: quadratic normal drag
     FabricParameter drag_degradation_s2_per_m2;       // kf: drag-crisis degradation
     FabricParameter drag_tangential_kg_per_m2_s;      // kT: linear tangential drag
+    // Since 1.1; absent in a file = the neutral value given here.
+    FabricParameter stretch_warp_compression_ratio{1.0, {}, {}};  // compressive / tensile warp stiffness
+    FabricParameter stretch_weft_compression_ratio{1.0, {}, {}};
+    FabricParameter drag_linear_normal_kg_per_m2_s{0.0, {}, {}};  // kL: linear drag on the normal relative velocity
+    FabricParameter hem_line_density_kg_per_m{0.0, {}, {}};       // extra mass per metre of free boundary
 
     bool operator==(const FabricParameters& other) const;
 };
 
 // A table of the parameters: JSON key, unit, whether zero is allowed, and the
 // member it fills. One list drives reading, writing, validation and summaries.
+// Parameters added after 1.0 are optional: a file without one means its
+// neutral value, which reproduces the fabric as that older version read it.
 struct FabricParameterInfo {
     const char* key;
     const char* unit;
     bool zero_allowed;
     const char* meaning;
     FabricParameter FabricParameters::*member;
+    const char* since = "1.0";  // format version that added it
+    double neutral = 0.0;       // the value an absent optional parameter has
+
+    bool optional() const;
 };
 const std::vector<FabricParameterInfo>& fabric_parameter_table();
 

@@ -28,6 +28,10 @@ inline constexpr std::int64_t kMaxVertexAnimationFrames = 1'000'000;
 inline constexpr std::int64_t kMaxVertexAnimationVertices = 16'000'000;
 inline constexpr std::int64_t kMaxVertexAnimationSamples = std::int64_t(1) << 28;  // frames x vertices
 
+// Simulated positions are complete; measured ones (a capture's tracks) may
+// have gaps: NaN in all three channels where a point was not seen.
+enum class MissingPoints { refuse, allow_nan };
+
 struct VertexAnimation {
     int frame_count = 0;
     int vertex_count = 0;
@@ -58,7 +62,10 @@ struct VertexAnimation {
 // values, implausible size, another major flowvid.version, corrupt data).
 // Files without flowvid attributes (e.g. a capture's truth/positions.exr) are
 // accepted. Warnings (newer minor version, extra channels) go to `warnings`.
-VertexAnimation read_vertex_animation(const std::string& path, std::vector<Problem>* warnings = nullptr);
+// With MissingPoints::allow_nan a point that is NaN in R, G and B is a gap
+// (infinite values and partly-NaN points are still refused).
+VertexAnimation read_vertex_animation(const std::string& path, std::vector<Problem>* warnings = nullptr,
+                                      MissingPoints missing = MissingPoints::refuse);
 
 // The same from bytes in memory (fuzz targets, embedded data); `name` is used
 // as the file name in problems.
@@ -70,16 +77,19 @@ VertexAnimation read_vertex_animation_from_memory(const std::string& bytes, cons
 // (when fps > 0) and flowvid.grid_rows / flowvid.grid_cols (when set).
 // Throws ValidationError (sizes disagree, NaN, bad grid) leaving any previous
 // file untouched, or IoError.
-void write_vertex_animation(const std::string& path, const VertexAnimation& animation);
+void write_vertex_animation(const std::string& path, const VertexAnimation& animation,
+                            MissingPoints missing = MissingPoints::refuse);
 
 // Every problem of the animation itself (sizes, finiteness, grid), reported
 // against `file`. Used by the writer; useful before handing data to others.
-std::vector<Problem> check_vertex_animation(const VertexAnimation& animation, const std::string& file);
+std::vector<Problem> check_vertex_animation(const VertexAnimation& animation, const std::string& file,
+                                            MissingPoints missing = MissingPoints::refuse);
 
 // Every problem of a file, for `flowvid validate` and the fuzz targets (never
 // throws on bad content). Strict: unknown flowvid.* attributes and extra
 // channels are errors instead of warnings.
-std::vector<Problem> validate_vertex_animation_file(const std::string& path, Strictness strictness);
+std::vector<Problem> validate_vertex_animation_file(const std::string& path, Strictness strictness,
+                                                    MissingPoints missing = MissingPoints::refuse);
 std::vector<Problem> validate_vertex_animation_bytes(const std::string& bytes, const std::string& name,
                                                      Strictness strictness);
 

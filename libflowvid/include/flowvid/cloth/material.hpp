@@ -1,6 +1,6 @@
 #pragma once
-// Fabric material of the cloth model: the twelve SI parameters of a fabric
-// preset as plain numbers. How each one enters the energy (and why the result
+// Fabric material of the cloth model: the SI parameters of a fabric preset
+// as plain numbers. How each one enters the energy (and why the result
 // does not depend on the mesh resolution) is written in docs/cloth_model.md.
 
 #include "flowvid/formats/fabric_preset.hpp"
@@ -12,10 +12,20 @@ namespace flowvid::cloth {
 
 struct ClothMaterial {
     double areal_density_kg_per_m2 = 0.15;
+    // Extra mass along the cloth's free boundary (a hem or selvedge), kg per
+    // metre of rest boundary length: each boundary edge adds half its share
+    // to each end vertex. 0: mass from the areal density alone, bit for bit.
+    double hem_line_density_kg_per_m = 0.0;
     // Membrane: E = k/2 * A_rest * C^2 per triangle (C dimensionless), k in N/m.
     double stretch_warp_N_per_m = 150.0;     // C = |w_u| - 1
     double stretch_weft_N_per_m = 150.0;     // C = |w_v| - 1
     double shear_N_per_m = 90.0;             // C = w_u . w_v
+    // Compression (C < 0) is stiffer or softer than tension by these factors:
+    // E = ratio * k/2 * A_rest * C^2 there. Woven fabric (and Blender's cloth,
+    // whose diagonal springs only pull) shortens far more easily than it
+    // stretches. 1 is the symmetric Baraff-Witkin model, bit for bit.
+    double stretch_warp_compression_ratio = 1.0;
+    double stretch_weft_compression_ratio = 1.0;
     // Bending: E = k/2 * |e|^2 / (A1 + A2) * theta^2 per interior edge (rest
     // |e|, A1, A2): k/2 * integral of curvature^2 dA for a cylindrical bend.
     double bend_N_m = 1e-6;
@@ -28,18 +38,15 @@ struct ClothMaterial {
     double drag_normal_kg_per_m3 = 0.0;
     double drag_degradation_s2_per_m2 = 0.0;
     double drag_tangential_kg_per_m2_s = 0.0;
-    // Linear normal drag kL, added to the normal term: -a kL vN. Not part of
-    // the thesis's model nor of the fabric preset format (always 0 from a
-    // preset): it is the "linear drag only" comparison model (kN = kf = 0,
-    // like Blender's air damping) that fits and the gap diagnosis measure
-    // the nonlinear drag against.
+    // Linear normal drag kL, added to the normal term: -a kL vN (preset key
+    // since 1.1). Slow air drag is linear in speed; alone (kN = kf = 0) it is
+    // the "linear drag only" comparison model of the thesis.
     double drag_linear_normal_kg_per_m2_s = 0.0;
 
     // Optional terms of the gap diagnosis (docs/cloth_model.md, "Optional
     // terms for the gap diagnosis"). Neither is a fabric-preset key:
     // material_from_fabric / fabric_from_material ignore them (always 0 from
-    // a preset), like drag_linear_normal_kg_per_m2_s. 0 reproduces the model
-    // above bit for bit.
+    // a preset). 0 reproduces the model above bit for bit.
     // Bias angle: the warp direction is rotated by this angle from the mesh's
     // material u axis, counter-clockwise towards v (a bias-cut fabric);
     // stretch_warp acts along it, stretch_weft across it.

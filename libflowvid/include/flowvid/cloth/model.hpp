@@ -97,8 +97,12 @@ public:
     const ClothMaterial& material() const { return m_material; }
     const Environment& environment() const { return m_environment; }
     int vertex_count() const { return m_mesh.vertex_count(); }
-    // #V lumped masses: areal density x one third of each incident rest triangle.
+    // #V lumped masses: areal density x one third of each incident rest
+    // triangle, plus the hem's line density x half of each incident rest
+    // boundary edge.
     const Eigen::VectorXd& vertex_masses_kg() const { return m_mass; }
+    // Rest length of the mesh's free boundary (edges with one triangle), m.
+    double boundary_length_m() const { return m_boundary_length; }
     double total_mass_kg() const { return m_total_mass; }
     double total_rest_area_m2() const { return m_total_area; }
     const std::vector<BendingStencil>& bending_stencils() const { return m_stencils; }
@@ -218,6 +222,8 @@ private:
     std::vector<std::pair<int, int>> m_pattern_pairs;
     Eigen::VectorXd m_mass;
     Eigen::VectorXd m_vertex_area;
+    Eigen::VectorXd m_vertex_boundary_length;  // half of each incident boundary edge, m
+    double m_boundary_length = 0.0;
     double m_total_mass = 0.0;
     double m_total_area = 0.0;
 

@@ -82,7 +82,9 @@ SwatchExperiment experiment_from_capture(const formats::Capture& capture);
 // field as a capture.json pointer (e.g. "/swatch/pins/1/positions").
 Swatch build_swatch(const SwatchExperiment& experiment, int rows, int cols);
 
-// The material with the experiment's mass applied (when mass_kg > 0).
+// The material with the experiment's mass applied (when mass_kg > 0): the
+// areal density that, with the material's hem along the swatch's boundary,
+// weighs mass_kg (a hem of more than 95 % of it is capped there).
 ClothMaterial experiment_material(const SwatchExperiment& experiment, const ClothMaterial& material);
 
 // A hanging start between the pins' first positions: straight down from the

@@ -50,6 +50,27 @@ double material_parameter(const cloth::ClothMaterial& material, const std::strin
 std::vector<FittedParameter> static_test_parameters();
 std::vector<FittedParameter> waving_test_parameters();
 
+// What a fit compares simulations with: the footage (angle maps and
+// silhouettes, thesis 2.4.3) or measured 3D positions of swatch points
+// (capture.json "tracks": motion-capture markers, a scanner; also the model
+// capacity study, which hands a capture's ground truth over as tracks).
+enum class FitTarget { footage, tracks };
+const char* fit_target_name(FitTarget target);  // "footage", "tracks"
+
+// The measured positions a tracks trial is compared with, one matrix per
+// compared frame in the order of ClothTrial::frames. E_k is the mean squared
+// distance (mm^2) over the points seen in frame k between each point and the
+// simulated surface at its uv; sum_k w_k E_k / sum_k w_k is a weighted mean
+// square, so its root is an RMS distance in mm.
+struct TrackReference {
+    int rows = 0;  // uv grid: point r*cols + c at u = c/(cols-1), v = r/(rows-1)
+    int cols = 0;
+    std::vector<Eigen::MatrixX3d> positions_m;  // rows*cols x 3 per compared frame; a NaN row was not seen
+    // E_k of a frame the simulation did not reach (it blew up): every point
+    // off by the swatch's diagonal, so such a run ranks last.
+    double missing_frame_error_mm2 = 0.0;
+};
+
 // One trial: what is simulated and what it is compared with.
 struct ClothTrial {
     std::string name;                      // for reports (the capture folder)
@@ -59,11 +80,15 @@ struct ClothTrial {
     formats::Projector projector;
     AngleMapSettings angle_map;
     // Compared frames; `number` is 1-based from the experiment's first frame
-    // (the equilibrium is 1), `weight` is w_k.
+    // (the equilibrium is 1), `weight` is w_k. A tracks trial keeps only
+    // their numbers and weights here (no angle maps).
     std::vector<metrics::ReferenceFrame> frames;
+    // Set for a tracks trial: compared with these instead of the footage.
+    std::optional<TrackReference> tracks;
 };
 
 struct TrialLoadSettings {
+    FitTarget target = FitTarget::footage;
     int static_frames = 1;        // a static drape does not move: its first frame(s)
     int waving_frames = 50;       // the thesis fitted the first 50 frames
     int full_weight_frames = 10;  // waving: frames after these count less ...
@@ -73,8 +98,10 @@ struct TrialLoadSettings {
     metrics::SilhouetteTerm silhouette_term = metrics::SilhouetteTerm::pixel_xor;  // prepares edge distances when needed
 };
 
-// Reads a cloth capture's footage into a trial. Throws what ClothFootage
-// and the capture readers throw (ValidationError naming capture.json fields).
+// Reads a cloth capture's footage (or, for FitTarget::tracks, its tracks)
+// into a trial. Throws what ClothFootage and the capture readers throw
+// (ValidationError naming capture.json fields; "/tracks" for a tracks fit of
+// a capture without tracks).
 ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& settings = {});
 
 struct ClothFitSettings {
@@ -125,6 +152,15 @@ public:
     // trials. Keeps a pointer to this problem, which must outlive it.
     optim::Objective objective() const;
 
+    // Tracks trials only (std::logic_error otherwise): the residual vector
+    // whose squared norm is evaluate(material).total, one entry per seen
+    // point, frame and axis: sqrt(w_k / n_k) * (simulated - measured) in mm,
+    // n_k the points seen in frame k. A frame the simulation did not reach
+    // spreads its missing-frame error over its entries, so the length never
+    // changes. For the least-squares polish.
+    Eigen::VectorXd residuals(const cloth::ClothMaterial& material, int threads = 1) const;
+    bool all_tracks() const;
+
 private:
     std::vector<ClothTrial> m_trials;
     std::vector<FittedParameter> m_parameters;
@@ -168,5 +204,14 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
 // E_k when a simulation produced no frame k (it blew up): every masked pixel
 // off by pi/2 and the silhouette term as if the swatch were missing.
 double missing_frame_error(const metrics::ReferenceFrame& reference, const metrics::AngleMapMetricSettings& settings);
+
+// E_k of a tracks frame: the mean squared distance (mm^2) between the seen
+// points (finite rows of `measured_m`) and `simulated_m` (same grid); 0 when
+// no point was seen.
+double track_frame_error_mm2(const Eigen::MatrixX3d& measured_m, const Eigen::MatrixX3d& simulated_m);
+
+// The trial's weighted RMS distance (mm) for a tracks trial's weighted error
+// sum_k w_k E_k: sqrt(error / sum_k w_k).
+double tracks_rms_mm(const ClothTrial& trial, double weighted_error);
 
 }  // namespace flowvid::video

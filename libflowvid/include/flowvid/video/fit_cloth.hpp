@@ -9,6 +9,7 @@
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/optim/annealing.hpp"
+#include "flowvid/optim/least_squares.hpp"
 #include "flowvid/video/cloth_fit.hpp"
 
 #include <atomic>
@@ -29,9 +30,16 @@ const char* drag_model_name(DragModel model);
 // Static-test parameters (6) + kL and kT: the linear-drag comparison fit.
 std::vector<FittedParameter> linear_drag_test_parameters();
 
+// The terms the model capacity study added (fabric preset 1.1) and their
+// search ranges: the hem and both compression ratios (the drape's shape),
+// and with a waving test the linear normal drag (docs/cloth_model.md).
+std::vector<FittedParameter> capacity_terms(bool waving, DragModel drag);
+
 // What is fitted for a set of trials: the 6 static-test parameters when all
 // trials are static drapes (drag cannot be seen at rest), else 9 (nonlinear)
-// or 8 (linear drag).
+// or 8 (linear drag). Tracks trials also fit capacity_terms(): 9 static, 13
+// (nonlinear) or 11 (linear) with a waving test. Footage fits keep the
+// thesis's set until their search affords the larger one.
 std::vector<FittedParameter> parameters_for(const std::vector<ClothTrial>& trials, DragModel drag);
 
 // The start guess: `base` with every fitted parameter at the geometric middle
@@ -63,8 +71,15 @@ struct ClothFitRequest {
     TrialLoadSettings load;                // frames and their weights (predictability: decaying weights)
     ClothFitSettings problem;              // mesh, integrator, metric, base material (unfitted values)
     DragModel drag = DragModel::nonlinear;
+    // The fitted parameters and their ranges; empty: parameters_for(trials, drag).
+    std::vector<FittedParameter> parameters;
     long long evaluations = 400;           // main search: design + annealing
     int design_points = 0;                 // 0: min(16 n, evaluations / 4)
+    // Fits to tracks: after the search, a Levenberg-Marquardt polish of its
+    // best point (the tracks error is a sum of squares, so a few Jacobians
+    // converge where annealing creeps). Evaluations it may use; -1: 8 (n + 1)
+    // for tracks fits, none for footage fits.
+    long long polish_evaluations = -1;
     int variability_runs = 4;              // thesis table 2.2; 0: none (no uncertainty in the preset)
     long long variability_evaluations = 40;  // per run (a polish from the perturbed start)
     double variability_perturbation = 0.05;
@@ -92,9 +107,10 @@ struct ClothFitOutcome {
     cloth::ClothMaterial fitted;
     ClothEvaluation start_evaluation;
     ClothEvaluation final_evaluation;
-    optim::MinimizeResult search;
+    optim::MinimizeResult search;          // its annealing's best is the polished point when there was a polish
+    std::optional<optim::LeastSquaresResult> polish;
     std::optional<optim::VariabilityReport> variability;
-    std::optional<formats::FabricPreset> preset;  // nonlinear drag only (linear drag has no preset form)
+    std::optional<formats::FabricPreset> preset;
     // Variability restarts the budget allowed (the request's, or fewer when a
     // time budget cannot pay for them; 0: no uncertainty in the preset).
     int variability_runs_planned = 0;

@@ -1,0 +1,457 @@
+// Cloth model capacity: how closely can the fabric model reproduce the
+// Blender captures at best? (docs/cloth_model.md, "Model capacity".)
+//
+// The footage fit asks two things at once: what the model can reach, and
+// how close the angle-map metric gets to it. This study answers the first
+// alone. For each fabric it gives every public capture its own ground truth
+// as 3D `tracks` in a scratch copy -- THE ONE PLACE TRUTH IS HANDED TO A
+// FIT, and only as tracks -- fits static-1 + waving-1 to them (`fit cloth
+// --fit-to tracks`: same optimizer, same preset), then predicts the
+// held-out waving-2 and static drape, starting from each trial's measured
+// first frame, and prints the RMS vertex error against truth per window:
+// frame 1, 1-10, 11-25, 26-end, all. Each model variant (the terms the fit
+// may use) is a row; the last rows are Blender itself, re-run from the same
+// measured first frame on other meshes (the bound a mesh-independent model
+// faces) and with the other fabric's preset. The last fitted fabric is also
+// simulated at 12 x 12 and 48 x 48: a preset must be the same fabric on any mesh.
+//
+//   flowvid_bench_cloth_capacity [--fabrics cotton,silk] [--variants today,...]
+//                                [--evaluations 400[,800]] [--threads 2] [--seed 1]
+//                                [--scratch DIR] [--json FILE]
+//                                [--blender PATH | --no-blender] [--blender-grids 12,24,48] [--no-resolution]
+//
+// Blender runs are cached in the scratch folder (they take minutes at 48x48).
+
+#include "flowvid/cloth/material.hpp"
+#include "flowvid/cloth/swatch_output.hpp"
+#include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/vertex_animation.hpp"
+#include "flowvid/video/cloth_eval.hpp"
+#include "flowvid/optim/least_squares.hpp"
+#include "flowvid/video/fit_cloth.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace fc = flowvid::cloth;
+namespace ff = flowvid::formats;
+namespace fv = flowvid::video;
+namespace optim = flowvid::optim;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::vector<std::string> split(const std::string& text) {
+    std::vector<std::string> out;
+    std::stringstream in(text);
+    for (std::string item; std::getline(in, item, ',');)
+        if (!item.empty()) out.push_back(item);
+    return out;
+}
+
+struct Options {
+    std::vector<std::string> fabrics = {"cotton", "silk"};
+    std::vector<std::string> variants = {"today"};
+    std::vector<long long> evaluations = {400};
+    int threads = 2;
+    std::uint64_t seed = 1;
+    std::string scratch = "cloth_capacity_scratch";
+    std::string json;
+    std::string blender = "blender";
+    bool run_blender = true;
+    bool check_resolution = true;
+    std::vector<int> blender_grids = {12, 24, 48};
+};
+
+std::string shared_capture(const std::string& name) { return std::string(FLOWVID_SHARED_DIR) + "/captures/" + name; }
+
+// ---- Scratch copies: the capture with its truth as tracks -------------------
+
+// A copy of the capture whose capture.json declares tracks.exr = its own
+// truth/positions.exr. Frames, masks and background are linked, not copied.
+std::string tracks_copy(const std::string& name, const fs::path& scratch) {
+    const fs::path source = shared_capture(name);
+    const fs::path copy = scratch / "tracks" / name;
+    fs::create_directories(copy);
+    for (const char* entry : {"frames", "masks", "background.png"}) {
+        const fs::path target = source / entry;
+        const fs::path link = copy / entry;
+        std::error_code ec;
+        if (fs::exists(target) && !fs::exists(fs::symlink_status(link)))
+            fs::create_symlink(fs::absolute(target), link, ec);
+    }
+    const ff::Capture capture = ff::read_capture(source.string());
+    std::optional<ff::VertexAnimation> truth = ff::read_capture_truth_positions(capture);
+    if (!truth) throw std::runtime_error(name + " has no truth/positions.exr");
+    ff::write_vertex_animation((copy / "tracks.exr").string(), *truth);
+    std::ifstream in(source / "capture.json");
+    nlohmann::json document = nlohmann::json::parse(in);
+    document["tracks"] = {{"file", "tracks.exr"}, {"rows", *truth->grid_rows}, {"cols", *truth->grid_cols}};
+    ff::write_file_atomically((copy / "capture.json").string(), [&](std::ostream& out) { out << document.dump(1) << '\n'; });
+    return copy.string();
+}
+
+// ---- Windows -----------------------------------------------------------------
+
+struct Windows {
+    double frame1 = NAN, f1_10 = NAN, f11_25 = NAN, f26_end = NAN, all = NAN;  // mm
+};
+
+Windows windows_of(const std::vector<double>& per_frame_rms_m) {
+    const int n = static_cast<int>(per_frame_rms_m.size());
+    auto pooled = [&](int first, int last) { return 1e3 * fv::pooled_rms(per_frame_rms_m, {first, std::min(last, n)}); };
+    Windows w;
+    w.frame1 = pooled(1, 1);
+    if (n >= 10) w.f1_10 = pooled(1, 10);
+    if (n >= 25) w.f11_25 = pooled(11, 25);
+    if (n >= 26) w.f26_end = pooled(26, n);
+    w.all = pooled(1, n);
+    return w;
+}
+
+nlohmann::json windows_json(const Windows& w) {
+    auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+    return {{"frame_1", number(w.frame1)}, {"frames_1_10", number(w.f1_10)}, {"frames_11_25", number(w.f11_25)},
+            {"frames_26_end", number(w.f26_end)}, {"all", number(w.all)}};
+}
+
+std::string cell(double v) {
+    char text[32];
+    if (!std::isfinite(v)) return "  -  ";
+    std::snprintf(text, sizeof text, "%5.1f", v);
+    return text;
+}
+
+// ---- Model variants: which terms the fit may use -----------------------------
+
+// today: the 9 parameters of the thesis's waving fit; compression: + the
+// two compression ratios; linear-drag: + linear normal drag; hem: + the
+// hem's line density; all: every one of them (what fit cloth --fit-to
+// tracks fits: fv::capacity_terms).
+std::vector<fv::FittedParameter> variant_parameters(const std::string& variant) {
+    std::vector<fv::FittedParameter> p = fv::waving_test_parameters();
+    const bool compression = variant == "compression" || variant == "all";
+    const bool linear_drag = variant == "linear-drag" || variant == "all";
+    const bool hem = variant == "hem" || variant == "all";
+    if (variant != "today" && !compression && !linear_drag && !hem)
+        throw std::invalid_argument("unknown variant '" + variant + "' (known: today, compression, linear-drag, hem, all)");
+    for (const fv::FittedParameter& term : fv::capacity_terms(true, fv::DragModel::nonlinear)) {
+        const bool wanted = term.key == "hem_line_density_kg_per_m"        ? hem
+                            : term.key == "drag_linear_normal_kg_per_m2_s" ? linear_drag
+                                                                           : compression;
+        if (wanted) p.push_back(term);
+    }
+    return p;
+}
+
+// ---- Predictions from the fitted material ----------------------------------
+
+fv::ClothFitSettings fit_settings() {
+    fv::ClothFitSettings settings;
+    settings.swatch.simulation.integrator = fc::Integrator::implicit_euler;  // fit cloth's default
+    return settings;
+}
+
+// The material on one capture, started from the capture's measured first
+// frame (its tracks), against its truth per window (read from the shared
+// capture: the scratch copy has tracks, not truth/).
+Windows predict(const std::string& tracks_folder, const fc::ClothMaterial& material, int threads) {
+    const ff::Capture capture = ff::read_capture(tracks_folder);
+    const ff::Capture original = ff::read_capture(shared_capture(fs::path(tracks_folder).filename().string()));
+    fv::TrialLoadSettings load;
+    load.target = fv::FitTarget::tracks;
+    load.waving_frames = capture.frames.count;
+    const fv::ClothTrial trial = fv::load_trial(capture, load);
+    const fv::TrialAssessment a =
+        fv::assess_trial(trial, material, fit_settings(), ff::read_capture_truth_positions(original), nullptr, threads);
+    return windows_of(a.vertex_rms_m);
+}
+
+Eigen::MatrixX3d resample(const Eigen::MatrixX3d& grid, int rows, int cols, int out_rows, int out_cols);
+
+// The material on one capture at a rows x rows mesh, from its measured first
+// frame, read back at the truth's 24 x 24 uv grid (for the resolution check).
+fc::GridFrames predict_at(const std::string& tracks_folder, const fc::ClothMaterial& material, int rows, int threads) {
+    const ff::Capture capture = ff::read_capture(tracks_folder);
+    fv::TrialLoadSettings load;
+    load.target = fv::FitTarget::tracks;
+    load.waving_frames = capture.frames.count;
+    const fv::ClothTrial trial = fv::load_trial(capture, load);
+    fv::ClothFitSettings settings = fit_settings();
+    settings.swatch.rows = settings.swatch.cols = rows;
+    const fv::TrialAssessment a = fv::assess_trial(trial, material, settings, std::nullopt, nullptr, threads);
+    fc::GridFrames out;
+    for (const Eigen::MatrixX3d& frame : a.predicted) out.push_back(resample(frame, rows, rows, 24, 24));
+    return out;
+}
+
+// ---- Blender's own cloth, re-run from the measured first frame --------------
+
+// Bilinear resampling of a rows x cols grid of points to another grid.
+Eigen::MatrixX3d resample(const Eigen::MatrixX3d& grid, int rows, int cols, int out_rows, int out_cols) {
+    Eigen::MatrixX3d out(out_rows * out_cols, 3);
+    for (int r = 0; r < out_rows; ++r)
+        for (int c = 0; c < out_cols; ++c) {
+            const double y = static_cast<double>(r) / (out_rows - 1) * (rows - 1);
+            const double x = static_cast<double>(c) / (out_cols - 1) * (cols - 1);
+            const int r0 = std::min(static_cast<int>(y), rows - 2), c0 = std::min(static_cast<int>(x), cols - 2);
+            const double fy = y - r0, fx = x - c0;
+            out.row(r * out_cols + c) = (1 - fy) * (1 - fx) * grid.row(r0 * cols + c0) + (1 - fy) * fx * grid.row(r0 * cols + c0 + 1) +
+                                        fy * (1 - fx) * grid.row((r0 + 1) * cols + c0) + fy * fx * grid.row((r0 + 1) * cols + c0 + 1);
+        }
+    return out;
+}
+
+// Blender's cloth with `preset_capture`'s preset on `capture`'s experiment at
+// a grid x grid mesh, started from the truth's first frame and settled for
+// 100 frames with the pins held, then driven by the pins; read back at the
+// truth's grid. Cached by its arguments. Empty on failure (printed).
+std::vector<double> blender_rms(const Options& o, const std::string& capture_name, const std::string& preset_capture,
+                                int grid, const fs::path& scratch) {
+    const ff::Capture capture = ff::read_capture(shared_capture(capture_name));
+    const ff::VertexAnimation truth = *ff::read_capture_truth_positions(capture);
+    const int rows = *truth.grid_rows, cols = *truth.grid_cols;
+    const fc::GridFrames real = fc::grid_frames_of(truth);
+    const fs::path folder = scratch / "blender";
+    fs::create_directories(folder);
+    const std::string key = capture_name + "_" + preset_capture + "_" + std::to_string(grid);
+    const fs::path start = folder / (key + ".start.raw"), positions = folder / (key + ".positions.raw");
+    const int frames = capture.kind == "cloth.static" ? 2 : capture.frames.count;
+    if (!fs::exists(positions)) {
+        const Eigen::MatrixX3d first = resample(real.front(), rows, cols, grid, grid);
+        {
+            std::ofstream out(start, std::ios::binary);
+            for (Eigen::Index i = 0; i < first.rows(); ++i)
+                for (int k = 0; k < 3; ++k) {
+                    const double value = first(i, k);
+                    out.write(reinterpret_cast<const char*>(&value), sizeof value);
+                }
+        }
+        std::ostringstream cmd;
+        cmd << o.blender << " -b --factory-startup -noaudio -t " << o.threads << " --python \"" << FLOWVID_SOURCE_DIR
+            << "/bench/blender_cloth_swatch.py\" -- --capture \"" << shared_capture(capture_name) << "\" --preset-from \""
+            << shared_capture(preset_capture) << "\" --rows " << grid << " --cols " << grid << " --frames " << frames
+            << " --quality 10 --preroll 100 --start-positions \"" << start.string() << "\" --positions-out \""
+            << positions.string() << ".part\" > \"" << (folder / (key + ".log")).string() << "\" 2>&1";
+        std::fprintf(stderr, "  blender: %s at %dx%d with %s's preset\n", capture_name.c_str(), grid, grid, preset_capture.c_str());
+        if (std::system(cmd.str().c_str()) != 0 || !fs::exists(positions.string() + ".part")) {
+            std::fprintf(stderr, "  blender run failed (log: %s)\n", (folder / (key + ".log")).string().c_str());
+            return {};
+        }
+        fs::rename(positions.string() + ".part", positions);
+    }
+    std::ifstream in(positions, std::ios::binary);
+    std::vector<double> values;
+    for (double v; in.read(reinterpret_cast<char*>(&v), sizeof v);) values.push_back(v);
+    const std::size_t per_frame = static_cast<std::size_t>(3 * grid * grid);
+    if (values.size() < per_frame) return {};
+    fc::GridFrames simulated;
+    for (std::size_t f = 0; f * per_frame + per_frame <= values.size() && static_cast<int>(f) < frames; ++f) {
+        Eigen::MatrixX3d g(grid * grid, 3);
+        for (int i = 0; i < grid * grid; ++i)
+            for (int k = 0; k < 3; ++k) g(i, k) = values[f * per_frame + static_cast<std::size_t>(3 * i + k)];
+        simulated.push_back(resample(g, grid, grid, rows, cols));
+    }
+    const fc::GridFrames compared(real.begin(), real.begin() + static_cast<std::ptrdiff_t>(simulated.size()));
+    return fc::rms_distance_per_frame_m(simulated, compared);
+}
+
+void print_row(const std::string& label, const Windows& w) {
+    std::printf("| %-46s | %s | %s | %s | %s | %s |\n", label.c_str(), cell(w.frame1).c_str(), cell(w.f1_10).c_str(),
+                cell(w.f11_25).c_str(), cell(w.f26_end).c_str(), cell(w.all).c_str());
+}
+
+int usage(const char* message) {
+    std::fprintf(stderr, "flowvid_bench_cloth_capacity: %s\n", message);
+    return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    Options o;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        auto value = [&]() -> std::string { return i + 1 < argc ? argv[++i] : std::string(); };
+        if (a == "--fabrics") o.fabrics = split(value());
+        else if (a == "--variants") o.variants = split(value());
+        else if (a == "--evaluations") {
+            o.evaluations.clear();
+            for (const std::string& e : split(value())) o.evaluations.push_back(std::atoll(e.c_str()));
+        } else if (a == "--threads") o.threads = std::atoi(value().c_str());
+        else if (a == "--seed") o.seed = std::strtoull(value().c_str(), nullptr, 10);
+        else if (a == "--scratch") o.scratch = value();
+        else if (a == "--json") o.json = value();
+        else if (a == "--blender") o.blender = value();
+        else if (a == "--no-blender") o.run_blender = false;
+        else if (a == "--no-resolution") o.check_resolution = false;
+        else if (a == "--blender-grids") {
+            o.blender_grids.clear();
+            for (const std::string& g : split(value())) o.blender_grids.push_back(std::atoi(g.c_str()));
+        } else if (a == "--help" || a == "-h") {
+            std::printf("flowvid_bench_cloth_capacity [--fabrics cotton,silk] [--variants today,...] [--evaluations 400[,800]]\n"
+                        "  [--threads 2] [--seed 1] [--scratch DIR] [--json FILE] [--blender PATH | --no-blender]\n"
+                        "  [--blender-grids 12,24,48]\n");
+            return 0;
+        } else return usage(("unknown option " + a).c_str());
+    }
+    const fs::path scratch = o.scratch;
+    fs::create_directories(scratch);
+    std::printf("Model capacity study: each public capture's truth/positions.exr is handed to the fit as 3D tracks\n"
+                "in a scratch copy (%s); this is the one place truth reaches a fit, and it says nothing about\n"
+                "the footage fit, only about what the model can reach. RMS vertex error against truth, mm.\n",
+                (scratch / "tracks").string().c_str());
+    nlohmann::json record;
+    for (const std::string& fabric : o.fabrics) {
+        const std::string other = fabric == "cotton" ? "silk" : "cotton";
+        const std::string static1 = "cloth-" + fabric + "-static-1", waving1 = "cloth-" + fabric + "-waving-1",
+                          waving2 = "cloth-" + fabric + "-waving-2", static2 = "cloth-" + fabric + "-static-2";
+        const bool has_static2 = fs::exists(shared_capture(static2));
+        std::map<std::string, std::string> copies;
+        for (const std::string& name : {static1, waving1, waving2})
+            copies[name] = tracks_copy(name, scratch);
+        if (has_static2) copies[static2] = tracks_copy(static2, scratch);
+
+        std::printf("\n### %s: fit %s + %s to tracks, predict %s%s\n\n", fabric.c_str(), static1.c_str(), waving1.c_str(),
+                    waving2.c_str(), has_static2 ? (" and " + static2).c_str() : "");
+        std::printf("| model (waving-2 held out) | frame 1 | 1-10 | 11-25 | 26-end | all |\n|---|---|---|---|---|---|\n");
+        std::optional<fc::ClothMaterial> nested_start;  // the best fit of a smaller model so far
+        std::optional<fc::ClothMaterial> last_fitted;
+        for (const std::string& variant : o.variants) {
+            for (const long long evaluations : o.evaluations) {
+                fv::ClothFitRequest request;
+                request.name = fabric + " " + variant;
+                request.captures = {ff::read_capture(copies[static1]), ff::read_capture(copies[waving1])};
+                request.load.target = fv::FitTarget::tracks;
+                request.load.half_life_frames = 10.0;  // fit cloth's default weighting (late, chaotic frames count less)
+                request.problem = fit_settings();
+                request.parameters = variant_parameters(variant);
+                request.evaluations = evaluations;
+                request.variability_runs = 0;
+                request.seed = o.seed;
+                request.threads = o.threads;
+                const std::string tag = fabric + "/" + variant + "/" + std::to_string(evaluations);
+                auto last = std::make_shared<long long>(-1000);
+                request.progress = [tag, last](const fv::ClothFitProgress& p) {
+                    if (p.evaluations - *last >= 50 || p.phase == "polish") {
+                        std::fprintf(stderr, "  [%s] %s, %lld evaluations, best %.4g\n", tag.c_str(), p.phase.c_str(), p.evaluations,
+                                     p.best_error);
+                        *last = p.evaluations;
+                    }
+                    return true;
+                };
+                std::fprintf(stderr, "fitting %s\n", tag.c_str());
+                fv::ClothFitOutcome fit = fv::fit_cloth(request);
+                // A larger model nests the smaller one: also polish from the
+                // best smaller fit so far (its new terms at their neutral
+                // values, clamped into range), and keep whichever fits better.
+                if (nested_start) {
+                    fv::ClothFitSettings settings = request.problem;
+                    settings.base = fit.start;
+                    const fv::ClothFitProblem problem(fit.trials, fit.parameters, settings);
+                    optim::LeastSquaresSettings polish;
+                    polish.max_evaluations = 8LL * (static_cast<long long>(fit.parameters.size()) + 1);
+                    polish.threads = o.threads;
+                    const optim::LeastSquaresResult nested = optim::levenberg_marquardt(
+                        [&problem](const Eigen::VectorXd& values, int threads) {
+                            return problem.residuals(problem.material(values), threads);
+                        },
+                        problem.space(), problem.space().clamp_values(problem.values_of(*nested_start)), polish);
+                    std::fprintf(stderr, "  [%s] polished from the smaller fit: %.4g (own search %.4g)\n", tag.c_str(),
+                                 nested.best_value, fit.final_evaluation.total);
+                    if (nested.best_value < fit.final_evaluation.total) {
+                        fit.fitted = problem.material(nested.best_values);
+                        fit.final_evaluation = problem.evaluate(fit.fitted, o.threads);
+                    }
+                    fit.evaluations += nested.evaluations;
+                }
+                if (!nested_start || variant == "today") nested_start = fit.fitted;
+                last_fitted = fit.fitted;
+                const Windows held_out = predict(copies[waving2], fit.fitted, o.threads);
+                const Windows start = predict(copies[waving2], fit.start, o.threads);
+                const Windows training_waving = predict(copies[waving1], fit.fitted, o.threads);
+                const Windows training_static = predict(copies[static1], fit.fitted, o.threads);
+                Windows held_static;
+                if (has_static2) held_static = predict(copies[static2], fit.fitted, o.threads);
+                const std::string label = variant + " (" + std::to_string(fit.parameters.size()) + " parameters, " +
+                                          std::to_string(fit.evaluations) + " evaluations)";
+                print_row(label, held_out);
+                std::printf("|   its start (middle of the ranges)              | %s | %s | %s | %s | %s |\n", cell(start.frame1).c_str(),
+                            cell(start.f1_10).c_str(), cell(start.f11_25).c_str(), cell(start.f26_end).c_str(), cell(start.all).c_str());
+                std::printf("|   training: %-35s | %s | %s | %s | %s | %s |\n", waving1.c_str(), cell(training_waving.frame1).c_str(),
+                            cell(training_waving.f1_10).c_str(), cell(training_waving.f11_25).c_str(),
+                            cell(training_waving.f26_end).c_str(), cell(training_waving.all).c_str());
+                std::printf("|   static drape: %s (fitted) %s%s   |\n", static1.c_str(), cell(training_static.frame1).c_str(),
+                            has_static2 ? (", " + static2 + " (held out) " + cell(held_static.frame1)).c_str() : "");
+                std::fflush(stdout);
+                nlohmann::json parameters;
+                for (const fv::FittedParameter& p : fit.parameters) parameters[p.key] = fv::material_parameter(fit.fitted, p.key);
+                record[fabric][variant][std::to_string(evaluations)] = {
+                    {"parameters", parameters},
+                    {"parameter_count", fit.parameters.size()},
+                    {"evaluations", fit.evaluations},
+                    {"seconds", fit.seconds},
+                    {"training_error", fit.final_evaluation.total},
+                    {"held_out_waving", windows_json(held_out)},
+                    {"start_waving", windows_json(start)},
+                    {"training_waving", windows_json(training_waving)},
+                    {"training_static_frame_1_mm", training_static.frame1},
+                    {"held_out_static_frame_1_mm", has_static2 ? nlohmann::json(held_static.frame1) : nlohmann::json(nullptr)}};
+            }
+        }
+        if (last_fitted && o.check_resolution) {
+            // The fitted fabric must be the same fabric on other meshes: its
+            // held-out prediction at 12 x 12 and 48 x 48 against 24 x 24.
+            std::map<int, fc::GridFrames> runs;
+            for (const int rows : {12, 24, 48}) runs[rows] = predict_at(copies[waving2], *last_fitted, rows, o.threads);
+            auto compare = [&](int a, int b) {
+                const std::vector<double> rms = fc::rms_distance_per_frame_m(runs[a], runs[b]);
+                const double frame1_max = (runs[a].front() - runs[b].front()).rowwise().norm().maxCoeff();
+                std::printf("|   resolution, %s: %dx%d vs %dx%d: frame 1 max %.1f mm, RMS frame 1 %.1f, 1-10 %.1f, all %.1f mm |\n",
+                            waving2.c_str(), a, a, b, b, 1e3 * frame1_max, 1e3 * rms.front(), windows_of(rms).f1_10,
+                            windows_of(rms).all);
+                record[fabric]["resolution"][std::to_string(a) + "_" + std::to_string(b)] = {
+                    {"frame_1_max_mm", 1e3 * frame1_max}, {"rms", windows_json(windows_of(rms))}};
+            };
+            compare(12, 24);
+            compare(24, 48);
+        }
+        if (o.run_blender) {
+            std::printf("|   *Blender itself, from the measured first frame* |  |  |  |  |  |\n");
+            for (const int grid : o.blender_grids) {
+                const std::vector<double> rms = blender_rms(o, waving2, waving2, grid, scratch);
+                if (rms.empty()) continue;
+                const Windows w = windows_of(rms);
+                print_row("Blender " + fabric + " preset, " + std::to_string(grid) + "x" + std::to_string(grid) + " mesh", w);
+                record[fabric]["blender"][std::to_string(grid)] = windows_json(w);
+                const std::string drape = has_static2 ? static2 : static1;
+                const std::vector<double> drape_rms = blender_rms(o, drape, drape, grid, scratch);
+                if (!drape_rms.empty()) {
+                    std::printf("|   static drape %s: frame 1 %s   |\n", drape.c_str(), cell(1e3 * drape_rms.front()).c_str());
+                    record[fabric]["blender_static"][std::to_string(grid)] = 1e3 * drape_rms.front();
+                }
+            }
+            const std::vector<double> wrong = blender_rms(o, waving2, "cloth-" + other + "-waving-2", 24, scratch);
+            if (!wrong.empty()) {
+                const Windows w = windows_of(wrong);
+                print_row("Blender " + other + " preset (wrong fabric), 24x24", w);
+                record[fabric]["blender_wrong_fabric"] = windows_json(w);
+            }
+        }
+    }
+    if (!o.json.empty())
+        ff::write_file_atomically(o.json, [&](std::ostream& out) { out << record.dump(2) << '\n'; });
+    return 0;
+}

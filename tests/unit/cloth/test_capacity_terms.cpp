@@ -1,0 +1,287 @@
+// The terms the model capacity study added (docs/cloth_model.md):
+// softer compression (ClothMaterial::stretch_*_compression_ratio: woven
+// fabric shortens far more easily than it stretches), checked against the
+// analytic energy of a uniform strain, finite differences of forces and
+// Jacobians on configurations with both stretched and compressed
+// triangles, the element-wise linearisation and the neutral value; and the
+// hem (hem_line_density_kg_per_m), checked against the exact mass of each
+// vertex and the swatch's weighed mass.
+
+#include "flowvid/cloth/geometry.hpp"
+#include "flowvid/cloth/model.hpp"
+#include "flowvid/cloth/simulator.hpp"
+#include "flowvid/cloth/swatch.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+namespace fc = flowvid::cloth;
+
+namespace {
+
+fc::ClothMaterial soft_compression_material() {
+    fc::ClothMaterial m;
+    m.areal_density_kg_per_m2 = 0.15;
+    m.stretch_warp_N_per_m = 120.0;
+    m.stretch_weft_N_per_m = 80.0;
+    m.shear_N_per_m = 40.0;
+    m.bend_N_m = 2e-5;
+    m.stretch_warp_damping_N_s_per_m = 0.02;
+    m.stretch_weft_damping_N_s_per_m = 0.03;
+    m.shear_damping_N_s_per_m = 0.01;
+    m.stretch_warp_compression_ratio = 0.05;
+    m.stretch_weft_compression_ratio = 0.3;
+    return m;
+}
+
+struct Config {
+    Eigen::VectorXd x, v;
+};
+
+// The swatch in 3D, rotated, every vertex moved randomly by up to `amplitude`
+// (about half the spacing): some triangles stretched, some compressed.
+Config random_config(const fc::ClothMesh& mesh, unsigned seed, double amplitude_m) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const Eigen::Matrix3d R =
+        (Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(0.9, Eigen::Vector3d::UnitZ())).toRotationMatrix();
+    Config c;
+    const int n = mesh.vertex_count();
+    c.x.resize(3 * n);
+    c.v.resize(3 * n);
+    for (int i = 0; i < n; ++i) {
+        const Eigen::Vector2d& uv = mesh.material_uv_m[static_cast<size_t>(i)];
+        c.x.segment<3>(3 * i) = R * (Eigen::Vector3d(uv.x(), uv.y(), 0.0) + amplitude_m * Eigen::Vector3d(u(rng), u(rng), u(rng)));
+        c.v.segment<3>(3 * i) = Eigen::Vector3d(u(rng), u(rng), u(rng));
+    }
+    return c;
+}
+
+Eigen::VectorXd force_of(fc::ClothModel& model, const Eigen::VectorXd& x, const Eigen::VectorXd& v, unsigned terms) {
+    Eigen::VectorXd f;
+    model.evaluate(x, v, 0.0, terms, f);
+    return f;
+}
+
+double relative_error(const Eigen::MatrixXd& analytic, const Eigen::MatrixXd& numeric) {
+    const double scale = std::max(numeric.norm(), analytic.norm());
+    return scale == 0.0 ? 0.0 : (analytic - numeric).norm() / scale;
+}
+
+// Counts triangles whose warp (or weft) tangent is shorter / longer than at rest.
+std::pair<int, int> compressed_and_stretched(const fc::ClothModel& model, const Eigen::VectorXd& x) {
+    int compressed = 0, stretched = 0;
+    const fc::ClothMesh& mesh = model.mesh();
+    for (const auto& t : mesh.triangles) {
+        const Eigen::Vector2d& u0 = mesh.material_uv_m[static_cast<size_t>(t[0])];
+        const Eigen::Vector2d& u1 = mesh.material_uv_m[static_cast<size_t>(t[1])];
+        const Eigen::Vector2d& u2 = mesh.material_uv_m[static_cast<size_t>(t[2])];
+        Eigen::Matrix2d D;
+        D << u1.x() - u0.x(), u2.x() - u0.x(), u1.y() - u0.y(), u2.y() - u0.y();
+        Eigen::Matrix<double, 3, 2> E;
+        E.col(0) = x.segment<3>(3 * t[1]) - x.segment<3>(3 * t[0]);
+        E.col(1) = x.segment<3>(3 * t[2]) - x.segment<3>(3 * t[0]);
+        const Eigen::Matrix<double, 3, 2> F = E * D.inverse();
+        for (int axis = 0; axis < 2; ++axis) (F.col(axis).norm() < 1.0 ? compressed : stretched) += 1;
+    }
+    return {compressed, stretched};
+}
+
+// Mean over triangles of |w_u|: below 1 where the rows are shortened in plane.
+double mean_warp_stretch(const fc::ClothModel& model, const Eigen::VectorXd& x) {
+    double sum = 0.0;
+    const fc::ClothMesh& mesh = model.mesh();
+    for (const auto& t : mesh.triangles) {
+        const Eigen::Vector2d& u0 = mesh.material_uv_m[static_cast<size_t>(t[0])];
+        const Eigen::Vector2d& u1 = mesh.material_uv_m[static_cast<size_t>(t[1])];
+        const Eigen::Vector2d& u2 = mesh.material_uv_m[static_cast<size_t>(t[2])];
+        Eigen::Matrix2d D;
+        D << u1.x() - u0.x(), u2.x() - u0.x(), u1.y() - u0.y(), u2.y() - u0.y();
+        Eigen::Matrix<double, 3, 2> E;
+        E.col(0) = x.segment<3>(3 * t[1]) - x.segment<3>(3 * t[0]);
+        E.col(1) = x.segment<3>(3 * t[2]) - x.segment<3>(3 * t[0]);
+        sum += (E * D.inverse()).col(0).norm();
+    }
+    return sum / static_cast<double>(mesh.triangles.size());
+}
+
+}  // namespace
+
+TEST(ClothCompression, UniformStrainStoresTheRatiosShareInCompressionOnly) {
+    // A flat swatch stretched or compressed uniformly along one axis by a
+    // factor (1 + eps): every triangle has C = eps on that axis and 0 on the
+    // other, so the energy is exactly k/2 * area * eps^2 (times the ratio when eps < 0).
+    const double width = 0.2, height = 0.15;
+    const fc::ClothMesh mesh = fc::make_swatch_mesh(width, height, 6, 5);
+    const fc::ClothMaterial m = soft_compression_material();
+    fc::ClothModel model(mesh, m);
+    for (int axis = 0; axis < 2; ++axis)
+        for (double eps : {0.04, -0.04, -0.2}) {
+            Eigen::VectorXd x(3 * mesh.vertex_count());
+            for (int i = 0; i < mesh.vertex_count(); ++i) {
+                Eigen::Vector2d uv = mesh.material_uv_m[static_cast<size_t>(i)];
+                uv(axis) *= 1.0 + eps;
+                x.segment<3>(3 * i) = Eigen::Vector3d(uv.x(), uv.y(), 0.0);
+            }
+            const double k = axis == 0 ? m.stretch_warp_N_per_m : m.stretch_weft_N_per_m;
+            const double ratio = axis == 0 ? m.stretch_warp_compression_ratio : m.stretch_weft_compression_ratio;
+            const double expected = 0.5 * (eps < 0.0 ? ratio * k : k) * width * height * eps * eps;
+            const double energy = model.potential_energy(x, fc::ForceTerm::stretch);
+            EXPECT_NEAR(energy, expected, 1e-12 * expected) << "axis " << axis << ", strain " << eps;
+        }
+}
+
+TEST(ClothCompression, ForcesAndJacobiansMatchFiniteDifferences) {
+    const fc::ClothMesh mesh = fc::make_swatch_mesh(0.08, 0.06, 4, 5);
+    fc::ClothModel model(mesh, soft_compression_material());
+    for (unsigned seed : {1u, 2u, 3u}) {
+        SCOPED_TRACE(seed);
+        const Config c = random_config(mesh, seed, 0.008);
+        const auto [compressed, stretched] = compressed_and_stretched(model, c.x);
+        ASSERT_GT(compressed, 4) << "the check needs compressed triangles";
+        ASSERT_GT(stretched, 4) << "and stretched ones";
+        for (unsigned terms : {unsigned(fc::ForceTerm::stretch), unsigned(fc::ForceTerm::elastic | fc::ForceTerm::damping)}) {
+            const Eigen::VectorXd f = force_of(model, c.x, c.v, terms);
+            fc::BlockSparseMatrix dfdx = model.make_jacobian_matrix(), dfdv = model.make_jacobian_matrix();
+            Eigen::VectorXd f2;
+            model.evaluate(c.x, c.v, 0.0, terms, f2, &dfdx, &dfdv, fc::JacobianMode::exact);
+            EXPECT_LT((f2 - f).norm(), 1e-12 * f.norm()) << "force-only and Jacobian paths disagree";
+            const double h = 1e-7;
+            Eigen::MatrixXd K_fd(c.x.size(), c.x.size());
+            Eigen::VectorXd f_energy(c.x.size());
+            for (Eigen::Index k = 0; k < c.x.size(); ++k) {
+                Eigen::VectorXd xp = c.x, xm = c.x;
+                xp(k) += h;
+                xm(k) -= h;
+                K_fd.col(k) = (force_of(model, xp, c.v, terms) - force_of(model, xm, c.v, terms)) / (2 * h);
+                f_energy(k) = -(model.potential_energy(xp, terms) - model.potential_energy(xm, terms)) / (2 * h);
+            }
+            const double ex = relative_error(dfdx.to_dense(), K_fd);
+            EXPECT_LT(ex, 2e-6) << "df/dx, terms " << terms;
+            if (terms == fc::ForceTerm::stretch) {
+                const double ef = relative_error(f, f_energy);
+                EXPECT_LT(ef, 2e-6) << "force is not minus the energy gradient";
+                std::printf("[ measured ] seed %u: %d compressed and %d stretched axes; force vs energy %.1e, df/dx %.1e\n",
+                            seed, compressed, stretched, ef, ex);
+            }
+            // Definite mode stays symmetric negative semi-definite.
+            model.evaluate(c.x, c.v, 0.0, terms, f2, &dfdx, &dfdv, fc::JacobianMode::definite);
+            const Eigen::MatrixXd M = dfdx.to_dense();
+            EXPECT_LT((M - M.transpose()).norm(), 1e-12 * M.norm());
+            const Eigen::VectorXd eig = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(-M).eigenvalues();
+            EXPECT_GT(eig.minCoeff(), -1e-10 * M.norm());
+        }
+    }
+}
+
+TEST(ClothCompression, ElementwiseLinearizationEqualsTheAssembledJacobians) {
+    const fc::ClothMesh mesh = fc::make_swatch_mesh(0.08, 0.06, 4, 5);
+    const Config c = random_config(mesh, 5, 0.008);
+    fc::ClothModel model(mesh, soft_compression_material());
+    fc::BlockSparseMatrix K = model.make_jacobian_matrix(), D = model.make_jacobian_matrix();
+    Eigen::VectorXd f1, f2, out;
+    const unsigned terms = fc::ForceTerm::elastic | fc::ForceTerm::damping;
+    model.evaluate(c.x, c.v, 0.0, terms, f1, &K, &D, fc::JacobianMode::definite);
+    std::mt19937 rng(4);
+    std::normal_distribution<double> normal;
+    Eigen::VectorXd p(c.x.size());
+    for (Eigen::Index k = 0; k < p.size(); ++k) p(k) = normal(rng);
+    const double sx = 2e-4, sv = 0.03;
+    fc::Linearization lin;
+    model.linearize(c.x, c.v, 0.0, terms, sx, sv, f2, lin, &p);
+    EXPECT_LT((f1 - f2).norm(), 1e-12 * f1.norm());
+    EXPECT_LT((lin.dfdx_product - K.to_dense() * p).norm(), 1e-12 * (K.to_dense() * p).norm());
+    const Eigen::MatrixXd J = sx * K.to_dense() + sv * D.to_dense();
+    model.apply_product(lin, p, out);
+    EXPECT_LT((out - J * p).norm(), 1e-12 * (J * p).norm());
+}
+
+TEST(ClothCompression, RatioOneIsTheSymmetricModelAndSofterCompressionShortensTheSlackEdge) {
+    EXPECT_EQ(fc::ClothMaterial{}.stretch_warp_compression_ratio, 1.0);
+    EXPECT_EQ(fc::ClothMaterial{}.stretch_weft_compression_ratio, 1.0);
+    // A 0.2 m swatch hung by its top corners 0.12 m apart: the top edge is
+    // compressed. Settled with the implicit integrator for 1 s.
+    const fc::ClothMesh mesh = fc::make_swatch_mesh(0.2, 0.2, 10, 10);
+    auto settle = [&](double ratio) {
+        fc::ClothMaterial m = soft_compression_material();
+        m.stretch_warp_compression_ratio = m.stretch_weft_compression_ratio = ratio;
+        m.stretch_warp_damping_N_s_per_m = m.stretch_weft_damping_N_s_per_m = 0.01;
+        m.bend_N_m = 1e-6;
+        fc::ClothModel model(mesh, m);
+        Eigen::VectorXd x0(3 * mesh.vertex_count());
+        for (int i = 0; i < mesh.vertex_count(); ++i) {
+            const Eigen::Vector2d& uv = mesh.material_uv_m[static_cast<size_t>(i)];
+            const double u = uv.x() / 0.2;
+            x0.segment<3>(3 * i) = Eigen::Vector3d(0.04 + 0.6 * uv.x(), 0.01 * std::sin(M_PI * u), uv.y());
+        }
+        std::vector<fc::PinnedVertex> pins;
+        for (int corner : {9 * 10, 10 * 10 - 1})
+            pins.push_back({corner, fc::PinPath({x0.segment<3>(3 * corner), x0.segment<3>(3 * corner)}, 1.0)});
+        fc::SimulationSettings settings;
+        settings.integrator = fc::Integrator::implicit_euler;
+        settings.implicit_substeps_per_frame = 20;
+        const fc::SimulationResult r = fc::simulate(model, pins, x0, Eigen::VectorXd::Zero(x0.size()), 0.0, 30.0, 31, settings);
+        EXPECT_TRUE(r.report.ok()) << r.report.reason;
+        return r.frames.back();
+    };
+    // Below the pins the hanging cloth is narrower than its rest width: with
+    // symmetric stiffness the rows keep their length and bow out of plane;
+    // where compression is cheap they shorten in place instead.
+    fc::ClothModel probe(mesh, soft_compression_material());
+    const Eigen::VectorXd symmetric = settle(1.0), soft = settle(0.01);
+    const double warp_symmetric = mean_warp_stretch(probe, symmetric), warp_soft = mean_warp_stretch(probe, soft);
+    const int top_middle = 9 * 10 + 5;
+    std::printf("[ measured ] mean warp stretch |w_u| %.4f, top edge sags %.1f mm (symmetric); %.4f, %.1f mm "
+                "(compression ratio 0.01)\n",
+                warp_symmetric, 1e3 * (0.2 - symmetric(3 * top_middle + 2)), warp_soft, 1e3 * (0.2 - soft(3 * top_middle + 2)));
+    EXPECT_NEAR(warp_symmetric, 1.0, 1e-3) << "symmetric stiffness keeps the rows' length";
+    EXPECT_LT(warp_soft, warp_symmetric - 1e-3) << "soft compression lets them shorten";
+    EXPECT_GT(std::abs(symmetric(3 * top_middle + 2) - soft(3 * top_middle + 2)), 3e-3) << "and the drape changes visibly";
+}
+
+TEST(ClothHem, BoundaryVerticesCarryTheHemsLineDensity) {
+    // A 0.2 x 0.1 m swatch, 5 x 3 vertices (spacing 0.05 m): each boundary
+    // vertex gets the hem of half of each incident boundary edge.
+    const fc::ClothMesh mesh = fc::make_swatch_mesh(0.2, 0.1, 3, 5);
+    fc::ClothMaterial m = soft_compression_material();
+    m.hem_line_density_kg_per_m = 0.002;
+    const fc::ClothModel model(mesh, m);
+    EXPECT_NEAR(model.boundary_length_m(), 0.6, 1e-15);
+    EXPECT_NEAR(model.total_mass_kg(), m.areal_density_kg_per_m2 * 0.02 + 0.002 * 0.6, 1e-15);
+    const fc::ClothModel plain(mesh, soft_compression_material());
+    // Vertex 0 is a corner (edges of 0.05 along u and v), 2 mid-bottom, 7 interior.
+    EXPECT_NEAR(model.vertex_masses_kg()(0) - plain.vertex_masses_kg()(0), 0.002 * 0.05, 1e-15);
+    EXPECT_NEAR(model.vertex_masses_kg()(2) - plain.vertex_masses_kg()(2), 0.002 * 0.05, 1e-15);
+    EXPECT_EQ(model.vertex_masses_kg()(7), plain.vertex_masses_kg()(7));
+    // At 0 the masses are the areal density's, bit for bit.
+    fc::ClothMaterial zero = soft_compression_material();
+    zero.hem_line_density_kg_per_m = 0.0;
+    EXPECT_TRUE(fc::ClothModel(mesh, zero).vertex_masses_kg() == plain.vertex_masses_kg());
+}
+
+TEST(ClothHem, TheSwatchWeighsItsDeclaredMassWithAHem) {
+    // experiment_material takes the hem's share off the areal density, so the
+    // swatch still weighs what capture.json says, at any resolution.
+    fc::SwatchExperiment e;
+    e.width_m = 0.3;
+    e.height_m = 0.2;
+    e.mass_kg = 0.012;
+    fc::ClothMaterial m = soft_compression_material();
+    m.hem_line_density_kg_per_m = 0.004;
+    const fc::ClothMaterial applied = fc::experiment_material(e, m);
+    EXPECT_NEAR(applied.areal_density_kg_per_m2, (0.012 - 0.004 * 1.0) / 0.06, 1e-15);
+    for (const int n : {6, 12, 24}) {
+        const fc::ClothModel model(fc::make_swatch_mesh(0.3, 0.2, n, n), applied);
+        EXPECT_NEAR(model.total_mass_kg(), 0.012, 1e-15) << n;
+    }
+    m.hem_line_density_kg_per_m = 0.1;  // heavier than the swatch: the cloth keeps 5 %
+    EXPECT_NEAR(fc::experiment_material(e, m).areal_density_kg_per_m2, 0.05 * 0.012 / 0.06, 1e-15);
+    m.hem_line_density_kg_per_m = 0.0;
+    EXPECT_EQ(fc::experiment_material(e, m).areal_density_kg_per_m2, 0.012 / (0.3 * 0.2));
+}
