@@ -15,10 +15,11 @@
 // faces) and with the other fabric's preset. The last fitted fabric is also
 // simulated at 12 x 12 and 48 x 48: a preset must be the same fabric on any mesh.
 //
-//   flowvid_bench_cloth_capacity [--fabrics cotton,silk] [--variants today,...]
+//   flowvid_bench_cloth_capacity [--fabrics cotton,silk] [--variants today,...] [--captures DIR]
 //                                [--evaluations 400[,800]] [--threads 2] [--seed 1]
 //                                [--scratch DIR] [--json FILE]
 //                                [--blender PATH | --no-blender] [--blender-grids 12,24,48] [--no-resolution]
+//                                [--nested-from EARLIER.json]
 //
 // Blender runs are cached in the scratch folder (they take minutes at 48x48).
 
@@ -72,10 +73,18 @@ struct Options {
     std::string blender = "blender";
     bool run_blender = true;
     bool check_resolution = true;
+    std::string nested_from;  // an earlier run's --json: its smallest variant's fit seeds the larger ones
     std::vector<int> blender_grids = {12, 24, 48};
 };
 
-std::string shared_capture(const std::string& name) { return std::string(FLOWVID_SHARED_DIR) + "/captures/" + name; }
+// Where the captures are: ../shared/captures, or --captures DIR (another set
+// of cloth-<fabric>-{static,waving}-N captures with truth/, scored the same way).
+std::string& captures_dir() {
+    static std::string dir = std::string(FLOWVID_SHARED_DIR) + "/captures";
+    return dir;
+}
+
+std::string shared_capture(const std::string& name) { return captures_dir() + "/" + name; }
 
 // ---- Scratch copies: the capture with its truth as tracks -------------------
 
@@ -138,19 +147,22 @@ std::string cell(double v) {
 
 // today: the 9 parameters of the thesis's waving fit; compression: + the
 // two compression ratios; linear-drag: + linear normal drag; hem: + the
-// hem's line density; all: every one of them (what fit cloth --fit-to
-// tracks fits: fv::capacity_terms).
+// hem's line density; diagonal: + the diagonal tension fibres; all: every
+// one of them (what fit cloth --fit-to tracks fits: fv::capacity_terms).
 std::vector<fv::FittedParameter> variant_parameters(const std::string& variant) {
     std::vector<fv::FittedParameter> p = fv::waving_test_parameters();
     const bool compression = variant == "compression" || variant == "all";
     const bool linear_drag = variant == "linear-drag" || variant == "all";
     const bool hem = variant == "hem" || variant == "all";
-    if (variant != "today" && !compression && !linear_drag && !hem)
-        throw std::invalid_argument("unknown variant '" + variant + "' (known: today, compression, linear-drag, hem, all)");
+    const bool diagonal = variant == "diagonal" || variant == "all";
+    if (variant != "today" && !compression && !linear_drag && !hem && !diagonal)
+        throw std::invalid_argument("unknown variant '" + variant +
+                                    "' (known: today, compression, linear-drag, hem, diagonal, all)");
     for (const fv::FittedParameter& term : fv::capacity_terms(true, fv::DragModel::nonlinear)) {
-        const bool wanted = term.key == "hem_line_density_kg_per_m"        ? hem
-                            : term.key == "drag_linear_normal_kg_per_m2_s" ? linear_drag
-                                                                           : compression;
+        const bool wanted = term.key == "hem_line_density_kg_per_m"            ? hem
+                            : term.key == "drag_linear_normal_kg_per_m2_s"     ? linear_drag
+                            : term.key == "diagonal_tension_stiffness_N_per_m" ? diagonal
+                                                                               : compression;
         if (wanted) p.push_back(term);
     }
     return p;
@@ -293,6 +305,8 @@ int main(int argc, char** argv) {
         } else if (a == "--threads") o.threads = std::atoi(value().c_str());
         else if (a == "--seed") o.seed = std::strtoull(value().c_str(), nullptr, 10);
         else if (a == "--scratch") o.scratch = value();
+        else if (a == "--captures") captures_dir() = value();
+        else if (a == "--nested-from") o.nested_from = value();
         else if (a == "--json") o.json = value();
         else if (a == "--blender") o.blender = value();
         else if (a == "--no-blender") o.run_blender = false;
@@ -301,7 +315,8 @@ int main(int argc, char** argv) {
             o.blender_grids.clear();
             for (const std::string& g : split(value())) o.blender_grids.push_back(std::atoi(g.c_str()));
         } else if (a == "--help" || a == "-h") {
-            std::printf("flowvid_bench_cloth_capacity [--fabrics cotton,silk] [--variants today,...] [--evaluations 400[,800]]\n"
+            std::printf("flowvid_bench_cloth_capacity [--fabrics cotton,silk] [--variants today,compression,linear-drag,hem,all]\n"
+                        "  [--evaluations 400[,800]] [--captures DIR (cloth-<fabric>-static-1, -waving-1, -waving-2)]\n"
                         "  [--threads 2] [--seed 1] [--scratch DIR] [--json FILE] [--blender PATH | --no-blender]\n"
                         "  [--blender-grids 12,24,48]\n");
             return 0;
@@ -315,7 +330,9 @@ int main(int argc, char** argv) {
                 (scratch / "tracks").string().c_str());
     nlohmann::json record;
     for (const std::string& fabric : o.fabrics) {
-        const std::string other = fabric == "cotton" ? "silk" : "cotton";
+        std::string other = fabric == "cotton" ? "silk" : "cotton";  // the wrong fabric of the bound rows
+        for (const std::string& f : o.fabrics)
+            if (f != fabric) other = f;
         const std::string static1 = "cloth-" + fabric + "-static-1", waving1 = "cloth-" + fabric + "-waving-1",
                           waving2 = "cloth-" + fabric + "-waving-2", static2 = "cloth-" + fabric + "-static-2";
         const bool has_static2 = fs::exists(shared_capture(static2));
@@ -328,6 +345,23 @@ int main(int argc, char** argv) {
                     waving2.c_str(), has_static2 ? (" and " + static2).c_str() : "");
         std::printf("| model (waving-2 held out) | frame 1 | 1-10 | 11-25 | 26-end | all |\n|---|---|---|---|---|---|\n");
         std::optional<fc::ClothMaterial> nested_start;  // the best fit of a smaller model so far
+        if (!o.nested_from.empty()) {
+            // The first variant and budget recorded for this fabric in an earlier run.
+            std::ifstream in(o.nested_from);
+            const nlohmann::json earlier = nlohmann::json::parse(in);
+            if (earlier.contains(fabric)) {
+                const nlohmann::json& variants = earlier[fabric];
+                for (const char* name : {"today", "compression", "linear-drag", "hem", "diagonal", "all"})
+                    if (variants.contains(name) && !nested_start) {
+                        fc::ClothMaterial m;
+                        for (const auto& [key, value] : variants[name].begin()->at("parameters").items())
+                            fv::set_material_parameter(m, key, value.get<double>());
+                        nested_start = m;
+                        std::fprintf(stderr, "  [%s] larger models also start from %s's %s fit\n", fabric.c_str(),
+                                     o.nested_from.c_str(), name);
+                    }
+            }
+        }
         std::optional<fc::ClothMaterial> last_fitted;
         for (const std::string& variant : o.variants) {
             for (const long long evaluations : o.evaluations) {
@@ -443,7 +477,9 @@ int main(int argc, char** argv) {
                     record[fabric]["blender_static"][std::to_string(grid)] = 1e3 * drape_rms.front();
                 }
             }
-            const std::vector<double> wrong = blender_rms(o, waving2, "cloth-" + other + "-waving-2", 24, scratch);
+            const std::string wrong_preset = "cloth-" + other + "-waving-2";
+            const std::vector<double> wrong =
+                fs::exists(shared_capture(wrong_preset)) ? blender_rms(o, waving2, wrong_preset, 24, scratch) : std::vector<double>{};
             if (!wrong.empty()) {
                 const Windows w = windows_of(wrong);
                 print_row("Blender " + other + " preset (wrong fabric), 24x24", w);

@@ -40,6 +40,9 @@ const std::vector<FabricParameterInfo>& fabric_parameter_table() {
         {"hem_line_density_kg_per_m", "kg/m", true,
          "extra mass per metre of the cloth's free boundary (a hem or selvedge), on top of the areal density",
          &P::hem_line_density_kg_per_m, "1.1", 0.0},
+        {"diagonal_tension_stiffness_N_per_m", "N/m", true,
+         "tension-only fibres along both diagonals of the weave (they resist shear where pulled, not in folds)",
+         &P::diagonal_tension_stiffness_N_per_m, "1.1", 0.0},
     };
     return table;
 }

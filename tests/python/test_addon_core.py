@@ -74,6 +74,11 @@ class MappingTest(unittest.TestCase):
         self.assertIn("hem", " ".join(result.not_represented))
         back = mapping.parameters_from_settings(result.settings, stats, areal_density_kg_per_m2=0.15)
         self.assertAlmostEqual(back["stretch_warp_compression_ratio"], 0.2, places=9)
+        # Diagonal tension fibres are Blender's diagonal springs, at half their stiffness each.
+        parameters["diagonal_tension_stiffness_N_per_m"]["value"] = 40.0
+        fibres = mapping.map_preset(parameters, stats, 30.0)
+        self.assertAlmostEqual(fibres.derived["shear_spring_N_per_m"] - result.derived["shear_spring_N_per_m"], 20.0,
+                               places=9)
 
     def test_clamps_and_notes(self):
         parameters = cotton()

@@ -92,6 +92,7 @@ OPTIONAL_PARAMETERS = {
     "stretch_weft_compression_ratio": 1.0,
     "drag_linear_normal_kg_per_m2_s": 0.0,
     "hem_line_density_kg_per_m": 0.0,
+    "diagonal_tension_stiffness_N_per_m": 0.0,
 }
 
 
@@ -177,31 +178,30 @@ def map_preset(parameters, mesh, fps, quality=None, mass_scale=DEFAULT_MASS_SCAL
     damping = s * tau                              # N s/m -> Blender damping units
     notes = []
 
-    k_warp = values["stretch_warp_stiffness_N_per_m"]
-    k_weft = values["stretch_weft_stiffness_N_per_m"]
-    k_stretch = 0.5 * (k_warp + k_weft)
-    if abs(k_warp - k_weft) > 0.05 * k_stretch:
-        notes.append("anisotropic stretch (warp %g, weft %g N/m) averaged to %g N/m: Blender's springs are isotropic"
-                     % (k_warp, k_weft, k_stretch))
+    def isotropic(key, name, unit):
+        # Blender's springs are isotropic: warp and weft averaged (noted when they differ by over 5 %).
+        warp, weft = values["stretch_warp_" + key], values["stretch_weft_" + key]
+        mean = 0.5 * (warp + weft)
+        if abs(warp - weft) > 0.05 * max(mean, 1e-30):
+            notes.append("anisotropic %s (warp %g, weft %g%s) averaged to %g: Blender's springs are isotropic"
+                         % (name, warp, weft, unit, mean))
+        return mean
+
+    k_stretch = isotropic("stiffness_N_per_m", "stretch", " N/m")
     k_shear = values["shear_stiffness_N_per_m"]
-    d_warp = values["stretch_warp_damping_N_s_per_m"]
-    d_weft = values["stretch_weft_damping_N_s_per_m"]
-    d_stretch = 0.5 * (d_warp + d_weft)
-    if abs(d_warp - d_weft) > 0.05 * max(d_stretch, 1e-30):
-        notes.append("anisotropic stretch damping averaged to %g N s/m" % d_stretch)
+    d_stretch = isotropic("damping_N_s_per_m", "stretch damping", " N s/m")
     bend = values["bend_stiffness_N_m"]
     bend_damping = values["bend_damping_N_m_s"]
-    r_warp = values["stretch_warp_compression_ratio"]
-    r_weft = values["stretch_weft_compression_ratio"]
-    compression_ratio = 0.5 * (r_warp + r_weft)
-    if abs(r_warp - r_weft) > 0.05 * compression_ratio:
-        notes.append("anisotropic compression (warp ratio %g, weft %g) averaged to %g: Blender's springs are isotropic"
-                     % (r_warp, r_weft, compression_ratio))
+    compression_ratio = isotropic("compression_ratio", "compression ratio", "")
     hem = values["hem_line_density_kg_per_m"]
 
     # Shear springs (quad diagonals) carry 2 k_shear and add k_shear to the
     # stretch stiffness in tension (diagonals are tension-only in Blender).
-    shear_spring = 2.0 * k_shear
+    # Diagonal tension-only fibres are what Blender's diagonal springs are: a
+    # spring of stiffness c along a quad's diagonal stores c (sqrt 2 L eps_d)^2 / 2
+    # = c L^2 eps_d^2, the fibre k/2 L^2 eps_d^2: c = k / 2.
+    k_diagonal = values["diagonal_tension_stiffness_N_per_m"]
+    shear_spring = 2.0 * k_shear + 0.5 * k_diagonal
     tension_spring = k_stretch - k_shear
     if tension_spring <= 0.0:
         notes.append("shear stiffness exceeds stretch stiffness: tension springs set to 10% of stretch")

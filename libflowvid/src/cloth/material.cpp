@@ -30,6 +30,7 @@ const Binding kBindings[] = {
     {&formats::FabricParameters::stretch_weft_compression_ratio, &ClothMaterial::stretch_weft_compression_ratio},
     {&formats::FabricParameters::drag_linear_normal_kg_per_m2_s, &ClothMaterial::drag_linear_normal_kg_per_m2_s},
     {&formats::FabricParameters::hem_line_density_kg_per_m, &ClothMaterial::hem_line_density_kg_per_m},
+    {&formats::FabricParameters::diagonal_tension_stiffness_N_per_m, &ClothMaterial::diagonal_tension_N_per_m},
 };
 
 const char* preset_key(formats::FabricParameter formats::FabricParameters::*member) {

@@ -20,6 +20,30 @@ namespace {
 // At ratio 1 this is k * 1.0 == k exactly, so the symmetric model keeps every bit.
 inline double stretch_stiffness(double k, double compression_ratio, double C) { return C < 0.0 ? k * compression_ratio : k; }
 
+constexpr double kInvSqrt2 = 0.70710678118654752440;
+
+// A tension-only fibre along a diagonal of the weave, w_d = (w_u + sign w_v)/sqrt 2,
+// E = k/2 A max(|w_d| - 1, 0)^2: its force on w_u and w_v, and (when asked)
+// d(-dE/dw_d)/dw_d = -k A (h h^T + C/|w_d| (I - h h^T)), exact and definite
+// alike since C > 0 where it acts. False where the fibre is slack.
+inline bool diagonal_fibre(const Vector3d& wu, const Vector3d& wv, double sign, double k, double A, Vector3d& fu,
+                           Vector3d& fv, Matrix3d* K) {
+    const Vector3d wd = kInvSqrt2 * (wu + sign * wv);
+    const double ld = wd.norm();
+    if (!(ld > 1.0)) return false;
+    const double C = ld - 1.0;
+    const Vector3d h = wd / ld;
+    const Vector3d g = (-k * A * C) * h;  // -dE/dw_d
+    fu += kInvSqrt2 * g;
+    fv += (sign * kInvSqrt2) * g;
+    if (K) {
+        const double c = C / ld;
+        *K = (-k * A * (1.0 - c)) * h * h.transpose();
+        K->diagonal().array() += -k * A * c;
+    }
+    return true;
+}
+
 }  // namespace
 
 void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v, unsigned terms, Eigen::VectorXd& f,
@@ -36,6 +60,8 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
     const double ku = m_material.stretch_warp_N_per_m, kv = m_material.stretch_weft_N_per_m;
     const double ru = m_material.stretch_warp_compression_ratio, rv = m_material.stretch_weft_compression_ratio;
     const double ks = m_material.shear_N_per_m;
+    // Diagonal tension-only fibres count as shear (they resist shearing the weave).
+    const double kd_on = shear ? m_material.diagonal_tension_N_per_m : 0.0;
     const double cu = m_material.stretch_warp_damping_N_s_per_m, cv = m_material.stretch_weft_damping_N_s_per_m;
     const double cs = m_material.shear_damping_N_s_per_m;
     const Matrix3d I = Matrix3d::Identity();
@@ -64,8 +90,10 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
                 sh += cs_on * (wu_dot.dot(wv) + wu.dot(wv_dot));
             }
             // f_a = -A (su w_u/|w_u| + sh w_v) alpha_a - A (sv w_v/|w_v| + sh w_u) beta_a
-            const Vector3d fu = -A * ((lu > 0.0 ? su / lu : 0.0) * wu + sh * wv);
-            const Vector3d fv = -A * ((lv > 0.0 ? sv / lv : 0.0) * wv + sh * wu);
+            Vector3d fu = -A * ((lu > 0.0 ? su / lu : 0.0) * wu + sh * wv);
+            Vector3d fv = -A * ((lv > 0.0 ? sv / lv : 0.0) * wv + sh * wu);
+            if (kd_on != 0.0)
+                for (const double sign : {1.0, -1.0}) diagonal_fibre(wu, wv, sign, kd_on, A, fu, fv, nullptr);
             for (int a = 0; a < 3; ++a)
                 f.segment<3>(3 * t.v[static_cast<size_t>(a)]) +=
                     t.alpha[static_cast<size_t>(a)] * fu + t.beta[static_cast<size_t>(a)] * fv;
@@ -104,8 +132,12 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
                 if (lv > 0.0) svv += cv_on * hv.dot(wv_dot);
                 sh += cs_on * (wu_dot.dot(wv) + wu.dot(wv_dot));
             }
-            const Vector3d fu = -A * (su * hu + sh * wv);
-            const Vector3d fv = -A * (svv * hv + sh * wu);
+            Vector3d fu = -A * (su * hu + sh * wv);
+            Vector3d fv = -A * (svv * hv + sh * wu);
+            Matrix3d Kd[2];
+            bool taut[2] = {false, false};
+            if (kd_on != 0.0)
+                for (int d = 0; d < 2; ++d) taut[d] = diagonal_fibre(wu, wv, d == 0 ? 1.0 : -1.0, kd_on, A, fu, fv, &Kd[d]);
             for (int a = 0; a < 3; ++a)
                 f.segment<3>(3 * t.v[static_cast<size_t>(a)]) +=
                     t.alpha[static_cast<size_t>(a)] * fu + t.beta[static_cast<size_t>(a)] * fv;
@@ -117,7 +149,14 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
             C0.diagonal().array() += ju_i;
             Matrix3d C1 = jv_ww * hv * hv.transpose() + js * wu * wu.transpose();
             C1.diagonal().array() += jv_i;
-            const Matrix3d C2 = js * wv * wu.transpose();  // alpha_a beta_b
+            Matrix3d C2 = js * wv * wu.transpose();  // alpha_a beta_b
+            // A diagonal fibre's block enters with (alpha_a + s beta_a)(alpha_b + s beta_b) / 2.
+            for (int d = 0; d < 2; ++d)
+                if (taut[d]) {
+                    C0 += (0.5 * sx) * Kd[d];
+                    C1 += (0.5 * sx) * Kd[d];
+                    C2 += ((d == 0 ? 0.5 : -0.5) * sx) * Kd[d];
+                }
             Matrix3d* B = &lin->membrane_blocks[6 * ti];
             for (int b = 0; b < 3; ++b) {
                 const double ab = t.alpha[static_cast<size_t>(b)], bb = t.beta[static_cast<size_t>(b)];
@@ -132,8 +171,15 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
                     pv += t.beta[static_cast<size_t>(b)] * at(*product_of, t.v[static_cast<size_t>(b)]);
                 }
                 const double wvpu = wv.dot(pu), wupv = wu.dot(pv);
-                const Vector3d qu = -A * (ku_at * ((1.0 - cpu) * hu.dot(pu) * hu + cpu * pu) + ks_on * (wvpu + wupv) * wv);
-                const Vector3d qv = -A * (kv_at * ((1.0 - cpv) * hv.dot(pv) * hv + cpv * pv) + ks_on * (wvpu + wupv) * wu);
+                Vector3d qu = -A * (ku_at * ((1.0 - cpu) * hu.dot(pu) * hu + cpu * pu) + ks_on * (wvpu + wupv) * wv);
+                Vector3d qv = -A * (kv_at * ((1.0 - cpv) * hv.dot(pv) * hv + cpv * pv) + ks_on * (wvpu + wupv) * wu);
+                for (int d = 0; d < 2; ++d)
+                    if (taut[d]) {
+                        const double sign = d == 0 ? 1.0 : -1.0;
+                        const Vector3d qd = Kd[d] * (kInvSqrt2 * (pu + sign * pv));
+                        qu += kInvSqrt2 * qd;
+                        qv += (sign * kInvSqrt2) * qd;
+                    }
                 for (int a = 0; a < 3; ++a)
                     product->segment<3>(3 * t.v[static_cast<size_t>(a)]) +=
                         t.alpha[static_cast<size_t>(a)] * qu + t.beta[static_cast<size_t>(a)] * qv;
@@ -222,6 +268,15 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
             fu -= shear_coef * wv;
             fv -= shear_coef * wu;
         }
+        if (kd_on != 0.0)
+            for (const double sign : {1.0, -1.0}) {
+                Matrix3d Kd;
+                if (!diagonal_fibre(wu, wv, sign, kd_on, A, fu, fv, want_dx ? &Kd : nullptr) || !want_dx) continue;
+                Kuu += 0.5 * Kd;
+                Kvv += 0.5 * Kd;
+                Kuv += (0.5 * sign) * Kd;
+                Kvu += (0.5 * sign) * Kd;
+            }
 
         for (int a = 0; a < 3; ++a)
             f.segment<3>(3 * t.v[static_cast<size_t>(a)]) += t.alpha[static_cast<size_t>(a)] * fu + t.beta[static_cast<size_t>(a)] * fv;

@@ -383,6 +383,11 @@ double ClothModel::potential_energy(const Eigen::VectorXd& x, unsigned terms) {
         const double ku_at = cu < 0.0 ? ku * m_material.stretch_warp_compression_ratio : ku;
         const double kv_at = cv < 0.0 ? kv * m_material.stretch_weft_compression_ratio : kv;
         energy += 0.5 * t.rest_area_m2 * (ku_at * cu * cu + kv_at * cv * cv + ks * cs * cs);
+        if ((terms & ForceTerm::shear) && m_material.diagonal_tension_N_per_m != 0.0)
+            for (const double sign : {1.0, -1.0}) {
+                const double stretched = std::max((wu + sign * wv).norm() * 0.70710678118654752440 - 1.0, 0.0);
+                energy += 0.5 * t.rest_area_m2 * m_material.diagonal_tension_N_per_m * stretched * stretched;
+            }
     }
     if ((terms & ForceTerm::bending) && m_material.bend_N_m != 0.0)
         for (size_t ei = 0; ei < m_edges.size(); ++ei) {

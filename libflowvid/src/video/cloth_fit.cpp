@@ -412,6 +412,23 @@ cloth::SwatchRun ClothFitProblem::simulate(std::size_t trial, const cloth::Cloth
     return cloth::simulate_swatch(m_trials[trial].experiment, material, options);
 }
 
+void ClothFitProblem::for_each_trial(int threads, const std::function<void(std::size_t, int)>& run_trial) const {
+    // Static drapes cost a fraction of a waving test: run side by side they
+    // leave a thread idle, so then the trials run one after the other, each
+    // simulation with every thread (results do not depend on the count).
+    const bool mixed = std::any_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return t.is_static; }) &&
+                       std::any_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return !t.is_static; });
+    const int available = std::max(threads, 1);
+    const int workers = mixed ? 1 : std::min<int>(available, static_cast<int>(m_trials.size()));
+    const int per_simulation = std::max(1, available / workers);
+    if (workers <= 1) {
+        for (std::size_t t = 0; t < m_trials.size(); ++t) run_trial(t, per_simulation);
+    } else {
+        optim::ThreadPool pool(workers);
+        pool.run(m_trials.size(), [&](std::size_t t, int) { run_trial(t, per_simulation); });
+    }
+}
+
 ClothEvaluation ClothFitProblem::evaluate(const cloth::ClothMaterial& material, int threads) const {
     ClothEvaluation out;
     out.trials.resize(m_trials.size());
@@ -424,20 +441,7 @@ ClothEvaluation ClothFitProblem::evaluate(const cloth::ClothMaterial& material, 
         e.frames = compare_run(m_trials[t], run, m_settings.metric);
         for (std::size_t k = 0; k < e.frames.size(); ++k) e.error += m_trials[t].frames[k].weight * e.frames[k].total;
     };
-    // Static drapes cost a fraction of a waving test: run side by side they
-    // leave a thread idle, so then the trials run one after the other, each
-    // simulation with every thread (results do not depend on the count).
-    const bool mixed = std::any_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return t.is_static; }) &&
-                       std::any_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return !t.is_static; });
-    const int available = std::max(threads, 1);
-    const int workers = mixed ? 1 : std::min<int>(available, static_cast<int>(m_trials.size()));
-    const int per_simulation = std::max(1, available / workers);
-    if (workers <= 1) {
-        for (std::size_t t = 0; t < m_trials.size(); ++t) one(t, per_simulation);
-    } else {
-        optim::ThreadPool pool(workers);
-        pool.run(m_trials.size(), [&](std::size_t t, int) { one(t, per_simulation); });
-    }
+    for_each_trial(threads, one);
     for (const TrialEvaluation& e : out.trials) out.total += e.error;  // in trial order: thread-independent
     return out;
 }
@@ -476,17 +480,7 @@ Eigen::VectorXd ClothFitProblem::residuals(const cloth::ClothMaterial& material,
             }
         }
     };
-    const bool mixed = std::any_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return t.is_static; }) &&
-                       std::any_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return !t.is_static; });
-    const int available = std::max(threads, 1);
-    const int workers = mixed ? 1 : std::min<int>(available, static_cast<int>(m_trials.size()));
-    const int per_simulation = std::max(1, available / workers);
-    if (workers <= 1) {
-        for (std::size_t t = 0; t < m_trials.size(); ++t) one(t, per_simulation);
-    } else {
-        optim::ThreadPool pool(workers);
-        pool.run(m_trials.size(), [&](std::size_t t, int) { one(t, per_simulation); });
-    }
+    for_each_trial(threads, one);
     std::size_t length = 0;
     for (const std::vector<double>& r : per_trial) length += r.size();
     Eigen::VectorXd all(static_cast<Eigen::Index>(length));

@@ -30,6 +30,7 @@ std::vector<FittedParameter> capacity_terms(bool waving, DragModel drag) {
     };
     // The linear-drag model fits kL already.
     if (waving && drag == DragModel::nonlinear) p.push_back({"drag_linear_normal_kg_per_m2_s", 1e-3, 10.0, true});
+    p.push_back({"diagonal_tension_stiffness_N_per_m", 1e-1, 1e4, true});
     return p;
 }
 

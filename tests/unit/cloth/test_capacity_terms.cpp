@@ -3,9 +3,11 @@
 // fabric shortens far more easily than it stretches), checked against the
 // analytic energy of a uniform strain, finite differences of forces and
 // Jacobians on configurations with both stretched and compressed
-// triangles, the element-wise linearisation and the neutral value; and the
-// hem (hem_line_density_kg_per_m), checked against the exact mass of each
-// vertex and the swatch's weighed mass.
+// triangles, the element-wise linearisation and the neutral value; the
+// diagonal tension-only fibres (diagonal_tension_N_per_m), checked the same
+// way and against the energy of a pure shear; and the hem
+// (hem_line_density_kg_per_m), checked against the exact mass of each vertex
+// and the swatch's weighed mass.
 
 #include "flowvid/cloth/geometry.hpp"
 #include "flowvid/cloth/model.hpp"
@@ -74,9 +76,9 @@ double relative_error(const Eigen::MatrixXd& analytic, const Eigen::MatrixXd& nu
     return scale == 0.0 ? 0.0 : (analytic - numeric).norm() / scale;
 }
 
-// Counts triangles whose warp (or weft) tangent is shorter / longer than at rest.
-std::pair<int, int> compressed_and_stretched(const fc::ClothModel& model, const Eigen::VectorXd& x) {
-    int compressed = 0, stretched = 0;
+// |w_u| and |w_v| of every triangle at positions x (1 = rest length).
+std::vector<Eigen::Vector2d> stretch_ratios(const fc::ClothModel& model, const Eigen::VectorXd& x) {
+    std::vector<Eigen::Vector2d> ratios;
     const fc::ClothMesh& mesh = model.mesh();
     for (const auto& t : mesh.triangles) {
         const Eigen::Vector2d& u0 = mesh.material_uv_m[static_cast<size_t>(t[0])];
@@ -88,27 +90,25 @@ std::pair<int, int> compressed_and_stretched(const fc::ClothModel& model, const 
         E.col(0) = x.segment<3>(3 * t[1]) - x.segment<3>(3 * t[0]);
         E.col(1) = x.segment<3>(3 * t[2]) - x.segment<3>(3 * t[0]);
         const Eigen::Matrix<double, 3, 2> F = E * D.inverse();
-        for (int axis = 0; axis < 2; ++axis) (F.col(axis).norm() < 1.0 ? compressed : stretched) += 1;
+        ratios.emplace_back(F.col(0).norm(), F.col(1).norm());
     }
+    return ratios;
+}
+
+// Triangle axes (warp and weft) shorter / longer than at rest.
+std::pair<int, int> compressed_and_stretched(const fc::ClothModel& model, const Eigen::VectorXd& x) {
+    int compressed = 0, stretched = 0;
+    for (const Eigen::Vector2d& r : stretch_ratios(model, x))
+        for (int axis = 0; axis < 2; ++axis) (r(axis) < 1.0 ? compressed : stretched) += 1;
     return {compressed, stretched};
 }
 
 // Mean over triangles of |w_u|: below 1 where the rows are shortened in plane.
 double mean_warp_stretch(const fc::ClothModel& model, const Eigen::VectorXd& x) {
     double sum = 0.0;
-    const fc::ClothMesh& mesh = model.mesh();
-    for (const auto& t : mesh.triangles) {
-        const Eigen::Vector2d& u0 = mesh.material_uv_m[static_cast<size_t>(t[0])];
-        const Eigen::Vector2d& u1 = mesh.material_uv_m[static_cast<size_t>(t[1])];
-        const Eigen::Vector2d& u2 = mesh.material_uv_m[static_cast<size_t>(t[2])];
-        Eigen::Matrix2d D;
-        D << u1.x() - u0.x(), u2.x() - u0.x(), u1.y() - u0.y(), u2.y() - u0.y();
-        Eigen::Matrix<double, 3, 2> E;
-        E.col(0) = x.segment<3>(3 * t[1]) - x.segment<3>(3 * t[0]);
-        E.col(1) = x.segment<3>(3 * t[2]) - x.segment<3>(3 * t[0]);
-        sum += (E * D.inverse()).col(0).norm();
-    }
-    return sum / static_cast<double>(mesh.triangles.size());
+    const std::vector<Eigen::Vector2d> ratios = stretch_ratios(model, x);
+    for (const Eigen::Vector2d& r : ratios) sum += r(0);
+    return sum / static_cast<double>(ratios.size());
 }
 
 }  // namespace
@@ -139,14 +139,20 @@ TEST(ClothCompression, UniformStrainStoresTheRatiosShareInCompressionOnly) {
 
 TEST(ClothCompression, ForcesAndJacobiansMatchFiniteDifferences) {
     const fc::ClothMesh mesh = fc::make_swatch_mesh(0.08, 0.06, 4, 5);
-    fc::ClothModel model(mesh, soft_compression_material());
+    fc::ClothMaterial with_fibres = soft_compression_material();
+    with_fibres.diagonal_tension_N_per_m = 70.0;  // the diagonal fibres too (they count as shear)
+    fc::ClothModel model(mesh, with_fibres);
     for (unsigned seed : {1u, 2u, 3u}) {
         SCOPED_TRACE(seed);
         const Config c = random_config(mesh, seed, 0.008);
         const auto [compressed, stretched] = compressed_and_stretched(model, c.x);
         ASSERT_GT(compressed, 4) << "the check needs compressed triangles";
         ASSERT_GT(stretched, 4) << "and stretched ones";
-        for (unsigned terms : {unsigned(fc::ForceTerm::stretch), unsigned(fc::ForceTerm::elastic | fc::ForceTerm::damping)}) {
+        ASSERT_GT(model.potential_energy(c.x, fc::ForceTerm::shear),
+                  fc::ClothModel(mesh, soft_compression_material()).potential_energy(c.x, fc::ForceTerm::shear))
+            << "and pulled diagonals";
+        for (unsigned terms : {unsigned(fc::ForceTerm::stretch), unsigned(fc::ForceTerm::shear),
+                               unsigned(fc::ForceTerm::elastic | fc::ForceTerm::damping)}) {
             const Eigen::VectorXd f = force_of(model, c.x, c.v, terms);
             fc::BlockSparseMatrix dfdx = model.make_jacobian_matrix(), dfdv = model.make_jacobian_matrix();
             Eigen::VectorXd f2;
@@ -164,11 +170,12 @@ TEST(ClothCompression, ForcesAndJacobiansMatchFiniteDifferences) {
             }
             const double ex = relative_error(dfdx.to_dense(), K_fd);
             EXPECT_LT(ex, 2e-6) << "df/dx, terms " << terms;
-            if (terms == fc::ForceTerm::stretch) {
+            if (terms == fc::ForceTerm::stretch || terms == fc::ForceTerm::shear) {
                 const double ef = relative_error(f, f_energy);
                 EXPECT_LT(ef, 2e-6) << "force is not minus the energy gradient";
-                std::printf("[ measured ] seed %u: %d compressed and %d stretched axes; force vs energy %.1e, df/dx %.1e\n",
-                            seed, compressed, stretched, ef, ex);
+                std::printf("[ measured ] seed %u, %s: %d compressed and %d stretched axes; force vs energy %.1e, df/dx %.1e\n",
+                            seed, terms == fc::ForceTerm::stretch ? "stretch" : "shear + diagonal fibres", compressed,
+                            stretched, ef, ex);
             }
             // Definite mode stays symmetric negative semi-definite.
             model.evaluate(c.x, c.v, 0.0, terms, f2, &dfdx, &dfdv, fc::JacobianMode::definite);
@@ -183,7 +190,9 @@ TEST(ClothCompression, ForcesAndJacobiansMatchFiniteDifferences) {
 TEST(ClothCompression, ElementwiseLinearizationEqualsTheAssembledJacobians) {
     const fc::ClothMesh mesh = fc::make_swatch_mesh(0.08, 0.06, 4, 5);
     const Config c = random_config(mesh, 5, 0.008);
-    fc::ClothModel model(mesh, soft_compression_material());
+    fc::ClothMaterial m = soft_compression_material();
+    m.diagonal_tension_N_per_m = 70.0;
+    fc::ClothModel model(mesh, m);
     fc::BlockSparseMatrix K = model.make_jacobian_matrix(), D = model.make_jacobian_matrix();
     Eigen::VectorXd f1, f2, out;
     const unsigned terms = fc::ForceTerm::elastic | fc::ForceTerm::damping;
@@ -284,4 +293,28 @@ TEST(ClothHem, TheSwatchWeighsItsDeclaredMassWithAHem) {
     EXPECT_NEAR(fc::experiment_material(e, m).areal_density_kg_per_m2, 0.05 * 0.012 / 0.06, 1e-15);
     m.hem_line_density_kg_per_m = 0.0;
     EXPECT_EQ(fc::experiment_material(e, m).areal_density_kg_per_m2, 0.012 / (0.3 * 0.2));
+}
+
+TEST(ClothDiagonalFibres, PureShearPullsOneDiagonalOnly) {
+    // A flat shear x -> x + gamma y (rest coordinates u, v): w_u = (1, 0, 0),
+    // w_v = (gamma, 1, 0). The diagonal (w_u + w_v)/sqrt 2 lengthens, the other
+    // shortens and is slack: E = k/2 * area * (|w_u + w_v|/sqrt 2 - 1)^2 exactly,
+    // the same energy for -gamma (the other diagonal), none at gamma = 0.
+    const double width = 0.2, height = 0.15;
+    const fc::ClothMesh mesh = fc::make_swatch_mesh(width, height, 6, 5);
+    fc::ClothMaterial m = soft_compression_material();
+    m.diagonal_tension_N_per_m = 70.0;
+    m.shear_N_per_m = 0.0;
+    fc::ClothModel model(mesh, m);
+    for (double gamma : {0.0, 0.1, -0.1, 0.3}) {
+        Eigen::VectorXd x(3 * mesh.vertex_count());
+        for (int i = 0; i < mesh.vertex_count(); ++i) {
+            const Eigen::Vector2d& uv = mesh.material_uv_m[static_cast<size_t>(i)];
+            x.segment<3>(3 * i) = Eigen::Vector3d(uv.x() + gamma * uv.y(), uv.y(), 0.0);
+        }
+        const double pulled = Eigen::Vector3d(1.0 + std::abs(gamma), 1.0, 0.0).norm() / std::sqrt(2.0) - 1.0;
+        const double expected = 0.5 * 70.0 * width * height * pulled * pulled;
+        EXPECT_NEAR(model.potential_energy(x, fc::ForceTerm::shear), expected, 1e-12 * std::max(expected, 1e-12)) << gamma;
+    }
+    EXPECT_EQ(fc::ClothMaterial{}.diagonal_tension_N_per_m, 0.0);
 }

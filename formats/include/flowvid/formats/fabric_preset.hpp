@@ -55,6 +55,7 @@ struct FabricParameters {
     FabricParameter stretch_weft_compression_ratio{1.0, {}, {}};
     FabricParameter drag_linear_normal_kg_per_m2_s{0.0, {}, {}};  // kL: linear drag on the normal relative velocity
     FabricParameter hem_line_density_kg_per_m{0.0, {}, {}};       // extra mass per metre of free boundary
+    FabricParameter diagonal_tension_stiffness_N_per_m{0.0, {}, {}};  // tension-only fibres along the weave's diagonals
 
     bool operator==(const FabricParameters& other) const;
 };

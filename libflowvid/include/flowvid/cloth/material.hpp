@@ -20,6 +20,11 @@ struct ClothMaterial {
     double stretch_warp_N_per_m = 150.0;     // C = |w_u| - 1
     double stretch_weft_N_per_m = 150.0;     // C = |w_v| - 1
     double shear_N_per_m = 90.0;             // C = w_u . w_v
+    // Tension-only fibres along both diagonals of the weave, w_d = (w_u +- w_v)/sqrt 2:
+    // E = k/2 * A_rest * max(|w_d| - 1, 0)^2 each. They resist shear and
+    // stretch only where they are pulled, not in compressed folds (Blender's
+    // diagonal "shear" springs behave so). 0: none, bit for bit.
+    double diagonal_tension_N_per_m = 0.0;
     // Compression (C < 0) is stiffer or softer than tension by these factors:
     // E = ratio * k/2 * A_rest * C^2 there. Woven fabric (and Blender's cloth,
     // whose diagonal springs only pull) shortens far more easily than it

@@ -24,6 +24,7 @@
 
 #include <Eigen/Core>
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -162,6 +163,10 @@ public:
     bool all_tracks() const;
 
 private:
+    // Calls run_trial(trial, simulation threads) for every trial, in parallel
+    // when they cost alike; each trial writes only its own slot.
+    void for_each_trial(int threads, const std::function<void(std::size_t, int)>& run_trial) const;
+
     std::vector<ClothTrial> m_trials;
     std::vector<FittedParameter> m_parameters;
     ClothFitSettings m_settings;

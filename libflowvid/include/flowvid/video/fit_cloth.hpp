@@ -32,13 +32,14 @@ std::vector<FittedParameter> linear_drag_test_parameters();
 
 // The terms the model capacity study added (fabric preset 1.1) and their
 // search ranges: the hem and both compression ratios (the drape's shape),
-// and with a waving test the linear normal drag (docs/cloth_model.md).
+// with a waving test the linear normal drag, and the diagonal tension
+// fibres (docs/cloth_model.md).
 std::vector<FittedParameter> capacity_terms(bool waving, DragModel drag);
 
 // What is fitted for a set of trials: the 6 static-test parameters when all
 // trials are static drapes (drag cannot be seen at rest), else 9 (nonlinear)
-// or 8 (linear drag). Tracks trials also fit capacity_terms(): 9 static, 13
-// (nonlinear) or 11 (linear) with a waving test. Footage fits keep the
+// or 8 (linear drag). Tracks trials also fit capacity_terms(): 10 static, 14
+// (nonlinear) or 12 (linear) with a waving test. Footage fits keep the
 // thesis's set until their search affords the larger one.
 std::vector<FittedParameter> parameters_for(const std::vector<ClothTrial>& trials, DragModel drag);
 
