@@ -17,13 +17,18 @@ namespace flowvid::python {
 namespace {
 
 // A preset's `parameters` ({"key": {"value": v}} or {"key": v}) -> material.
-// Every missing or non-numeric key is reported at once, named by JSON pointer.
+// Every missing or non-numeric key is reported at once, named by JSON pointer;
+// the parameters added after format 1.0 may be missing (their neutral value).
 cloth::ClothMaterial material_from_dict(const py::dict& parameters) {
     Diagnostics diagnostics("<parameters>");
     formats::FabricParameters fabric;
     for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table()) {
         const std::string field = std::string("/parameters/") + info.key;
         if (!parameters.contains(info.key)) {
+            if (info.optional()) {
+                (fabric.*(info.member)).value = info.neutral;
+                continue;
+            }
             diagnostics.error(field, "missing", "give every parameter of the fabric preset format");
             continue;
         }

@@ -144,6 +144,11 @@ class LibraryTest(unittest.TestCase):
         with self.assertRaises(flowvid.ValidationError) as caught:
             flowvid.cloth.simulate_swatch(static, broken, rows=8, cols=8)
         self.assertIn("/parameters/shear_stiffness_N_per_m", str(caught.exception))
+        # A format-1.0 preset lacks the 1.1 parameters: they are neutral, the same cloth to the bit.
+        old = cotton()
+        for key in mapping.OPTIONAL_PARAMETERS:
+            del old[key]
+        self.assertEqual(flowvid.cloth.simulate_swatch(static, old, rows=8, cols=8)["frames"], result["frames"])
 
 
 @unittest.skipUnless(os.environ.get("FLOWVID_CLI"), "the flowvid tool's path is given by ctest")

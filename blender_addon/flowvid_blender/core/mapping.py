@@ -295,6 +295,7 @@ def parameters_from_settings(settings, mesh, areal_density_kg_per_m2=0.15,
         "stretch_weft_compression_ratio": compression_ratio,
         "drag_linear_normal_kg_per_m2_s": c_drag,
         "hem_line_density_kg_per_m": 0.0,
+        "diagonal_tension_stiffness_N_per_m": 0.0,
     }
 
 
