@@ -9,7 +9,7 @@
 // long simulation, timed as the best of --repeats runs.
 //
 //   flowvid_bench_cloth [--capture DIR] [--blender PATH | --no-blender]
-//                       [--repeats N] [--threads N] [--grids 24,48]
+//                       [--repeats N] [--threads N] [--grids 24,48] [--no-rk4]
 
 #include "flowvid/cloth/swatch.hpp"
 #include "flowvid/formats/capture.hpp"
@@ -37,6 +37,20 @@ struct Options {
     int repeats = 3;
     int threads = 2;
     std::vector<int> grids = {24, 48};
+    bool run_rk4 = true;
+};
+
+// The configurations timed on each grid: the implicit integrator with each CG
+// preconditioner, then adaptive RK4 (no linear solves).
+struct Configuration {
+    fc::Integrator integrator;
+    fc::Preconditioner preconditioner;
+    const char* label;
+};
+const Configuration kConfigurations[] = {
+    {fc::Integrator::implicit_euler, fc::Preconditioner::block_jacobi, "implicit, CG block Jacobi"},
+    {fc::Integrator::implicit_euler, fc::Preconditioner::symmetric_gauss_seidel, "implicit, CG Gauss-Seidel"},
+    {fc::Integrator::rk4_adaptive, fc::Preconditioner::block_jacobi, "rk4_adaptive"},
 };
 
 // Cotton as Blender's Cotton preset makes it, per-area SI values (derivation
@@ -139,6 +153,7 @@ int main(int argc, char** argv) {
         else if (a == "--no-blender") o.run_blender = false;
         else if (a == "--repeats") o.repeats = std::max(1, std::atoi(next().c_str()));
         else if (a == "--threads") o.threads = std::max(1, std::atoi(next().c_str()));
+        else if (a == "--no-rk4") o.run_rk4 = false;
         else if (a == "--grids") {
             o.grids.clear();
             std::stringstream list(next());
@@ -146,7 +161,7 @@ int main(int argc, char** argv) {
         } else {
             std::fprintf(stderr,
                          "usage: %s [--capture DIR] [--blender PATH | --no-blender] [--repeats N] [--threads N] "
-                         "[--grids 24,48]\n",
+                         "[--grids 24,48] [--no-rk4]\n",
                          argv[0]);
             return a == "--help" ? 0 : 2;
         }
@@ -188,7 +203,9 @@ int main(int argc, char** argv) {
         }
 
         Eigen::VectorXd warm;  // equilibrium of the first run, reused by the repeats
-        for (fc::Integrator integrator : {fc::Integrator::implicit_euler, fc::Integrator::rk4_adaptive}) {
+        for (const Configuration& configuration : kConfigurations) {
+            const fc::Integrator integrator = configuration.integrator;
+            if (integrator == fc::Integrator::rk4_adaptive && !o.run_rk4) continue;
             std::vector<int> thread_counts = {1};
             if (o.threads > 1) thread_counts.push_back(o.threads);
             for (int threads : thread_counts) {
@@ -196,6 +213,7 @@ int main(int argc, char** argv) {
                 options.rows = options.cols = grid;
                 options.simulation.integrator = integrator;
                 options.simulation.threads = threads;
+                options.simulation.cg_preconditioner = configuration.preconditioner;
                 double best = 1e300, equilibrium_s = 0.0;
                 fc::SwatchRun first;
                 for (int r = 0; r < o.repeats; ++r) {
@@ -204,7 +222,7 @@ int main(int argc, char** argv) {
                     fc::SwatchRun run = fc::simulate_swatch(experiment, plausible_cotton(), options);
                     const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
                     if (!run.simulation.report.ok()) {
-                        std::printf("  %s: %s at frame %d: %s\n", fc::integrator_name(integrator),
+                        std::printf("  %s: %s at frame %d: %s\n", configuration.label,
                                     fc::status_name(run.simulation.report.status), run.simulation.report.frame,
                                     run.simulation.report.reason.c_str());
                         break;
@@ -223,7 +241,7 @@ int main(int argc, char** argv) {
                 double vs_truth = std::nan("");
                 if (truth && truth->vertex_count == 576)
                     vs_truth = rms_against_truth(fc::sample_frames(first.swatch.mesh, first.simulation.frames, 24, 24), *truth);
-                std::printf("  %-15s threads %d: %.3f s (%.3f s per simulated second)", fc::integrator_name(integrator), threads,
+                std::printf("  %-26s threads %d: %.3f s (%.3f s per simulated second)", configuration.label, threads,
                             best, best / simulated_s);
                 if (blender.ok) std::printf(", %.2fx Blender", best / blender.bake_seconds);
                 std::printf("\n      %lld steps (%lld rejected), %lld force evaluations, %lld CG iterations; RMS to "
@@ -236,6 +254,13 @@ int main(int argc, char** argv) {
                                 equilibrium_s, first.equilibrium.iterations);
                 report.push_back({{"grid", grid},
                                   {"integrator", fc::integrator_name(integrator)},
+                                  {"preconditioner", integrator == fc::Integrator::rk4_adaptive
+                                                         ? nlohmann::json()
+                                                         : nlohmann::json(configuration.preconditioner ==
+                                                                                  fc::Preconditioner::block_jacobi
+                                                                              ? "block_jacobi"
+                                                                              : "symmetric_gauss_seidel")},
+                                  {"cg_iterations", st.cg_iterations},
                                   {"threads", threads},
                                   {"seconds", best},
                                   {"seconds_per_simulated_second", best / simulated_s},

@@ -188,6 +188,9 @@ Windows predict(const std::string& tracks_folder, const fc::ClothMaterial& mater
     const fv::ClothTrial trial = fv::load_trial(capture, load);
     const fv::TrialAssessment a =
         fv::assess_trial(trial, material, fit_settings(), ff::read_capture_truth_positions(original), nullptr, threads);
+    if (!a.report.ok())
+        std::fprintf(stderr, "  %s: the prediction stopped at frame %d: %s\n", trial.name.c_str(), a.report.frame,
+                     a.report.reason.c_str());
     return windows_of(a.vertex_rms_m);
 }
 
@@ -205,6 +208,11 @@ fc::GridFrames predict_at(const std::string& tracks_folder, const fc::ClothMater
     settings.swatch.rows = settings.swatch.cols = rows;
     const fv::TrialAssessment a = fv::assess_trial(trial, material, settings, std::nullopt, nullptr, threads);
     fc::GridFrames out;
+    if (!a.report.ok()) {
+        std::fprintf(stderr, "  %s at %dx%d: the prediction stopped at frame %d: %s\n", trial.name.c_str(), rows, rows,
+                     a.report.frame, a.report.reason.c_str());
+        return out;
+    }
     for (const Eigen::MatrixX3d& frame : a.predicted) out.push_back(resample(frame, rows, rows, 24, 24));
     return out;
 }
@@ -315,10 +323,11 @@ int main(int argc, char** argv) {
             o.blender_grids.clear();
             for (const std::string& g : split(value())) o.blender_grids.push_back(std::atoi(g.c_str()));
         } else if (a == "--help" || a == "-h") {
-            std::printf("flowvid_bench_cloth_capacity [--fabrics cotton,silk] [--variants today,compression,linear-drag,hem,all]\n"
+            std::printf("flowvid_bench_cloth_capacity [--fabrics cotton,silk]\n"
+                        "  [--variants today,compression,linear-drag,hem,diagonal,all]\n"
                         "  [--evaluations 400[,800]] [--captures DIR (cloth-<fabric>-static-1, -waving-1, -waving-2)]\n"
                         "  [--threads 2] [--seed 1] [--scratch DIR] [--json FILE] [--blender PATH | --no-blender]\n"
-                        "  [--blender-grids 12,24,48]\n");
+                        "  [--blender-grids 12,24,48] [--no-resolution] [--nested-from EARLIER.json]\n");
             return 0;
         } else return usage(("unknown option " + a).c_str());
     }
@@ -443,6 +452,9 @@ int main(int argc, char** argv) {
                     {"training_waving", windows_json(training_waving)},
                     {"training_static_frame_1_mm", training_static.frame1},
                     {"held_out_static_frame_1_mm", has_static2 ? nlohmann::json(held_static.frame1) : nlohmann::json(nullptr)}};
+                // After every fit, so that a long study that stops keeps its fits.
+                if (!o.json.empty())
+                    ff::write_file_atomically(o.json, [&](std::ostream& out) { out << record.dump(2) << '\n'; });
             }
         }
         if (last_fitted && o.check_resolution) {
@@ -451,6 +463,11 @@ int main(int argc, char** argv) {
             std::map<int, fc::GridFrames> runs;
             for (const int rows : {12, 24, 48}) runs[rows] = predict_at(copies[waving2], *last_fitted, rows, o.threads);
             auto compare = [&](int a, int b) {
+                if (runs[a].empty() || runs[b].empty()) {
+                    std::printf("|   resolution, %s: %dx%d vs %dx%d: a run failed (stderr says why) |\n", waving2.c_str(),
+                                a, a, b, b);
+                    return;
+                }
                 const std::vector<double> rms = fc::rms_distance_per_frame_m(runs[a], runs[b]);
                 const double frame1_max = (runs[a].front() - runs[b].front()).rowwise().norm().maxCoeff();
                 std::printf("|   resolution, %s: %dx%d vs %dx%d: frame 1 max %.1f mm, RMS frame 1 %.1f, 1-10 %.1f, all %.1f mm |\n",

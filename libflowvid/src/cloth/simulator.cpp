@@ -100,6 +100,7 @@ struct ClothSimulator::Workspace {
     // Implicit.
     Linearization lin;
     BlockSparseMatrix J;
+    BlockSparseMatrix system_matrix;  // M - J, for the Gauss-Seidel sweeps
     Eigen::VectorXd extra_product;
     std::vector<Eigen::Matrix3d> diagonal;
     Eigen::VectorXd rhs, delta, delta_previous, tmp, x_hat, v_hat, v1, pinned_only;
@@ -504,8 +505,27 @@ SimulationReport ClothSimulator::advance_implicit(double end_time_s) {
             } else {
                 w.delta.setZero(3 * n);
             }
-            const CgResult cg = w.cg.solve(system, w.diagonal, w.rhs, m_pinned, w.delta,
-                                           m_settings.cg_relative_tolerance, m_settings.cg_max_iterations);
+            CgResult cg;
+            if (m_settings.cg_preconditioner == Preconditioner::symmetric_gauss_seidel) {
+                w.system_matrix = w.J;
+                w.system_matrix.scale(-1.0);
+                for (int i = 0; i < n; ++i)
+                    w.system_matrix.block(w.system_matrix.diagonal_slot(i)).diagonal().array() += mass(i);
+                // The model's fixed chunks are the sweep domains: the same
+                // arithmetic on any number of threads.
+                const ConjugateGradient::ParallelFor parallel = [&](int count, const std::function<void(int)>& task) {
+                    if (pool)
+                        pool->run(count, task);
+                    else
+                        for (int k = 0; k < count; ++k) task(k);
+                };
+                cg = w.cg.solve(w.system_matrix, w.rhs, m_pinned, w.delta, m_settings.cg_relative_tolerance,
+                                m_settings.cg_max_iterations, Preconditioner::symmetric_gauss_seidel,
+                                ClothModel::kChunks, &parallel);
+            } else {
+                cg = w.cg.solve(system, w.diagonal, w.rhs, m_pinned, w.delta, m_settings.cg_relative_tolerance,
+                                m_settings.cg_max_iterations);
+            }
             m_stats.cg_iterations += cg.iterations;
             if (!cg.converged) ++m_stats.cg_not_converged;
             if (it == 0) {

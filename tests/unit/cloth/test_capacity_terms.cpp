@@ -9,6 +9,7 @@
 // (hem_line_density_kg_per_m), checked against the exact mass of each vertex
 // and the swatch's weighed mass.
 
+#include "flowvid/cloth/equilibrium.hpp"
 #include "flowvid/cloth/geometry.hpp"
 #include "flowvid/cloth/model.hpp"
 #include "flowvid/cloth/simulator.hpp"
@@ -215,7 +216,9 @@ TEST(ClothCompression, RatioOneIsTheSymmetricModelAndSofterCompressionShortensTh
     EXPECT_EQ(fc::ClothMaterial{}.stretch_warp_compression_ratio, 1.0);
     EXPECT_EQ(fc::ClothMaterial{}.stretch_weft_compression_ratio, 1.0);
     // A 0.2 m swatch hung by its top corners 0.12 m apart: the top edge is
-    // compressed. Settled with the implicit integrator for 1 s.
+    // compressed. The drape is the static equilibrium nearest the same bowed
+    // start (a dynamic run is still swinging after seconds, and where it is
+    // in its swing depends on the linear solver's tolerance).
     const fc::ClothMesh mesh = fc::make_swatch_mesh(0.2, 0.2, 10, 10);
     auto settle = [&](double ratio) {
         fc::ClothMaterial m = soft_compression_material();
@@ -229,15 +232,11 @@ TEST(ClothCompression, RatioOneIsTheSymmetricModelAndSofterCompressionShortensTh
             const double u = uv.x() / 0.2;
             x0.segment<3>(3 * i) = Eigen::Vector3d(0.04 + 0.6 * uv.x(), 0.01 * std::sin(M_PI * u), uv.y());
         }
-        std::vector<fc::PinnedVertex> pins;
-        for (int corner : {9 * 10, 10 * 10 - 1})
-            pins.push_back({corner, fc::PinPath({x0.segment<3>(3 * corner), x0.segment<3>(3 * corner)}, 1.0)});
-        fc::SimulationSettings settings;
-        settings.integrator = fc::Integrator::implicit_euler;
-        settings.implicit_substeps_per_frame = 20;
-        const fc::SimulationResult r = fc::simulate(model, pins, x0, Eigen::VectorXd::Zero(x0.size()), 0.0, 30.0, 31, settings);
-        EXPECT_TRUE(r.report.ok()) << r.report.reason;
-        return r.frames.back();
+        std::vector<bool> fixed(static_cast<size_t>(mesh.vertex_count()), false);
+        fixed[9 * 10] = fixed[10 * 10 - 1] = true;
+        const fc::EquilibriumReport r = fc::solve_static_equilibrium(model, fixed, x0);
+        EXPECT_TRUE(r.converged) << r.reason;
+        return x0;
     };
     // Below the pins the hanging cloth is narrower than its rest width: with
     // symmetric stiffness the rows keep their length and bow out of plane;
@@ -250,7 +249,7 @@ TEST(ClothCompression, RatioOneIsTheSymmetricModelAndSofterCompressionShortensTh
                 "(compression ratio 0.01)\n",
                 warp_symmetric, 1e3 * (0.2 - symmetric(3 * top_middle + 2)), warp_soft, 1e3 * (0.2 - soft(3 * top_middle + 2)));
     EXPECT_NEAR(warp_symmetric, 1.0, 1e-3) << "symmetric stiffness keeps the rows' length";
-    EXPECT_LT(warp_soft, warp_symmetric - 1e-3) << "soft compression lets them shorten";
+    EXPECT_LT(warp_soft, warp_symmetric - 5e-4) << "soft compression lets them shorten";
     EXPECT_GT(std::abs(symmetric(3 * top_middle + 2) - soft(3 * top_middle + 2)), 3e-3) << "and the drape changes visibly";
 }
 

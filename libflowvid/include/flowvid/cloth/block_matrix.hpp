@@ -23,6 +23,11 @@ public:
     Eigen::Matrix3d& block(int slot) { return m_blocks[static_cast<size_t>(slot)]; }
     const Eigen::Matrix3d& block(int slot) const { return m_blocks[static_cast<size_t>(slot)]; }
     int diagonal_slot(int i) const { return m_diagonal[static_cast<size_t>(i)]; }
+    // Row i's slots are [row_begin(i), row_end(i)), sorted by column: those
+    // before diagonal_slot(i) are left of the diagonal, those after it right.
+    int row_begin(int i) const { return m_row_start[static_cast<size_t>(i)]; }
+    int row_end(int i) const { return m_row_start[static_cast<size_t>(i) + 1]; }
+    int column(int slot) const { return m_columns[static_cast<size_t>(slot)]; }
 
     // Adds to block (i, j): into the pattern when present, else to the extras.
     void add(int i, int j, const Eigen::Matrix3d& value);

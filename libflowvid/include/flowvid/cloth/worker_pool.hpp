@@ -1,12 +1,13 @@
 #pragma once
 // A tiny fork-join pool for the cloth hot loops (std::thread only; OpenMP is
-// not configured). run(count, task) calls task(k) for k in [0, count): the
-// calling thread takes k = 0, t, 2t, ..., worker w takes k = w, w + t, ...
+// not configured). run(count, task) calls task(k) for k in [0, count) on the
+// calling thread and the workers, each claiming the next unclaimed task.
 // Which thread runs a task never changes a result: callers give each task its
 // own output and combine outputs in task order.
 
 #include <atomic>
 #include <condition_variable>
+#include <cstdint>
 #include <functional>
 #include <mutex>
 #include <thread>
@@ -26,13 +27,16 @@ public:
 
 private:
     void worker(int index);
+    // Claims the next task of job `generation`; false when none is left.
+    bool claim(std::uint32_t generation, int count, int& task);
 
     int m_threads = 1;
     std::vector<std::thread> m_workers;
     std::mutex m_mutex;
     std::condition_variable m_wake;
-    std::atomic<unsigned> m_generation{0};
-    std::atomic<int> m_pending{0};
+    std::atomic<std::uint32_t> m_generation{0};
+    std::atomic<std::uint64_t> m_claim{0};  // generation << 32 | next task
+    std::atomic<int> m_done{0};             // tasks of the current job finished
     std::atomic<bool> m_stop{false};
     const std::function<void(int)>* m_task = nullptr;
     int m_count = 0;
