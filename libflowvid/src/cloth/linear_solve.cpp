@@ -35,6 +35,26 @@ CgResult ConjugateGradient::solve(const BlockSparseMatrix& A, const Eigen::Vecto
                  relative_tolerance, max_iterations);
 }
 
+double ConjugateGradient::prepare(const Eigen::VectorXd& b, const std::vector<bool>& fixed, Eigen::VectorXd& x) {
+    const int n = static_cast<int>(fixed.size());
+    // Fixed vertices as a 0/1 vector: masking is then one vectorised product.
+    m_mask.resize(3 * n);
+    for (int i = 0; i < n; ++i) m_mask.segment<3>(3 * i).setConstant(fixed[static_cast<size_t>(i)] ? 0.0 : 1.0);
+    m_b = b;
+    m_b.array() *= m_mask.array();
+    const double b_norm = m_b.norm();
+    if (b_norm == 0.0) {
+        for (int i = 0; i < n; ++i)
+            if (!fixed[static_cast<size_t>(i)]) x.segment<3>(3 * i).setZero();
+        return 0.0;
+    }
+    // Fixed entries of x take part in A x, but b already holds their effect:
+    // work on the free part only.
+    m_x = x;
+    m_x.array() *= m_mask.array();
+    return b_norm;
+}
+
 CgResult ConjugateGradient::solve(const Operator& apply, const std::vector<Eigen::Matrix3d>& diagonal,
                                   const Eigen::VectorXd& b, const std::vector<bool>& fixed, Eigen::VectorXd& x,
                                   double relative_tolerance, int max_iterations) {
@@ -49,25 +69,13 @@ CgResult ConjugateGradient::solve(const Operator& apply, const std::vector<Eigen
         for (int i = 0; i < n; ++i) z.segment<3>(3 * i).noalias() = m_inverse_diagonal[static_cast<size_t>(i)] * r.segment<3>(3 * i);
     };
 
-    // Fixed vertices as a 0/1 vector: masking is then one vectorised product.
-    m_mask.resize(3 * n);
-    for (int i = 0; i < n; ++i) m_mask.segment<3>(3 * i).setConstant(fixed[static_cast<size_t>(i)] ? 0.0 : 1.0);
     const auto mask = [&](Eigen::VectorXd& v) { v.array() *= m_mask.array(); };
-
     CgResult result;
-    m_b = b;
-    mask(m_b);
-    const double b_norm = m_b.norm();
+    const double b_norm = prepare(b, fixed, x);
     if (b_norm == 0.0) {
-        for (int i = 0; i < n; ++i)
-            if (!fixed[static_cast<size_t>(i)]) x.segment<3>(3 * i).setZero();
         result.converged = true;
         return result;
     }
-    // Fixed entries of x take part in A x, but b already holds their effect:
-    // work on the free part only.
-    m_x = x;
-    mask(m_x);
     apply(m_x, m_q);
     m_r = m_b - m_q;
     mask(m_r);
@@ -221,8 +229,6 @@ CgResult ConjugateGradient::solve_eisenstat(const BlockSparseMatrix& A, const Ei
         m_inverse_diagonal[si] = inv;
         m_diagonal_correction[si] = a - 2.0 * m_sweep_diagonal[si];
     }
-    m_mask.resize(3 * n);
-    for (int i = 0; i < n; ++i) m_mask.segment<3>(3 * i).setConstant(fixed[static_cast<size_t>(i)] ? 0.0 : 1.0);
     const auto mask = [&](Eigen::VectorXd& v) { v.array() *= m_mask.array(); };
     m_t.resize(3 * n);
     m_u.resize(3 * n);
@@ -285,17 +291,11 @@ CgResult ConjugateGradient::solve_eisenstat(const BlockSparseMatrix& A, const Ei
     };
 
     CgResult result;
-    m_b = b;
-    mask(m_b);
-    const double b_norm = m_b.norm();
+    const double b_norm = prepare(b, fixed, x);
     if (b_norm == 0.0) {
-        for (int i = 0; i < n; ++i)
-            if (!fixed[static_cast<size_t>(i)]) x.segment<3>(3 * i).setZero();
         result.converged = true;
         return result;
     }
-    m_x = x;
-    mask(m_x);
     A.multiply(m_x, m_q);
     m_r = m_b - m_q;
     mask(m_r);

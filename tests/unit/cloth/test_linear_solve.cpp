@@ -10,6 +10,7 @@
 
 #include <functional>
 #include <random>
+#include <string>
 #include <thread>
 
 namespace fc = flowvid::cloth;
@@ -145,8 +146,11 @@ TEST_P(SolverCases, SolveStiffGridSystemsToTheRequestedResidual) {
         // Fixed entries are left as they were; free ones match a dense solve.
         const Eigen::VectorXd reference = dense_solution(s, b, Eigen::VectorXd::Constant(b.size(), 0.25));
         EXPECT_LE((solved.x - reference).norm(), 1e-5 * reference.norm());
-        for (size_t i = 0; i < s.fixed.size(); ++i)
-            if (s.fixed[i]) EXPECT_EQ(solved.x(3 * static_cast<int>(i)), 0.25);
+        for (size_t i = 0; i < s.fixed.size(); ++i) {
+            if (s.fixed[i]) {
+                EXPECT_EQ(solved.x(3 * static_cast<int>(i)), 0.25);
+            }
+        }
     }
 }
 
@@ -163,7 +167,12 @@ INSTANTIATE_TEST_SUITE_P(LinearSolve, SolverCases,
                          ::testing::Values(SolverCase{fc::Preconditioner::block_jacobi, 1},
                                            SolverCase{fc::Preconditioner::symmetric_gauss_seidel, 1},
                                            SolverCase{fc::Preconditioner::symmetric_gauss_seidel, 2},
-                                           SolverCase{fc::Preconditioner::symmetric_gauss_seidel, 5}));
+                                           SolverCase{fc::Preconditioner::symmetric_gauss_seidel, 5}),
+                         [](const ::testing::TestParamInfo<SolverCase>& info) {
+                             return info.param.preconditioner == fc::Preconditioner::block_jacobi
+                                        ? std::string("BlockJacobi")
+                                        : "GaussSeidel" + std::to_string(info.param.domains) + "Domains";
+                         });
 
 TEST(LinearSolve, GaussSeidelDomainsGiveTheSameBitsOnThreads) {
     // The domains define the arithmetic: sweeping them on threads (here one

@@ -50,6 +50,9 @@ public:
                    const std::vector<bool>& fixed, Eigen::VectorXd& x, double relative_tolerance, int max_iterations);
 
 private:
+    // The mask of free entries, b and the start x masked into m_b and m_x;
+    // returns |b| over the free entries (0: x's free part is set to 0, done).
+    double prepare(const Eigen::VectorXd& b, const std::vector<bool>& fixed, Eigen::VectorXd& x);
     CgResult solve_eisenstat(const BlockSparseMatrix& A, const Eigen::VectorXd& b, const std::vector<bool>& fixed,
                              Eigen::VectorXd& x, double relative_tolerance, int max_iterations, int domains,
                              const ParallelFor* parallel);
