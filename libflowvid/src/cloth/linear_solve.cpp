@@ -7,7 +7,6 @@
 
 namespace flowvid::cloth {
 
-
 namespace {
 
 // Inverse of a diagonal block; the scalar diagonal's for a singular one.

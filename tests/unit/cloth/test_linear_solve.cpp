@@ -9,6 +9,7 @@
 #include <Eigen/Dense>
 
 #include <functional>
+#include <ostream>
 #include <random>
 #include <string>
 #include <thread>
@@ -124,6 +125,11 @@ struct SolverCase {
     fc::Preconditioner preconditioner;
     int domains;
 };
+
+void PrintTo(const SolverCase& c, std::ostream* os) {
+    *os << (c.preconditioner == fc::Preconditioner::block_jacobi ? "block Jacobi" : "Gauss-Seidel") << ", "
+        << c.domains << " domain(s)";
+}
 
 class SolverCases : public ::testing::TestWithParam<SolverCase> {};
 
