@@ -80,13 +80,15 @@ void WorkerPool::worker(int) {
             std::unique_lock<std::mutex> lock(m_mutex);
             m_wake.wait(lock, [&] { return m_generation.load(std::memory_order_acquire) != seen; });
         }
-        if (m_stop) return;
         const std::function<void(int)>* task;
         int count;
         {
             // Task, count and generation read together: a job that has
-            // already finished is recognised by claim() and left alone.
+            // already finished is recognised by claim() and left alone. The
+            // stop is checked here too: the generation read may be the
+            // destructor's, which no later wake-up would follow.
             std::lock_guard<std::mutex> lock(m_mutex);
+            if (m_stop) return;
             task = m_task;
             count = m_count;
             seen = m_generation.load(std::memory_order_acquire);

@@ -5,9 +5,10 @@
 //
 // Two preconditioners. Block Jacobi (the 3x3 diagonal blocks) is cheap and
 // parallel, but its iteration count grows with the mesh's resolution. Block
-// symmetric Gauss-Seidel (SSOR at omega = 1) needs about a third of the
-// iterations on a 48x48 swatch; in Eisenstat's form its iteration costs about
-// one matrix product, the same as block Jacobi's, but the sweeps are serial.
+// symmetric Gauss-Seidel (SSOR at omega = 1) needs 2.1-2.4x fewer iterations
+// on 24x24 and 48x48 swatches; in Eisenstat's form an iteration costs about
+// one matrix product, as block Jacobi's does, and fixed row domains sweep in
+// parallel.
 
 #include "flowvid/cloth/block_matrix.hpp"
 
@@ -65,9 +66,9 @@ private:
 
     Eigen::VectorXd m_b, m_x, m_r, m_z, m_p, m_q, m_mask, m_t, m_u, m_step;
     std::vector<Eigen::Matrix3d> m_inverse_diagonal;
-    std::vector<Eigen::Matrix3d> m_sweep_diagonal;        // D of the SSOR split (A's diagonal blocks)
-    std::vector<Eigen::Matrix3d> m_diagonal_correction;   // A_ii - 2 D_i: Eisenstat's middle term
-    std::vector<int> m_lower_first, m_upper_end;        // a row's slots inside its domain
+    std::vector<Eigen::Matrix3d> m_sweep_diagonal;       // D of the SSOR split (A's diagonal blocks)
+    std::vector<Eigen::Matrix3d> m_diagonal_correction;  // A_ii - 2 D_i: Eisenstat's middle term
+    std::vector<int> m_lower_first, m_upper_end;         // a row's slots inside its domain
 };
 
 }  // namespace flowvid::cloth
