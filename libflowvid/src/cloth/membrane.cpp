@@ -64,13 +64,14 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
     const double kd_on = shear ? m_material.diagonal_tension_N_per_m : 0.0;
     const double cu = m_material.stretch_warp_damping_N_s_per_m, cv = m_material.stretch_weft_damping_N_s_per_m;
     const double cs = m_material.shear_damping_N_s_per_m;
+    // The terms switched on (the force-only and the element-wise paths).
+    const double ku_on = stretch ? ku : 0.0, kv_on = stretch ? kv : 0.0, ks_on = shear ? ks : 0.0;
+    const double cu_on = stretch_damp ? cu : 0.0, cv_on = stretch_damp ? cv : 0.0, cs_on = shear_damp ? cs : 0.0;
     const Matrix3d I = Matrix3d::Identity();
 
     if (!dfdx && !dfdv && !lin) {
         // Forces only (explicit integration): the same formulas without the
         // matrices, which is most of the cost of the hot loop.
-        const double ku_on = stretch ? ku : 0.0, kv_on = stretch ? kv : 0.0, ks_on = shear ? ks : 0.0;
-        const double cu_on = stretch_damp ? cu : 0.0, cv_on = stretch_damp ? cv : 0.0, cs_on = shear_damp ? cs : 0.0;
         for (size_t ti = begin; ti < end; ++ti) {
             const TriangleData& t = m_triangles[ti];
             const Vector3d x0 = at(x, t.v[0]), x1 = at(x, t.v[1]), x2 = at(x, t.v[2]);
@@ -108,8 +109,6 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
         // same with u and v swapped, and Kuv = -A ks wv wu^T = Kvu^T,
         // Duv = -A cs wv wu^T. Combined as J = sx K + sv D.
         const double sx = lin->sx, sv = lin->sv;
-        const double ku_on = stretch ? ku : 0.0, kv_on = stretch ? kv : 0.0, ks_on = shear ? ks : 0.0;
-        const double cu_on = stretch_damp ? cu : 0.0, cv_on = stretch_damp ? cv : 0.0, cs_on = shear_damp ? cs : 0.0;
         for (size_t ti = begin; ti < end; ++ti) {
             const TriangleData& t = m_triangles[ti];
             const Vector3d x0 = at(x, t.v[0]), x1 = at(x, t.v[1]), x2 = at(x, t.v[2]);

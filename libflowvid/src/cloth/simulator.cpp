@@ -461,11 +461,6 @@ SimulationReport ClothSimulator::advance_implicit(double end_time_s) {
             // A = M - h' D - h'^2 K = M - J, J assembled once per Newton step.
             if (w.J.block_rows() != n) w.J = m_model.make_jacobian_matrix();
             m_model.assemble_product(w.lin, w.J);
-            w.diagonal.resize(static_cast<size_t>(n));
-            for (int i = 0; i < n; ++i) {
-                w.diagonal[static_cast<size_t>(i)] = -w.J.block(w.J.diagonal_slot(i));
-                w.diagonal[static_cast<size_t>(i)].diagonal().array() += mass(i);
-            }
             detail::WorkerPool* pool = m_model.worker_pool();
             const ConjugateGradient::Operator system = [&](const Eigen::VectorXd& p, Eigen::VectorXd& out) {
                 out.resize(p.size());
@@ -523,6 +518,11 @@ SimulationReport ClothSimulator::advance_implicit(double end_time_s) {
                                 m_settings.cg_max_iterations, Preconditioner::symmetric_gauss_seidel,
                                 ClothModel::kChunks, &parallel);
             } else {
+                w.diagonal.resize(static_cast<size_t>(n));
+                for (int i = 0; i < n; ++i) {
+                    w.diagonal[static_cast<size_t>(i)] = -w.J.block(w.J.diagonal_slot(i));
+                    w.diagonal[static_cast<size_t>(i)].diagonal().array() += mass(i);
+                }
                 cg = w.cg.solve(system, w.diagonal, w.rhs, m_pinned, w.delta, m_settings.cg_relative_tolerance,
                                 m_settings.cg_max_iterations);
             }
