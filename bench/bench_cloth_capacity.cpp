@@ -75,6 +75,10 @@ struct Options {
     bool check_resolution = true;
     std::string nested_from;  // an earlier run's --json: its smallest variant's fit seeds the larger ones
     std::vector<int> blender_grids = {12, 24, 48};
+    // The waving trial's fitted frames and their weighting (fit cloth's
+    // defaults: 50 frames, full weight for 10, then halving every 10).
+    int waving_frames = 50;
+    double half_life_frames = 10.0;
 };
 
 // Where the captures are: ../shared/captures, or --captures DIR (another set
@@ -319,6 +323,8 @@ int main(int argc, char** argv) {
         else if (a == "--blender") o.blender = value();
         else if (a == "--no-blender") o.run_blender = false;
         else if (a == "--no-resolution") o.check_resolution = false;
+        else if (a == "--waving-frames") o.waving_frames = std::atoi(value().c_str());
+        else if (a == "--half-life") o.half_life_frames = std::atof(value().c_str());
         else if (a == "--blender-grids") {
             o.blender_grids.clear();
             for (const std::string& g : split(value())) o.blender_grids.push_back(std::atoi(g.c_str()));
@@ -327,7 +333,9 @@ int main(int argc, char** argv) {
                         "  [--variants today,compression,linear-drag,hem,diagonal,all]\n"
                         "  [--evaluations 400[,800]] [--captures DIR (cloth-<fabric>-static-1, -waving-1, -waving-2)]\n"
                         "  [--threads 2] [--seed 1] [--scratch DIR] [--json FILE] [--blender PATH | --no-blender]\n"
-                        "  [--blender-grids 12,24,48] [--no-resolution] [--nested-from EARLIER.json]\n");
+                        "  [--blender-grids 12,24,48] [--no-resolution] [--nested-from EARLIER.json]\n"
+                        "  [--waving-frames 50] [--half-life 10] (the waving trial's fitted frames and their weights'\n"
+                        "   half-life after the first 10; predictions always cover the whole held-out trial)\n");
             return 0;
         } else return usage(("unknown option " + a).c_str());
     }
@@ -378,7 +386,8 @@ int main(int argc, char** argv) {
                 request.name = fabric + " " + variant;
                 request.captures = {ff::read_capture(copies[static1]), ff::read_capture(copies[waving1])};
                 request.load.target = fv::FitTarget::tracks;
-                request.load.half_life_frames = 10.0;  // fit cloth's default weighting (late, chaotic frames count less)
+                request.load.half_life_frames = o.half_life_frames;  // late, chaotic frames count less
+                request.load.waving_frames = o.waving_frames;
                 request.problem = fit_settings();
                 request.parameters = variant_parameters(variant);
                 request.evaluations = evaluations;
