@@ -39,6 +39,27 @@ Eigen::Vector2d CameraModel::project(const Eigen::Vector3d& world) const {
     return project_camera_point(to_camera(world));
 }
 
+Eigen::Vector3d CameraModel::ray_camera(const Eigen::Vector2d& pixel) const {
+    // Distorted normalised coordinates (K^-1 with skew).
+    const double yd = (pixel.y() - K(1, 2)) / K(1, 1);
+    const double xd = (pixel.x() - K(0, 2) - K(0, 1) * yd) / K(0, 0);
+    if (!has_distortion()) return {xd, yd, 1.0};
+    const double k1 = dist[0], k2 = dist[1], p1 = dist[2], p2 = dist[3], k3 = dist[4];
+    double x = xd, y = yd;
+    for (int iteration = 0; iteration < 50; ++iteration) {
+        const double r2 = x * x + y * y;
+        const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        const double dx = 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+        const double dy = p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+        const double next_x = (xd - dx) / radial, next_y = (yd - dy) / radial;
+        const bool settled = std::abs(next_x - x) + std::abs(next_y - y) < 1e-14;
+        x = next_x;
+        y = next_y;
+        if (settled) break;
+    }
+    return {x, y, 1.0};
+}
+
 Eigen::Vector3d CameraModel::centre_world() const {
     const Eigen::Matrix3d R = camera_from_world.topLeftCorner<3, 3>();
     const Eigen::Vector3d centre = -R.transpose() * camera_from_world.topRightCorner<3, 1>();

@@ -143,7 +143,7 @@ ClothFrame ClothFootage::frame(int number) {
     return out;
 }
 
-double expected_stripe_period_px(const formats::Capture& capture) {
+Eigen::Vector2d expected_stripe_gradient(const formats::Capture& capture) {
     Diagnostics diagnostics(capture.json_path.empty() ? capture.folder + "/capture.json" : capture.json_path);
     if (!capture.camera) diagnostics.error("/camera", "is missing", "add the camera calibration");
     if (!capture.projector) diagnostics.error("/projector", "is missing", "add the projector calibration");
@@ -193,7 +193,11 @@ double expected_stripe_period_px(const formats::Capture& capture) {
         throw ValidationError({Problem{Problem::Severity::error, diagnostics.file(), "/projector",
                                        "the projector's stripes do not vary across the swatch as calibrated",
                                        "check projector.camera_from_world and the pattern axis"}});
-    return projector.pattern.period_px / per_pixel;
+    return image_gradient;
+}
+
+double expected_stripe_period_px(const formats::Capture& capture) {
+    return capture.projector->pattern.period_px / expected_stripe_gradient(capture).norm();
 }
 
 }  // namespace flowvid::video

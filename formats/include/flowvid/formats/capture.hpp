@@ -55,6 +55,10 @@ struct CameraModel {
     Eigen::Vector2d project(const Eigen::Vector3d& world) const;
     // The same for a point already in camera coordinates.
     Eigen::Vector2d project_camera_point(const Eigen::Vector3d& camera_point) const;
+    // Pixel (x, y) -> the normalised camera ray (x_n, y_n, 1) through it:
+    // the inverse of project_camera_point, distortion removed by fixed-point
+    // iteration (exact to ~1e-12 for the distortions real lenses have).
+    Eigen::Vector3d ray_camera(const Eigen::Vector2d& pixel) const;
     // The optical centre in world coordinates (m).
     Eigen::Vector3d centre_world() const;
     bool has_distortion() const;

@@ -78,4 +78,9 @@ private:
 // tuned to. Throws ValidationError when the capture is not a cloth capture.
 double expected_stripe_period_px(const formats::Capture& capture);
 
+// The same estimate as a vector: the image gradient of the projector
+// coordinate v_p (projector pixels per image pixel) on that hanging swatch.
+// The stripes run across it; its length is period_px / the image period.
+Eigen::Vector2d expected_stripe_gradient(const formats::Capture& capture);
+
 }  // namespace flowvid::video
