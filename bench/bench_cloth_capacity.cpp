@@ -79,6 +79,7 @@ struct Options {
     // defaults: 50 frames, full weight for 10, then halving every 10).
     int waving_frames = 50;
     double half_life_frames = 10.0;
+    double static_weight = 1.0;  // the static drape's frame against a waving frame's full weight
 };
 
 // Where the captures are: ../shared/captures, or --captures DIR (another set
@@ -325,6 +326,7 @@ int main(int argc, char** argv) {
         else if (a == "--no-resolution") o.check_resolution = false;
         else if (a == "--waving-frames") o.waving_frames = std::atoi(value().c_str());
         else if (a == "--half-life") o.half_life_frames = std::atof(value().c_str());
+        else if (a == "--static-weight") o.static_weight = std::atof(value().c_str());
         else if (a == "--blender-grids") {
             o.blender_grids.clear();
             for (const std::string& g : split(value())) o.blender_grids.push_back(std::atoi(g.c_str()));
@@ -334,8 +336,9 @@ int main(int argc, char** argv) {
                         "  [--evaluations 400[,800]] [--captures DIR (cloth-<fabric>-static-1, -waving-1, -waving-2)]\n"
                         "  [--threads 2] [--seed 1] [--scratch DIR] [--json FILE] [--blender PATH | --no-blender]\n"
                         "  [--blender-grids 12,24,48] [--no-resolution] [--nested-from EARLIER.json]\n"
-                        "  [--waving-frames 50] [--half-life 10] (the waving trial's fitted frames and their weights'\n"
-                        "   half-life after the first 10; predictions always cover the whole held-out trial)\n");
+                        "  [--waving-frames 50] [--half-life 10] [--static-weight 1] (the waving trial's fitted frames,\n"
+                        "   their weights' half-life after the first 10, the static drape's weight; predictions always\n"
+                        "   cover the whole held-out trial)\n");
             return 0;
         } else return usage(("unknown option " + a).c_str());
     }
@@ -388,6 +391,7 @@ int main(int argc, char** argv) {
                 request.load.target = fv::FitTarget::tracks;
                 request.load.half_life_frames = o.half_life_frames;  // late, chaotic frames count less
                 request.load.waving_frames = o.waving_frames;
+                request.load.static_weight = o.static_weight;
                 request.problem = fit_settings();
                 request.parameters = variant_parameters(variant);
                 request.evaluations = evaluations;

@@ -100,7 +100,7 @@ int compared_frame_count(const ClothTrial& trial, const TrialLoadSettings& setti
 }
 
 std::vector<double> frame_weights(const ClothTrial& trial, const TrialLoadSettings& settings, int count) {
-    return trial.is_static ? std::vector<double>(static_cast<std::size_t>(count), 1.0)
+    return trial.is_static ? std::vector<double>(static_cast<std::size_t>(count), settings.static_weight)
                            : metrics::decaying_frame_weights(count, settings.full_weight_frames, settings.half_life_frames);
 }
 

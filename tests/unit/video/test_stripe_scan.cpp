@@ -131,13 +131,23 @@ TEST(StripeScan, RecoversARenderedFoldedSwatch) {
     EXPECT_EQ(wrong_period, 0);
 }
 
-TEST(StripeScan, WithoutAReferenceNothingIsGuessed) {
-    const formats::Capture capture = calibration();
+// The folded swatch (31 x 31) rendered without shading or noise, and its top corners.
+struct CleanFrame {
+    StripeImage image;
+    std::vector<Eigen::Vector3d> pins;
+};
+
+CleanFrame clean_frame(const formats::Capture& capture) {
     std::vector<Eigen::Vector3d> vertices;
     std::vector<std::array<int, 3>> triangles;
     folded_swatch(31, vertices, triangles);
     StripeRenderer renderer(*capture.camera, *capture.projector);
-    const StripeImage image = renderer.render(vertices, triangles);
+    return {renderer.render(vertices, triangles), {vertices[31 * 30], vertices[31 * 31 - 1]}};
+}
+
+TEST(StripeScan, WithoutAReferenceNothingIsGuessed) {
+    const formats::Capture capture = calibration();
+    const StripeImage image = clean_frame(capture).image;
     StripeScanner scanner = scanner_for(capture);
     const StripeScan scan = scanner.scan(image.image, image.silhouette, {});  // no pins: periods unknown
     EXPECT_GT(scan.silhouette_px, 1000);
@@ -148,13 +158,10 @@ TEST(StripeScan, WithoutAReferenceNothingIsGuessed) {
 
 TEST(StripeScan, ThePreviousFrameReferencesRegionsWithoutPins) {
     const formats::Capture capture = calibration();
-    std::vector<Eigen::Vector3d> vertices;
-    std::vector<std::array<int, 3>> triangles;
-    folded_swatch(31, vertices, triangles);
-    StripeRenderer renderer(*capture.camera, *capture.projector);
-    const StripeImage image = renderer.render(vertices, triangles);
+    const CleanFrame frame = clean_frame(capture);
+    const StripeImage& image = frame.image;
     StripeScanner scanner = scanner_for(capture);
-    const StripeScan with_pins = scanner.scan(image.image, image.silhouette, {vertices[31 * 30], vertices[31 * 31 - 1]});
+    const StripeScan with_pins = scanner.scan(image.image, image.silhouette, frame.pins);
     ASSERT_GT(with_pins.measured_px, 1000);
     // The next frame without pins (e.g. a corner out of view): its periods come from the previous scan.
     const StripeScan next = scanner.scan(image.image, image.silhouette, {}, &with_pins);

@@ -94,6 +94,7 @@ struct TrialLoadSettings {
     int waving_frames = 50;       // the thesis fitted the first 50 frames
     int full_weight_frames = 10;  // waving: frames after these count less ...
     double half_life_frames = 0;  // ... halving every this many frames (0: all count fully)
+    double static_weight = 1.0;   // weight of each compared static-drape frame (a waving frame's full weight is 1)
     SegmentationSettings segmentation;
     std::optional<double> stripe_period_px;  // default: expected_stripe_period_px(capture)
     metrics::SilhouetteTerm silhouette_term = metrics::SilhouetteTerm::pixel_xor;  // prepares edge distances when needed
