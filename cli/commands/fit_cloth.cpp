@@ -41,6 +41,9 @@ struct FitClothOptions {
     int variability_runs = 4;
     long long variability_evaluations = 40;
     double budget_seconds = 0.0;
+    // Footage fits compare 50 waving frames whose weight halves every 10
+    // after the first 10; tracks fits 20 frames halving every 5 (the
+    // capacity study's held-out trials: docs/cloth_model.md). Unless given.
     int frames = 50;
     int full_weight_frames = 10;
     double half_life_frames = 10.0;
@@ -177,6 +180,8 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     for (std::size_t i = 0; i < trials.size(); ++i) trials[i]["start_error"] = outcome.start_evaluation.trials[i].error;
     nlohmann::json summary = {{"out", options.out},
                               {"fit_to", video::fit_target_name(request.load.target)},
+                              {"waving_frames", request.load.waving_frames},
+                              {"half_life_frames", request.load.half_life_frames},
                               {"drag", video::drag_model_name(request.drag)},
                               {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
                               {"start_error", outcome.start_evaluation.total},
@@ -516,14 +521,15 @@ const RegisterFitKind registration{FitKind{
         app.add_option("--budget-seconds", options->budget_seconds, "stop the search after this wall time (0 = no limit)")
             ->check(CLI::NonNegativeNumber)
             ->capture_default_str();
-        app.add_option("--frames", options->frames, "waving frames compared (from the first)")
+        app.add_option("--frames", options->frames, "waving frames compared (from the first; --fit-to tracks: 20)")
             ->check(CLI::Range(2, 100000))
             ->capture_default_str();
         app.add_option("--full-weight-frames", options->full_weight_frames, "waving frames that count fully")
             ->check(CLI::Range(1, 100000))
             ->capture_default_str();
         app.add_option("--half-life-frames", options->half_life_frames,
-                       "later frames' weight halves every this many frames (0 = every frame counts fully)")
+                       "later frames' weight halves every this many frames (0 = every frame counts fully; "
+                       "--fit-to tracks: 5)")
             ->check(CLI::NonNegativeNumber)
             ->capture_default_str();
         app.add_option("--metric", options->metric, "silhouette term: xor (pixel count) or edge (edge distance, eq. 2.6)")
@@ -549,8 +555,14 @@ const RegisterFitKind registration{FitKind{
         shard->excludes(shards);
         app.add_flag("--json", options->json, "print the summary as JSON");
         CLI::Option* variability_runs = app.get_option("--variability-runs");
-        return [options, variability_runs](const GlobalOptions& global) {
+        CLI::Option* frames = app.get_option("--frames");
+        CLI::Option* half_life = app.get_option("--half-life-frames");
+        return [options, variability_runs, frames, half_life](const GlobalOptions& global) {
             options->variability_runs_given = variability_runs->count() > 0;
+            if (options->fit_to == "tracks") {
+                if (frames->count() == 0) options->frames = 20;
+                if (half_life->count() == 0) options->half_life_frames = 5.0;
+            }
             return run_fit_cloth(*options, global);
         };
     }}};
