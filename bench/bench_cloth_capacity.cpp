@@ -75,10 +75,11 @@ struct Options {
     bool check_resolution = true;
     std::string nested_from;  // an earlier run's --json: its smallest variant's fit seeds the larger ones
     std::vector<int> blender_grids = {12, 24, 48};
-    // The waving trial's fitted frames and their weighting (fit cloth's
-    // defaults: 50 frames, full weight for 10, then halving every 10).
-    int waving_frames = 50;
-    double half_life_frames = 10.0;
+    // The waving trial's fitted frames and their weighting (fit cloth
+    // --fit-to tracks's defaults: 20 frames, full weight for 10, then
+    // halving every 5; the study before them used 50 and 10).
+    int waving_frames = 20;
+    double half_life_frames = 5.0;
     double static_weight = 1.0;  // the static drape's frame against a waving frame's full weight
 };
 
@@ -336,7 +337,7 @@ int main(int argc, char** argv) {
                         "  [--evaluations 400[,800]] [--captures DIR (cloth-<fabric>-static-1, -waving-1, -waving-2)]\n"
                         "  [--threads 2] [--seed 1] [--scratch DIR] [--json FILE] [--blender PATH | --no-blender]\n"
                         "  [--blender-grids 12,24,48] [--no-resolution] [--nested-from EARLIER.json]\n"
-                        "  [--waving-frames 50] [--half-life 10] [--static-weight 1] (the waving trial's fitted frames,\n"
+                        "  [--waving-frames 20] [--half-life 5] [--static-weight 1] (the waving trial's fitted frames,\n"
                         "   their weights' half-life after the first 10, the static drape's weight; predictions always\n"
                         "   cover the whole held-out trial)\n");
             return 0;
