@@ -47,6 +47,7 @@ struct FitClothOptions {
     int frames = 50;
     int full_weight_frames = 10;
     double half_life_frames = 10.0;
+    double static_weight = 1.0;  // each static drape against one full-weight waving frame
     ClothRunOptions run;
     bool json = false;
     // Farm and cluster splitting (docs/farm.md).
@@ -79,6 +80,7 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
     request.load.waving_frames = options.frames;
     request.load.full_weight_frames = options.full_weight_frames;
     request.load.half_life_frames = options.half_life_frames;
+    request.load.static_weight = options.static_weight;
     request.problem.swatch = swatch;
     request.problem.metric.silhouette_term =
         options.metric == "edge" ? metrics::SilhouetteTerm::edge_distance : metrics::SilhouetteTerm::pixel_xor;
@@ -182,6 +184,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
                               {"fit_to", video::fit_target_name(request.load.target)},
                               {"waving_frames", request.load.waving_frames},
                               {"half_life_frames", request.load.half_life_frames},
+                              {"static_weight", request.load.static_weight},
                               {"drag", video::drag_model_name(request.drag)},
                               {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
                               {"start_error", outcome.start_evaluation.total},
@@ -232,6 +235,7 @@ nlohmann::json result_options(const FitClothOptions& o) {
             {"initial-bow", o.run.initial_bow}};
     // Only tracks fits say what they fitted to, so footage shards keep the bytes older ones had.
     if (o.fit_to != "footage") options["fit-to"] = o.fit_to;
+    if (o.static_weight != 1.0) options["static-weight"] = o.static_weight;
     return options;
 }
 
@@ -263,10 +267,12 @@ FitClothOptions options_from_shard(const formats::FitShardFile& file) {
     o.frames = static_cast<int>(view.integer("frames", 2, 100000).value_or(o.frames));
     o.full_weight_frames = static_cast<int>(view.integer("full-weight-frames", 1, 100000).value_or(o.full_weight_frames));
     o.half_life_frames = view.number("half-life-frames", formats::NumberRange::non_negative("frames")).value_or(0.0);
+    if (view.has("static-weight"))  // written only when not 1 (older shards have none)
+        o.static_weight = view.number("static-weight", formats::NumberRange::non_negative("")).value_or(1.0);
     o.run.resolution = view.string("resolution").value_or(o.run.resolution);
     o.run.initial_bow = view.number("initial-bow", formats::NumberRange::closed(-2.0, 2.0)).value_or(o.run.initial_bow);
     view.check_known_keys({"drag", "metric", "fit-to", "seed", "evaluations", "budget-seconds", "frames", "full-weight-frames",
-                           "half-life-frames", "resolution", "integrator", "initial-bow"});
+                           "half-life-frames", "static-weight", "resolution", "integrator", "initial-bow"});
     diagnostics.throw_if_errors();
     return o;
 }
@@ -530,6 +536,11 @@ const RegisterFitKind registration{FitKind{
         app.add_option("--half-life-frames", options->half_life_frames,
                        "later frames' weight halves every this many frames (0 = every frame counts fully; "
                        "--fit-to tracks: 5)")
+            ->check(CLI::NonNegativeNumber)
+            ->capture_default_str();
+        app.add_option("--static-weight", options->static_weight,
+                       "weight of each static drape against one full-weight waving frame (raise it when the drape "
+                       "matters more than the late, chaotic waving frames)")
             ->check(CLI::NonNegativeNumber)
             ->capture_default_str();
         app.add_option("--metric", options->metric, "silhouette term: xor (pixel count) or edge (edge distance, eq. 2.6)")

@@ -149,6 +149,7 @@ TEST(CliClothFit, TracksFitFindsTheFabricThatMadeTheTracks) {
     // Tracks fits default to the capacity study's weighting (20 waving frames, half-life 5).
     EXPECT_EQ(summary["waving_frames"], 20);
     EXPECT_EQ(summary["half_life_frames"], 5.0);
+    EXPECT_EQ(summary["static_weight"], 1.0);
     const double start_rms = std::sqrt(summary["trials"][0]["start_error"].get<double>());
     const double final_rms = summary["trials"][0]["final_rms_mm"].get<double>();
     std::printf("[measured] tracks fit of our own drape: RMS %.3f mm (start %.1f mm)\n", final_rms, start_rms);

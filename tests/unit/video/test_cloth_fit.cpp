@@ -86,6 +86,13 @@ TEST(ClothFit, LoadsTrialsFromCaptures) {
     EXPECT_NEAR(waving.frames[5].weight, std::exp2(-2.0), 1e-12);
     EXPECT_EQ(waving.experiment.frame_count, 8);  // two more for the pins' spline
     EXPECT_EQ(waving.experiment.pins[1].positions_m.size(), 8u);
+
+    // The static weight scales the drape's frames only.
+    settings.static_weight = 2.5;
+    EXPECT_EQ(load_trial(capture("cloth-cotton-static-1"), settings).frames[0].weight, 2.5);
+    const ClothTrial same_waving = load_trial(capture("cloth-cotton-waving-1"), settings);
+    EXPECT_EQ(same_waving.frames[1].weight, 1.0);
+    EXPECT_NEAR(same_waving.frames[5].weight, std::exp2(-2.0), 1e-12);
 }
 
 // A fabric that cannot hang (negative stretch stiffness): no equilibrium, so
