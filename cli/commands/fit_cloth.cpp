@@ -539,8 +539,7 @@ const RegisterFitKind registration{FitKind{
             ->check(CLI::NonNegativeNumber)
             ->capture_default_str();
         app.add_option("--static-weight", options->static_weight,
-                       "weight of each static drape against one full-weight waving frame (raise it when the drape "
-                       "matters more than the late, chaotic waving frames)")
+                       "weight of each static drape against one full-weight waving frame")
             ->check(CLI::NonNegativeNumber)
             ->capture_default_str();
         app.add_option("--metric", options->metric, "silhouette term: xor (pixel count) or edge (edge distance, eq. 2.6)")
