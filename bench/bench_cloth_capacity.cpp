@@ -78,8 +78,8 @@ struct Options {
     // The waving trial's fitted frames and their weighting (fit cloth
     // --fit-to tracks's defaults: 20 frames, full weight for 10, then
     // halving every 5; the study before them used 50 and 10).
-    int waving_frames = 20;
-    double half_life_frames = 5.0;
+    int waving_frames = fv::kTracksWavingFrames;
+    double half_life_frames = fv::kTracksHalfLifeFrames;
     double static_weight = 1.0;  // the static drape's frame against a waving frame's full weight
 };
 

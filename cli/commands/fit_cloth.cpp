@@ -570,8 +570,8 @@ const RegisterFitKind registration{FitKind{
         return [options, variability_runs, frames, half_life](const GlobalOptions& global) {
             options->variability_runs_given = variability_runs->count() > 0;
             if (options->fit_to == "tracks") {
-                if (frames->count() == 0) options->frames = 20;
-                if (half_life->count() == 0) options->half_life_frames = 5.0;
+                if (frames->count() == 0) options->frames = video::kTracksWavingFrames;
+                if (half_life->count() == 0) options->half_life_frames = video::kTracksHalfLifeFrames;
             }
             return run_fit_cloth(*options, global);
         };

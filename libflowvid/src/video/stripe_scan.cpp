@@ -137,6 +137,9 @@ StripeScan StripeScanner::scan(const ImageF& gray, const metrics::Silhouette& si
                                     std::to_string(height) + " like the camera");
     const std::size_t total = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
     const auto at = [width](int x, int y) { return static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x); };
+    const auto pixel_of = [width](std::size_t i) {
+        return Eigen::Vector2d(static_cast<double>(i % static_cast<std::size_t>(width)), static_cast<double>(i / static_cast<std::size_t>(width)));
+    };
     StripeScan out;
     out.width = width;
     out.height = height;
@@ -325,9 +328,8 @@ StripeScan StripeScanner::scan(const ImageF& gray, const metrics::Silhouette& si
             Eigen::MatrixXd A(static_cast<Eigen::Index>(pixels.size()), 3);
             Eigen::VectorXd b(static_cast<Eigen::Index>(pixels.size()));
             for (std::size_t k = 0; k < pixels.size(); ++k) {
-                const double x = static_cast<double>(pixels[k] % static_cast<std::size_t>(width)) - p.x();
-                const double y = static_cast<double>(pixels[k] / static_cast<std::size_t>(width)) - p.y();
-                A.row(static_cast<Eigen::Index>(k)) << 1.0, x, y;
+                const Eigen::Vector2d d = pixel_of(pixels[k]) - p;
+                A.row(static_cast<Eigen::Index>(k)) << 1.0, d.x(), d.y();
                 b(static_cast<Eigen::Index>(k)) = period * unwrapped[pixels[k]] / kTwoPi;
             }
             const Eigen::Vector3d fit = A.colPivHouseholderQr().solve(b);
@@ -341,9 +343,7 @@ StripeScan StripeScanner::scan(const ImageF& gray, const metrics::Silhouette& si
             for (long long candidate = extrapolated - 1; candidate <= extrapolated + 1; ++candidate) {
                 std::vector<double> distances;
                 for (const std::size_t i : pixels) {
-                    const Eigen::Vector2d pixel(static_cast<double>(i % static_cast<std::size_t>(width)),
-                                                static_cast<double>(i / static_cast<std::size_t>(width)));
-                    const Eigen::Vector3d X = triangulate(pixel, period * (unwrapped[i] / kTwoPi + static_cast<double>(candidate)));
+                    const Eigen::Vector3d X = triangulate(pixel_of(i), period * (unwrapped[i] / kTwoPi + static_cast<double>(candidate)));
                     if (X.allFinite()) distances.push_back((X - pin).norm());
                 }
                 if (distances.size() < pixels.size() / 2) continue;
@@ -390,8 +390,7 @@ StripeScan StripeScanner::scan(const ImageF& gray, const metrics::Silhouette& si
     }
 
     const auto camera_depth = [&](std::size_t i, double v_p) {
-        const Eigen::Vector2d pixel(static_cast<double>(i % static_cast<std::size_t>(width)), static_cast<double>(i / static_cast<std::size_t>(width)));
-        const Eigen::Vector3d X = triangulate(pixel, v_p);
+        const Eigen::Vector3d X = triangulate(pixel_of(i), v_p);
         return X.allFinite() ? (X - m_camera_centre).norm() : std::numeric_limits<double>::quiet_NaN();
     };
     // Pinless regions: the offset that continues a referenced neighbour's
@@ -459,8 +458,7 @@ StripeScan StripeScanner::scan(const ImageF& gray, const metrics::Silhouette& si
         const int id = region[i];
         if (id < 0 || !offset[static_cast<std::size_t>(id)] || region_size[static_cast<std::size_t>(id)] < m_settings.min_region_px) continue;
         const double v_p = period * (unwrapped[i] / kTwoPi + static_cast<double>(*offset[static_cast<std::size_t>(id)]));
-        const Eigen::Vector2d pixel(static_cast<double>(i % static_cast<std::size_t>(width)), static_cast<double>(i / static_cast<std::size_t>(width)));
-        const Eigen::Vector3d X = triangulate(pixel, v_p);
+        const Eigen::Vector3d X = triangulate(pixel_of(i), v_p);
         if (!X.allFinite()) continue;
         out.projector_coordinate.pixels[i] = static_cast<float>(v_p);
         out.points_m[i] = X.cast<float>();

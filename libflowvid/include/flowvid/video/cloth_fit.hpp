@@ -58,6 +58,12 @@ std::vector<FittedParameter> waving_test_parameters();
 enum class FitTarget { footage, tracks };
 const char* fit_target_name(FitTarget target);  // "footage", "tracks"
 
+// A tracks fit's waving frames and their half-life by default: point
+// distances grow with chaos, so fewer and faster-fading frames than a
+// footage fit (the capacity study, docs/cloth_model.md).
+constexpr int kTracksWavingFrames = 20;
+constexpr double kTracksHalfLifeFrames = 5.0;
+
 // The measured positions a tracks trial is compared with, one matrix per
 // compared frame in the order of ClothTrial::frames. E_k is the mean squared
 // distance (mm^2) over the points seen in frame k between each point and the
