@@ -35,7 +35,7 @@ struct FitClothOptions {
     std::string name;
     std::string drag = "nonlinear";
     std::string metric = "xor";
-    std::string fit_to = "footage";       // or "tracks": the captures' measured 3D points
+    std::string fit_to = "footage";       // or "scan" (the stripes' depth), "tracks" (measured 3D points)
     std::uint64_t seed = 1;
     long long evaluations = 400;
     int variability_runs = 4;
@@ -76,7 +76,9 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
     video::ClothFitRequest request;
     request.captures = std::move(captures);
     request.name = options.name.empty() ? std::filesystem::path(out).stem().stem().string() : options.name;
-    request.load.target = options.fit_to == "tracks" ? video::FitTarget::tracks : video::FitTarget::footage;
+    request.load.target = options.fit_to == "tracks" ? video::FitTarget::tracks
+                          : options.fit_to == "scan" ? video::FitTarget::scan
+                                                     : video::FitTarget::footage;
     request.load.waving_frames = options.frames;
     request.load.full_weight_frames = options.full_weight_frames;
     request.load.half_life_frames = options.half_life_frames;
@@ -115,8 +117,8 @@ nlohmann::json trials_with_floors(const video::ClothFitOutcome& outcome, const v
     total_floor = 0.0;
     for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i) {
         nlohmann::json trial = {{"capture", outcome.trial_names[i]}, {"final_error", outcome.final_evaluation.trials[i].error}};
-        if (outcome.trials[i].tracks)
-            // A tracks fit's error is a weighted mean square (mm^2): its root reads as a distance.
+        if (outcome.trials[i].measures_shape())
+            // A tracks or scan fit's error is a weighted mean square (mm^2): its root reads as a distance.
             trial["final_rms_mm"] = video::tracks_rms_mm(outcome.trials[i], outcome.final_evaluation.trials[i].error);
         // The floor re-solves the fitted fabric's equilibrium from scratch;
         // when that fails the fit is still good: report it without a floor.
@@ -126,7 +128,7 @@ nlohmann::json trials_with_floors(const video::ClothFitOutcome& outcome, const v
             const double trial_floor = video::weighted_floor(outcome.trials[i], f);
             total_floor += trial_floor;
             trial["floor"] = trial_floor;
-            if (outcome.trials[i].tracks) trial["floor_rms_mm"] = video::tracks_rms_mm(outcome.trials[i], trial_floor);
+            if (outcome.trials[i].measures_shape()) trial["floor_rms_mm"] = video::tracks_rms_mm(outcome.trials[i], trial_floor);
         } catch (const std::runtime_error& error) {
             log_message("warning: no predictability floor for " + outcome.trial_names[i] + ": " + error.what());
             trial["floor"] = nullptr;
@@ -258,7 +260,7 @@ FitClothOptions options_from_shard(const formats::FitShardFile& file) {
     };
     one_of("drag", {"nonlinear", "linear"}, o.drag);
     one_of("metric", {"xor", "edge"}, o.metric);
-    if (view.has("fit-to")) one_of("fit-to", {"footage", "tracks"}, o.fit_to);  // shards older than tracks fits: footage
+    if (view.has("fit-to")) one_of("fit-to", {"footage", "scan", "tracks"}, o.fit_to);  // shards older than tracks fits: footage
     one_of("integrator", {"rk4", "dopri54", "bs32", "implicit", "bdf2"}, o.run.integrator);
     if (view.has("seed") && view.json().at("seed").is_number_unsigned()) o.seed = view.json().at("seed").get<std::uint64_t>();
     else o.seed = static_cast<std::uint64_t>(view.integer("seed", 0, std::numeric_limits<std::int64_t>::max()).value_or(1));
@@ -485,7 +487,9 @@ const RegisterFitKind registration{FitKind{
             "silhouettes with the footage (thesis eq. 2.20-2.24). With --fit-to tracks it compares the\n"
             "capture's measured 3D points instead (capture.json \"tracks\": motion-capture markers, a\n"
             "scanner): the error is then a weighted mean square distance in mm^2, and the summary gives\n"
-            "each trial's RMS in mm. Several captures are fitted jointly:\n"
+            "each trial's RMS in mm. --fit-to scan measures the swatch's shape from the footage itself\n"
+            "(the projector's stripes triangulated per pixel) and compares depths along the camera rays,\n"
+            "also in mm. Several captures are fitted jointly:\n"
             "give the static drape(s) and the waving test(s) of one fabric. Static drapes alone fit the\n"
             "6 stiffness and damping parameters; with a waving test the 3 drag parameters too (9).\n"
             "The search is a Halton design, then simulated annealing from its best point, then a\n"
@@ -527,7 +531,7 @@ const RegisterFitKind registration{FitKind{
         app.add_option("--budget-seconds", options->budget_seconds, "stop the search after this wall time (0 = no limit)")
             ->check(CLI::NonNegativeNumber)
             ->capture_default_str();
-        app.add_option("--frames", options->frames, "waving frames compared (from the first; --fit-to tracks: 20)")
+        app.add_option("--frames", options->frames, "waving frames compared (from the first; --fit-to tracks or scan: 20)")
             ->check(CLI::Range(2, 100000))
             ->capture_default_str();
         app.add_option("--full-weight-frames", options->full_weight_frames, "waving frames that count fully")
@@ -535,7 +539,7 @@ const RegisterFitKind registration{FitKind{
             ->capture_default_str();
         app.add_option("--half-life-frames", options->half_life_frames,
                        "later frames' weight halves every this many frames (0 = every frame counts fully; "
-                       "--fit-to tracks: 5)")
+                       "--fit-to tracks or scan: 5)")
             ->check(CLI::NonNegativeNumber)
             ->capture_default_str();
         app.add_option("--static-weight", options->static_weight,
@@ -546,8 +550,9 @@ const RegisterFitKind registration{FitKind{
             ->check(CLI::IsMember({"xor", "edge"}))
             ->capture_default_str();
         app.add_option("--fit-to", options->fit_to,
-                       "footage: the frames (angle maps and silhouettes); tracks: the captures' measured 3D points")
-            ->check(CLI::IsMember({"footage", "tracks"}))
+                       "footage: the frames (angle maps and silhouettes); scan: the shape the frames' projector "
+                       "stripes measure (depth per pixel); tracks: the captures' measured 3D points")
+            ->check(CLI::IsMember({"footage", "scan", "tracks"}))
             ->capture_default_str();
         app.add_option("--drag", options->drag, "nonlinear (thesis: kN, kf, kT) or linear (the comparison model: kL, kT)")
             ->check(CLI::IsMember({"nonlinear", "linear"}))
@@ -569,7 +574,7 @@ const RegisterFitKind registration{FitKind{
         CLI::Option* half_life = app.get_option("--half-life-frames");
         return [options, variability_runs, frames, half_life](const GlobalOptions& global) {
             options->variability_runs_given = variability_runs->count() > 0;
-            if (options->fit_to == "tracks") {
+            if (options->fit_to == "tracks" || options->fit_to == "scan") {
                 if (frames->count() == 0) options->frames = video::kTracksWavingFrames;
                 if (half_life->count() == 0) options->half_life_frames = video::kTracksHalfLifeFrames;
             }

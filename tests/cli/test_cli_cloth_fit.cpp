@@ -165,6 +165,30 @@ TEST(CliClothFit, TracksFitFindsTheFabricThatMadeTheTracks) {
     EXPECT_NE(none.err.find("--fit-to footage"), std::string::npos) << none.err;
 }
 
+TEST(CliClothFit, ScanFitComparesTheStripesDepthAndSaysSo) {
+    // --fit-to scan on the silk drape: the footage's own stripe scan is what
+    // the fit compares with (depth along the camera rays, mm), with the
+    // tracks fits' frame defaults and a preset that names the metric. The
+    // fitted drape's RMS depth error is measured against the scan's accuracy
+    // on this capture (the truth itself scores ~2 mm) and the start's.
+    const std::string dir = own_dir("cli_fit_scan");
+    const CliResult fit = run_flowvid({"fit", "cloth", "--capture", shared_path("captures/cloth-silk-static-1"), "--fit-to",
+                                       "scan", "--out", dir + "/scan.fabric.json", "--evaluations", "16",
+                                       "--variability-runs", "0", "--resolution", "12x12", "--json"});
+    ASSERT_EQ(fit.exit_code, 0) << fit.err;
+    const nlohmann::json summary = nlohmann::json::parse(fit.out);
+    EXPECT_EQ(summary["fit_to"], "scan");
+    EXPECT_EQ(summary["waving_frames"], 20);
+    EXPECT_EQ(summary["half_life_frames"], 5.0);
+    const double start_rms = std::sqrt(summary["trials"][0]["start_error"].get<double>());
+    const double final_rms = summary["trials"][0]["final_rms_mm"].get<double>();
+    std::printf("[measured] scan fit of the silk drape at 12x12: RMS depth error %.2f mm (start %.2f mm)\n", final_rms, start_rms);
+    EXPECT_LE(final_rms, start_rms);
+    EXPECT_GT(final_rms, 1.0);   // not below the scan's own accuracy
+    EXPECT_LT(final_rms, 12.0);  // a drape in the footage's fold state
+    EXPECT_EQ(flowvid::formats::read_fabric_preset(dir + "/scan.fabric.json").provenance.metric, "scan_depth_mean_square_mm2");
+}
+
 TEST(CliClothFit, BadRequestsNameTheProblem) {
     const CliResult rigid = run_flowvid({"fit", "cloth", "--capture", shared_path("captures/rigid-toss-major"), "--out",
                                          own_dir("cli_fit_bad") + "/x.fabric.json"});

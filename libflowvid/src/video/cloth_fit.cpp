@@ -4,6 +4,7 @@
 #include "flowvid/optim/thread_pool.hpp"
 #include "flowvid/version.hpp"
 #include "flowvid/video/stripe_render.hpp"
+#include "flowvid/video/stripe_scan.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -81,7 +82,14 @@ std::vector<FittedParameter> waving_test_parameters() {
     return p;
 }
 
-const char* fit_target_name(FitTarget target) { return target == FitTarget::tracks ? "tracks" : "footage"; }
+const char* fit_target_name(FitTarget target) {
+    switch (target) {
+    case FitTarget::tracks: return "tracks";
+    case FitTarget::scan: return "scan";
+    case FitTarget::footage: break;
+    }
+    return "footage";
+}
 
 namespace {
 
@@ -111,7 +119,7 @@ ClothTrial load_tracks_trial(const formats::Capture& capture, const TrialLoadSet
         Diagnostics diagnostics(capture.json_path);
         diagnostics.error("/tracks", "this capture has no 3D tracks to fit to",
                           "add a \"tracks\" entry (measured positions of swatch points, see the capture contract), "
-                          "or fit to the footage (--fit-to footage)");
+                          "or fit to the footage (--fit-to footage, or --fit-to scan for the shape its stripes measure)");
         diagnostics.throw_if_errors();
     }
     ClothTrial trial;
@@ -141,7 +149,75 @@ ClothTrial load_tracks_trial(const formats::Capture& capture, const TrialLoadSet
     return trial;
 }
 
+// A scan trial: the footage's frames scanned in order (each references its
+// stripe periods by the one before), sampled every stride pixels.
+ClothTrial load_scan_trial(const formats::Capture& capture, const TrialLoadSettings& settings) {
+    ClothFootage footage(capture, settings.segmentation);
+    ClothTrial trial;
+    trial.name = capture.folder;
+    trial.is_static = capture.kind == "cloth.static";
+    trial.experiment = cloth::experiment_from_capture(capture);
+    trial.camera = footage.camera();
+    trial.projector = footage.projector();
+    const int count = compared_frame_count(trial, settings, footage.count());
+    const std::vector<double> weights = frame_weights(trial, settings, count);
+    StripeScanner scanner = scanner_for(capture);
+    ScanReference reference;
+    reference.cap_m = settings.scan_cap_m;
+    reference.period_units = trial.projector.pattern.period_px;
+    const int stride = std::max(1, settings.scan_stride_px);
+    StripeScan previous;
+    for (int k = 0; k < count; ++k) {
+        const ClothFrame frame = footage.frame(footage.first() + k);
+        StripeScan scan = scanner.scan(frame.gray, frame.silhouette, pin_positions_at(capture, k + 1),
+                                       previous.width > 0 ? &previous : nullptr);
+        std::vector<ScanReference::Sample> samples;
+        for (int y = 0; y < scan.height; y += stride)
+            for (int x = 0; x < scan.width; x += stride) {
+                if (!scan.measured(x, y)) continue;
+                const double v = scan.projector_coordinate.at(x, y);
+                // Metres of depth along the ray per unit of v_p, by central difference.
+                const Eigen::Vector3d ahead = scanner.triangulate({x, y}, v + 0.5), behind = scanner.triangulate({x, y}, v - 0.5);
+                const double metres_per_unit = (ahead - behind).norm();
+                if (!std::isfinite(metres_per_unit) || metres_per_unit <= 0.0) continue;
+                samples.push_back({x, y, v, metres_per_unit});
+            }
+        reference.samples.push_back(std::move(samples));
+        if (k == 0) {
+            reference.width = scan.width;
+            reference.height = scan.height;
+            reference.first_frame_points_m = scan.points_m;
+        }
+        metrics::ReferenceFrame compared;
+        compared.number = k + 1;
+        compared.weight = weights[static_cast<std::size_t>(k)];
+        trial.frames.push_back(std::move(compared));
+        previous = std::move(scan);
+    }
+    trial.scan = std::move(reference);
+    truncate_experiment(trial, count);
+    return trial;
+}
+
 }  // namespace
+
+std::vector<double> scan_residuals_m(const ScanReference& scan, std::size_t frame, const StripeImage& rendered) {
+    std::vector<double> r;
+    r.reserve(scan.samples[frame].size());
+    for (const ScanReference::Sample& s : scan.samples[frame]) {
+        if (!std::isfinite(s.projector_coordinate)) continue;
+        const double simulated = rendered.projector_coordinate.at(s.x, s.y);
+        if (!std::isfinite(simulated)) {
+            r.push_back(scan.cap_m);  // the simulation does not cover this pixel
+            continue;
+        }
+        double difference = simulated - s.projector_coordinate;
+        if (scan.period_units > 0.0) difference -= scan.period_units * std::round(difference / scan.period_units);
+        const double depth_m = difference * s.metres_per_unit;
+        r.push_back(scan.cap_m * std::tanh(depth_m / scan.cap_m));
+    }
+    return r;
+}
 
 double track_frame_error_mm2(const Eigen::MatrixX3d& measured_m, const Eigen::MatrixX3d& simulated_m) {
     double sum = 0.0;
@@ -162,6 +238,7 @@ double tracks_rms_mm(const ClothTrial& trial, double weighted_error) {
 
 ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& settings) {
     if (settings.target == FitTarget::tracks) return load_tracks_trial(capture, settings);
+    if (settings.target == FitTarget::scan) return load_scan_trial(capture, settings);
     ClothFootage footage(capture, settings.segmentation);
     ClothTrial trial;
     trial.name = capture.folder;
@@ -214,12 +291,44 @@ std::vector<metrics::FrameError> compare_tracks(const ClothTrial& trial, const c
     return errors;
 }
 
+// A renderer of the simulation's projector coordinates for a scan trial.
+StripeRenderer scan_renderer(const ClothTrial& trial) {
+    StripeRenderSettings settings;
+    settings.projector_coordinates = true;
+    return StripeRenderer(trial.camera, trial.projector, settings);
+}
+
+std::vector<metrics::FrameError> compare_scan(const ClothTrial& trial, const cloth::SwatchRun& run) {
+    const ScanReference& scan = *trial.scan;
+    const int usable = usable_frames(run);
+    StripeRenderer renderer = scan_renderer(trial);
+    StripeImage rendered;
+    std::vector<metrics::FrameError> errors;
+    for (std::size_t k = 0; k < trial.frames.size(); ++k) {
+        const int index = trial.frames[k].number - 1;
+        metrics::FrameError fe;
+        if (index >= 0 && index < usable) {
+            renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
+                            run.swatch.mesh.triangles, rendered);
+            const std::vector<double> r = scan_residuals_m(scan, k, rendered);
+            double sum = 0.0;
+            for (const double v : r) sum += v * v;
+            fe.total = r.empty() ? 0.0 : 1e6 * sum / static_cast<double>(r.size());
+        } else {
+            fe.total = scan.missing_frame_error_mm2();
+        }
+        errors.push_back(fe);
+    }
+    return errors;
+}
+
 }  // namespace
 
 std::vector<metrics::FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
                                              const metrics::AngleMapMetricSettings& metric) {
     if (trial.tracks) return compare_tracks(trial, run);
     if (trial.frames.empty()) return {};  // nothing compared (no camera needed)
+    if (trial.scan) return compare_scan(trial, run);
     const int usable = usable_frames(run);
     StripeRenderer renderer(trial.camera, trial.projector);
     AngleMapper mapper(trial.angle_map);
@@ -252,6 +361,22 @@ ClothTrial simulated_trial(const ClothTrial& trial, const cloth::SwatchRun& run,
             if (index < 0 || index >= usable)
                 throw std::invalid_argument("simulated_trial: the run has no frame " + std::to_string(out.frames[k].number));
             out.tracks->positions_m[k] = sampler.sample(run.simulation.frames[static_cast<std::size_t>(index)]);
+        }
+        return out;
+    }
+    if (trial.scan) {
+        // The simulation's own projector coordinates at the samples (NaN where it does not cover).
+        const int usable = usable_frames(run);
+        StripeRenderer renderer = scan_renderer(trial);
+        StripeImage rendered;
+        for (std::size_t k = 0; k < out.frames.size(); ++k) {
+            const int index = out.frames[k].number - 1;
+            if (index < 0 || index >= usable)
+                throw std::invalid_argument("simulated_trial: the run has no frame " + std::to_string(out.frames[k].number));
+            renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
+                            run.swatch.mesh.triangles, rendered);
+            for (ScanReference::Sample& sample : out.scan->samples[k])
+                sample.projector_coordinate = rendered.projector_coordinate.at(sample.x, sample.y);
         }
         return out;
     }
@@ -306,6 +431,69 @@ Eigen::VectorXd measured_first_frame(const ClothTrial& trial, const cloth::Swatc
     return filled > 0 ? start : Eigen::VectorXd();
 }
 
+// A start in the fold state a scan trial's first frame shows: each free
+// vertex of `shape` seen by the camera at a scanned pixel moves to the
+// scanned point there (on the same camera ray, at the measured depth); the
+// others move by the mean of their grid neighbours' moves, spread a few
+// times. Empty when frame 1 was not scanned.
+Eigen::VectorXd scanned_first_frame(const ClothTrial& trial, const cloth::Swatch& swatch, const Eigen::VectorXd& shape) {
+    if (!trial.scan || trial.scan->first_frame_points_m.empty()) return {};
+    const ScanReference& scan = *trial.scan;
+    const int n = swatch.rows * swatch.cols;
+    std::vector<Eigen::Vector3d> move(static_cast<std::size_t>(n), Eigen::Vector3d::Zero());
+    std::vector<bool> known(static_cast<std::size_t>(n), false);
+    int measured = 0;
+    for (int i = 0; i < n; ++i) {
+        if (swatch.pinned[static_cast<std::size_t>(i)]) {
+            known[static_cast<std::size_t>(i)] = true;  // pins stay
+            continue;
+        }
+        const Eigen::Vector3d x = shape.segment<3>(3 * i);
+        const Eigen::Vector2d pixel = trial.camera.project(x);
+        if (!pixel.allFinite()) continue;
+        const int px = static_cast<int>(std::lround(pixel.x())), py = static_cast<int>(std::lround(pixel.y()));
+        if (px < 0 || py < 0 || px >= scan.width || py >= scan.height) continue;
+        const Eigen::Vector3f& p = scan.first_frame_points_m[static_cast<std::size_t>(py) * static_cast<std::size_t>(scan.width) +
+                                                            static_cast<std::size_t>(px)];
+        if (!p.allFinite()) continue;
+        move[static_cast<std::size_t>(i)] = p.cast<double>() - x;
+        known[static_cast<std::size_t>(i)] = true;
+        ++measured;
+    }
+    if (measured == 0) return {};
+    // Unseen vertices: their known neighbours' mean move, grown outwards.
+    for (int pass = 0; pass < swatch.rows + swatch.cols; ++pass) {
+        bool changed = false;
+        std::vector<bool> next = known;
+        std::vector<Eigen::Vector3d> next_move = move;
+        for (int r = 0; r < swatch.rows; ++r)
+            for (int c = 0; c < swatch.cols; ++c) {
+                const int i = r * swatch.cols + c;
+                if (known[static_cast<std::size_t>(i)]) continue;
+                Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+                int count = 0;
+                for (const auto& [dr, dc] : {std::pair{-1, 0}, std::pair{1, 0}, std::pair{0, -1}, std::pair{0, 1}}) {
+                    const int rr = r + dr, cc = c + dc;
+                    if (rr < 0 || cc < 0 || rr >= swatch.rows || cc >= swatch.cols) continue;
+                    const int j = rr * swatch.cols + cc;
+                    if (!known[static_cast<std::size_t>(j)] || swatch.pinned[static_cast<std::size_t>(j)]) continue;
+                    sum += move[static_cast<std::size_t>(j)];
+                    ++count;
+                }
+                if (count == 0) continue;
+                next_move[static_cast<std::size_t>(i)] = sum / count;
+                next[static_cast<std::size_t>(i)] = true;
+                changed = true;
+            }
+        known = std::move(next);
+        move = std::move(next_move);
+        if (!changed) break;
+    }
+    Eigen::VectorXd start = shape;
+    for (int i = 0; i < n; ++i) start.segment<3>(3 * i) += move[static_cast<std::size_t>(i)];
+    return start;
+}
+
 }  // namespace
 
 Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::ClothMaterial& material,
@@ -319,9 +507,11 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
         if (trial.frames[k].number == 1) kept.push_back(k);
     first_frame.frames.clear();
     if (first_frame.tracks) first_frame.tracks->positions_m.clear();
+    if (first_frame.scan) first_frame.scan->samples.clear();
     for (const std::size_t k : kept) {
         first_frame.frames.push_back(trial.frames[k]);
         if (first_frame.tracks) first_frame.tracks->positions_m.push_back(trial.tracks->positions_m[k]);
+        if (first_frame.scan) first_frame.scan->samples.push_back(trial.scan->samples[k]);
     }
     // Candidate starts: the bows, and for a tracks trial the measured first
     // frame itself (the solve then finds the equilibrium nearest to what was
@@ -335,21 +525,42 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
     if (candidates.empty()) candidates.push_back({settings.swatch.initial_bow, false});
     const bool choose = !first_frame.frames.empty();
     if (choose && trial.tracks) candidates.push_back({settings.swatch.initial_bow, true});
+    // A scan trial: each bow's equilibrium moved onto the scanned first
+    // frame, then settled (once: moving the settled shape onto the scan
+    // again and settling again moved the captures' starts further from
+    // their truth, 3.9-11.1 mm after one round against 4.0-15.9 after two).
+    const bool scanned = choose && trial.scan && !trial.scan->first_frame_points_m.empty();
+    const std::size_t bows = candidates.size();
+    if (scanned)
+        for (std::size_t b = 0; b < bows; ++b) candidates.push_back({candidates[b].bow, true});
+    std::vector<Eigen::VectorXd> bow_equilibria(bows);
     Eigen::VectorXd best;
     double best_error = std::numeric_limits<double>::infinity();
-    for (const Candidate& candidate : candidates) {
+    for (std::size_t index = 0; index < candidates.size(); ++index) {
+        const Candidate& candidate = candidates[index];
         cloth::SwatchOptions options = settings.swatch;
         options.simulation.threads = 1;
         options.initial_bow = candidate.bow;
         options.initial_positions.resize(0);
-        if (candidate.measured) {
+        cloth::SwatchRun run;
+        if (candidate.measured && trial.scan) {
+            const Eigen::VectorXd& from = bow_equilibria[index - bows];
+            if (from.size() == 0) continue;
             const cloth::Swatch swatch = cloth::build_swatch(equilibrium_only, options.rows, options.cols);
-            options.initial_positions =
-                measured_first_frame(trial, swatch, cloth::hanging_start(swatch, equilibrium_only, candidate.bow));
+            options.initial_positions = scanned_first_frame(trial, swatch, from);
             if (options.initial_positions.size() == 0) continue;
+            run = cloth::simulate_swatch(equilibrium_only, material, options);
+        } else {
+            if (candidate.measured) {
+                const cloth::Swatch swatch = cloth::build_swatch(equilibrium_only, options.rows, options.cols);
+                options.initial_positions =
+                    measured_first_frame(trial, swatch, cloth::hanging_start(swatch, equilibrium_only, candidate.bow));
+                if (options.initial_positions.size() == 0) continue;
+            }
+            run = cloth::simulate_swatch(equilibrium_only, material, options);
         }
-        const cloth::SwatchRun run = cloth::simulate_swatch(equilibrium_only, material, options);
         if (!run.equilibrium.converged || run.simulation.frames.empty()) continue;
+        if (index < bows) bow_equilibria[index] = run.simulation.frames.front();
         double error = 0.0;
         for (const metrics::FrameError& e : compare_run(first_frame, run, settings.metric)) error += e.total;
         if (!choose || candidates.size() == 1) error = 0.0;  // nothing to choose by
@@ -446,17 +657,50 @@ ClothEvaluation ClothFitProblem::evaluate(const cloth::ClothMaterial& material, 
     return out;
 }
 
-bool ClothFitProblem::all_tracks() const {
-    return std::all_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return t.tracks.has_value(); });
+bool ClothFitProblem::all_measure_shape() const {
+    return std::all_of(m_trials.begin(), m_trials.end(), [](const ClothTrial& t) { return t.measures_shape(); });
 }
 
+namespace {
+
+// sqrt(w_k / n_k) r for each of a scan trial's samples, r in mm.
+void append_scan_residuals(const ClothTrial& trial, const cloth::SwatchRun& run, std::vector<double>& out) {
+    const ScanReference& scan = *trial.scan;
+    const int usable = usable_frames(run);
+    StripeRenderer renderer = scan_renderer(trial);
+    StripeImage rendered;
+    for (std::size_t k = 0; k < trial.frames.size(); ++k) {
+        long long measured = 0;
+        for (const ScanReference::Sample& s : scan.samples[k]) measured += std::isfinite(s.projector_coordinate) ? 1 : 0;
+        if (measured == 0) continue;
+        const double weight = trial.frames[k].weight;
+        const int index = trial.frames[k].number - 1;
+        if (index < 0 || index >= usable) {
+            const double entry = std::sqrt(weight * scan.missing_frame_error_mm2() / static_cast<double>(measured));
+            out.insert(out.end(), static_cast<std::size_t>(measured), entry);
+            continue;
+        }
+        renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]), run.swatch.mesh.triangles,
+                        rendered);
+        const double scale = 1000.0 * std::sqrt(weight / static_cast<double>(measured));
+        for (const double r : scan_residuals_m(scan, k, rendered)) out.push_back(scale * r);
+    }
+}
+
+}  // namespace
+
 Eigen::VectorXd ClothFitProblem::residuals(const cloth::ClothMaterial& material, int threads) const {
-    if (!all_tracks()) throw std::logic_error("ClothFitProblem::residuals: only tracks trials have residuals");
+    if (!all_measure_shape())
+        throw std::logic_error("ClothFitProblem::residuals: only tracks and scan trials have residuals");
     std::vector<std::vector<double>> per_trial(m_trials.size());
     auto one = [&](std::size_t t, int simulation_threads) {
         const ClothTrial& trial = m_trials[t];
-        const TrackReference& tracks = *trial.tracks;
         const cloth::SwatchRun run = simulate(t, material, simulation_threads);
+        if (trial.scan) {
+            append_scan_residuals(trial, run, per_trial[t]);
+            return;
+        }
+        const TrackReference& tracks = *trial.tracks;
         const int usable = usable_frames(run);
         const cloth::UvSampler sampler(run.swatch.mesh, tracks.rows, tracks.cols);
         std::vector<double>& out = per_trial[t];
@@ -535,6 +779,10 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
     if (problem.trials().front().tracks) {
         // E_k in mm^2: the mean squared distance of the seen track points.
         prov.metric = "tracks_mean_square_mm2";
+    } else if (const std::optional<ScanReference>& scan = problem.trials().front().scan) {
+        // E_k in mm^2: the mean squared, softly capped depth error at the scan's samples.
+        prov.metric = "scan_depth_mean_square_mm2";
+        prov.metric_weights["cap_m"] = scan->cap_m;
     } else {
         prov.metric = metric.silhouette_term == metrics::SilhouetteTerm::pixel_xor ? "angle_map+silhouette_xor"
                                                                                      : "angle_map+silhouette_edge_distance";

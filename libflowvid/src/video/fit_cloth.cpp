@@ -39,9 +39,9 @@ std::vector<FittedParameter> parameters_for(const std::vector<ClothTrial>& trial
     std::vector<FittedParameter> p = !any_waving                ? static_test_parameters()
                                      : drag == DragModel::linear ? linear_drag_test_parameters()
                                                                  : waving_test_parameters();
-    const bool tracks = !trials.empty() && std::all_of(trials.begin(), trials.end(),
-                                                       [](const ClothTrial& t) { return t.tracks.has_value(); });
-    if (tracks)
+    const bool measured_shape = !trials.empty() && std::all_of(trials.begin(), trials.end(),
+                                                               [](const ClothTrial& t) { return t.measures_shape(); });
+    if (measured_shape)
         for (const FittedParameter& term : capacity_terms(any_waving, drag)) p.push_back(term);
     return p;
 }
@@ -259,8 +259,8 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
 
     // Tracks fits: polish the search's best point by least squares.
     const long long polish_evaluations =
-        request.polish_evaluations >= 0 ? request.polish_evaluations : (problem.all_tracks() ? 8LL * (n + 1) : 0LL);
-    if (polish_evaluations > 0 && problem.all_tracks()) {
+        request.polish_evaluations >= 0 ? request.polish_evaluations : (problem.all_measure_shape() ? 8LL * (n + 1) : 0LL);
+    if (polish_evaluations > 0 && problem.all_measure_shape()) {
         optim::LeastSquaresSettings polish;
         polish.max_evaluations = polish_evaluations;
         polish.threads = threads;

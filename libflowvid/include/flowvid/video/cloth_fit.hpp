@@ -21,6 +21,7 @@
 #include "flowvid/optim/objective.hpp"
 #include "flowvid/video/angle_map.hpp"
 #include "flowvid/video/cloth_footage.hpp"
+#include "flowvid/video/stripe_render.hpp"
 
 #include <Eigen/Core>
 
@@ -52,11 +53,14 @@ std::vector<FittedParameter> static_test_parameters();
 std::vector<FittedParameter> waving_test_parameters();
 
 // What a fit compares simulations with: the footage (angle maps and
-// silhouettes, thesis 2.4.3) or measured 3D positions of swatch points
-// (capture.json "tracks": motion-capture markers, a scanner; also the model
-// capacity study, which hands a capture's ground truth over as tracks).
-enum class FitTarget { footage, tracks };
-const char* fit_target_name(FitTarget target);  // "footage", "tracks"
+// silhouettes, thesis 2.4.3), the swatch's shape the footage's projector
+// stripes measure (a structured-light scan of each frame,
+// video/stripe_scan.hpp; from the footage alone), or measured 3D positions
+// of swatch points (capture.json "tracks": motion-capture markers, a
+// scanner; also the model capacity study, which hands a capture's ground
+// truth over as tracks).
+enum class FitTarget { footage, scan, tracks };
+const char* fit_target_name(FitTarget target);  // "footage", "scan", "tracks"
 
 // A tracks fit's waving frames and their half-life by default: point
 // distances grow with chaos, so fewer and faster-fading frames than a
@@ -78,6 +82,43 @@ struct TrackReference {
     double missing_frame_error_mm2 = 0.0;
 };
 
+// The footage's own shape measurement a scan trial is compared with: per
+// compared frame, sampled pixels where the stripe scan measured the absolute
+// projector coordinate v_p of the swatch. Per sample the simulated surface
+// seen through the same pixel has its own v_p; their difference times the
+// ray's metres per unit of v_p is the depth error d along the camera ray
+// (m), softly capped, r = cap tanh(d / cap), so that a region the scan
+// placed a stripe period off (about 6 cm in the captures) costs a bounded
+// amount. A sample the simulation does not cover costs the cap. E_k is the
+// mean of r^2 over the frame's samples, in mm^2: sum_k w_k E_k / sum_k w_k
+// is a mean square whose root is an RMS depth error in mm, comparable to a
+// tracks fit's RMS distance.
+struct ScanReference {
+    struct Sample {
+        int x = 0;  // pixel
+        int y = 0;
+        double projector_coordinate = 0.0;  // measured v_p (projector pixels)
+        double metres_per_unit = 0.0;       // depth along the ray per unit of v_p there
+    };
+    std::vector<std::vector<Sample>> samples;  // per compared frame
+    // Frame 1's scanned world points per pixel (row-major, NaN where not
+    // measured), for starting the simulation in the fold state the footage
+    // shows; empty when frame 1 is not compared.
+    int width = 0;
+    int height = 0;
+    std::vector<Eigen::Vector3f> first_frame_points_m;
+    double cap_m = 0.03;
+    // The stripes' period in units of v_p. A scan region unwrapped a whole
+    // number of periods off (a slip: the fold hid the step) measures v_p off
+    // by that many periods: the difference is taken modulo the period, so a
+    // slip costs nothing extra and a simulation more than half a period's
+    // depth away (about 3 cm in the captures) is capped anyway. 0: absolute.
+    double period_units = 0.0;
+    // E_k of a frame the simulation did not reach: every sample at twice the
+    // cap, so such a run ranks last.
+    double missing_frame_error_mm2() const { return 4e6 * cap_m * cap_m; }
+};
+
 // One trial: what is simulated and what it is compared with.
 struct ClothTrial {
     std::string name;                      // for reports (the capture folder)
@@ -92,6 +133,11 @@ struct ClothTrial {
     std::vector<metrics::ReferenceFrame> frames;
     // Set for a tracks trial: compared with these instead of the footage.
     std::optional<TrackReference> tracks;
+    // Set for a scan trial: compared with the footage's scanned shape.
+    std::optional<ScanReference> scan;
+    // Compared with 3D measurements (tracks or a scan): E_k in mm^2, a
+    // residual vector for least squares.
+    bool measures_shape() const { return tracks.has_value() || scan.has_value(); }
 };
 
 struct TrialLoadSettings {
@@ -103,6 +149,8 @@ struct TrialLoadSettings {
     double static_weight = 1.0;   // weight of each compared static-drape frame (a waving frame's full weight is 1)
     SegmentationSettings segmentation;
     std::optional<double> stripe_period_px;  // default: expected_stripe_period_px(capture)
+    int scan_stride_px = 2;       // scan fits: every this many pixels in x and y is a sample
+    double scan_cap_m = 0.03;     // scan fits: ScanReference::cap_m
     metrics::SilhouetteTerm silhouette_term = metrics::SilhouetteTerm::pixel_xor;  // prepares edge distances when needed
 };
 
@@ -160,14 +208,15 @@ public:
     // trials. Keeps a pointer to this problem, which must outlive it.
     optim::Objective objective() const;
 
-    // Tracks trials only (std::logic_error otherwise): the residual vector
-    // whose squared norm is evaluate(material).total, one entry per seen
-    // point, frame and axis: sqrt(w_k / n_k) * (simulated - measured) in mm,
-    // n_k the points seen in frame k. A frame the simulation did not reach
-    // spreads its missing-frame error over its entries, so the length never
-    // changes. For the least-squares polish.
+    // Tracks and scan trials only (std::logic_error otherwise): the residual
+    // vector whose squared norm is evaluate(material).total: for tracks one
+    // entry per seen point, frame and axis, sqrt(w_k / n_k) * (simulated -
+    // measured) in mm, n_k the points seen in frame k; for a scan one entry
+    // per sample, sqrt(w_k / n_k) * r in mm. A frame the simulation did not
+    // reach spreads its missing-frame error over its entries, so the length
+    // never changes. For the least-squares polish.
     Eigen::VectorXd residuals(const cloth::ClothMaterial& material, int threads = 1) const;
-    bool all_tracks() const;
+    bool all_measure_shape() const;
 
 private:
     // Calls run_trial(trial, simulation threads) for every trial, in parallel
@@ -222,8 +271,13 @@ double missing_frame_error(const metrics::ReferenceFrame& reference, const metri
 // no point was seen.
 double track_frame_error_mm2(const Eigen::MatrixX3d& measured_m, const Eigen::MatrixX3d& simulated_m);
 
-// The trial's weighted RMS distance (mm) for a tracks trial's weighted error
-// sum_k w_k E_k: sqrt(error / sum_k w_k).
+// The trial's weighted RMS distance (mm) for a tracks or scan trial's
+// weighted error sum_k w_k E_k: sqrt(error / sum_k w_k).
 double tracks_rms_mm(const ClothTrial& trial, double weighted_error);
+
+// r (m) of each of a scan frame's samples for a render of the simulation
+// with projector coordinates (StripeRenderSettings::projector_coordinates);
+// samples without a measured v_p are left out.
+std::vector<double> scan_residuals_m(const ScanReference& scan, std::size_t frame, const StripeImage& rendered);
 
 }  // namespace flowvid::video

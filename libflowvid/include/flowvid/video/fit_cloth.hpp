@@ -76,10 +76,10 @@ struct ClothFitRequest {
     std::vector<FittedParameter> parameters;
     long long evaluations = 400;           // main search: design + annealing
     int design_points = 0;                 // 0: min(16 n, evaluations / 4)
-    // Fits to tracks: after the search, a Levenberg-Marquardt polish of its
-    // best point (the tracks error is a sum of squares, so a few Jacobians
-    // converge where annealing creeps). Evaluations it may use; -1: 8 (n + 1)
-    // for tracks fits, none for footage fits.
+    // Fits to tracks or a scan: after the search, a Levenberg-Marquardt
+    // polish of its best point (their error is a sum of squares, so a few
+    // Jacobians converge where annealing creeps). Evaluations it may use;
+    // -1: 8 (n + 1) for tracks and scan fits, none for footage fits.
     long long polish_evaluations = -1;
     int variability_runs = 4;              // thesis table 2.2; 0: none (no uncertainty in the preset)
     long long variability_evaluations = 40;  // per run (a polish from the perturbed start)
