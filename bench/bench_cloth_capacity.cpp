@@ -86,8 +86,9 @@ struct Options {
     // trades reach for a preset that is the same fabric on any mesh.
     double min_bending_N_m = 0.0;
     // What the fit compares with: the scratch copies' tracks (the model's
-    // capacity) or the footage's own stripe scan (--fit-to scan: the shared
-    // captures, never truth; the predictions are scored the same way).
+    // capacity), or the footage alone (--fit-to scan: its stripe scan;
+    // footage: its angle maps and silhouettes; the shared captures, never
+    // truth). The predictions are scored the same way.
     fv::FitTarget fit_to = fv::FitTarget::tracks;
 };
 
@@ -163,13 +164,8 @@ std::string cell(double v) {
 // two compression ratios; linear-drag: + linear normal drag; hem: + the
 // hem's line density; diagonal: + the diagonal tension fibres; all: every
 // one of them (what fit cloth --fit-to tracks fits: fv::capacity_terms).
-std::vector<fv::FittedParameter> variant_parameters(const std::string& variant, double min_bending_N_m) {
+std::vector<fv::FittedParameter> variant_parameters(const std::string& variant) {
     std::vector<fv::FittedParameter> p = fv::waving_test_parameters();
-    for (fv::FittedParameter& parameter : p)
-        if (parameter.key == "bend_stiffness_N_m" && min_bending_N_m > 0.0) {
-            parameter.lower = std::max(parameter.lower, min_bending_N_m);
-            parameter.upper = std::max(parameter.upper, 10.0 * parameter.lower);
-        }
     const bool compression = variant == "compression" || variant == "all";
     const bool linear_drag = variant == "linear-drag" || variant == "all";
     const bool hem = variant == "hem" || variant == "all";
@@ -364,8 +360,9 @@ int main(int argc, char** argv) {
         else if (a == "--min-bending") o.min_bending_N_m = std::atof(value().c_str());
         else if (a == "--fit-to") {
             const std::string target = value();
-            if (target != "tracks" && target != "scan") return usage("--fit-to takes tracks or scan");
-            o.fit_to = target == "scan" ? fv::FitTarget::scan : fv::FitTarget::tracks;
+            if (target != "tracks" && target != "scan" && target != "footage")
+                return usage("--fit-to takes tracks, scan or footage");
+            o.fit_to = target == "scan" ? fv::FitTarget::scan : target == "footage" ? fv::FitTarget::footage : fv::FitTarget::tracks;
         }
         else if (a == "--blender-grids") {
             o.blender_grids.clear();
@@ -380,7 +377,8 @@ int main(int argc, char** argv) {
                         "   their weights' half-life after the first 10, the static drape's weight; predictions always\n"
                         "   cover the whole held-out trial)\n"
                         "  [--min-bending N_m] (a floor on the fitted bending stiffness; default: the fit's range)\n"
-                        "  [--fit-to tracks|scan] (scan: fit to the footage's stripe scan instead of the tracks)\n");
+                        "  [--fit-to tracks|scan|footage] (scan: the footage's stripe scan, footage: its angle maps and\n"
+                        "   silhouettes, instead of the tracks; the predictions are scored against truth the same way)\n");
             return 0;
         } else return usage(("unknown option " + a).c_str());
     }
@@ -438,7 +436,8 @@ int main(int argc, char** argv) {
                 request.load.waving_frames = o.waving_frames;
                 request.load.static_weight = o.static_weight;
                 request.problem = fit_settings();
-                request.parameters = variant_parameters(variant, o.min_bending_N_m);
+                request.parameters = variant_parameters(variant);
+                request.min_bending_N_m = o.min_bending_N_m;
                 request.evaluations = evaluations;
                 request.variability_runs = 0;
                 request.seed = o.seed;

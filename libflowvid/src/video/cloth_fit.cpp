@@ -82,6 +82,16 @@ std::vector<FittedParameter> waving_test_parameters() {
     return p;
 }
 
+std::vector<FittedParameter> with_bending_floor(std::vector<FittedParameter> parameters, double min_bending_N_m) {
+    if (min_bending_N_m <= 0.0) return parameters;
+    for (FittedParameter& p : parameters)
+        if (p.key == "bend_stiffness_N_m") {
+            p.lower = std::max(p.lower, min_bending_N_m);
+            p.upper = std::max(p.upper, 10.0 * p.lower);
+        }
+    return parameters;
+}
+
 const char* fit_target_name(FitTarget target) {
     switch (target) {
     case FitTarget::tracks: return "tracks";

@@ -84,7 +84,8 @@ struct FitControl {
 std::vector<ClothTrial> load_fit_trials(const ClothFitRequest& request, ClothFitOutcome& outcome) {
     std::vector<ClothTrial> trials = load_trials(request.captures, request.load);
     for (const ClothTrial& t : trials) outcome.trial_names.push_back(t.name);
-    outcome.parameters = request.parameters.empty() ? parameters_for(trials, request.drag) : request.parameters;
+    outcome.parameters = with_bending_floor(request.parameters.empty() ? parameters_for(trials, request.drag) : request.parameters,
+                                            request.min_bending_N_m);
     return trials;
 }
 

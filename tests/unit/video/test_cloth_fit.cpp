@@ -64,6 +64,17 @@ TEST(ClothFit, MaterialKeysAndTies) {
     EXPECT_EQ(static_test_parameters().size(), 6u);
     EXPECT_EQ(waving_test_parameters().size(), 9u);
     EXPECT_THROW(ClothFitProblem({}, static_test_parameters(), {}), std::invalid_argument);
+    // A bending floor raises only bending's lower bound (and its upper bound to 10x the floor).
+    const std::vector<FittedParameter> floored = with_bending_floor(waving_test_parameters(), 1e-5);
+    const std::vector<FittedParameter> plain = waving_test_parameters();
+    ASSERT_EQ(floored.size(), plain.size());
+    for (std::size_t i = 0; i < plain.size(); ++i) {
+        const bool bend = plain[i].key == "bend_stiffness_N_m";
+        EXPECT_EQ(floored[i].lower, bend ? 1e-5 : plain[i].lower) << plain[i].key;
+        EXPECT_EQ(floored[i].upper, bend ? std::max(plain[i].upper, 1e-4) : plain[i].upper) << plain[i].key;
+    }
+    EXPECT_EQ(with_bending_floor(plain, 1e-3)[2].upper, 1e-2);
+    EXPECT_EQ(with_bending_floor(plain, 0.0)[2].lower, plain[2].lower);
 }
 
 TEST(ClothFit, LoadsTrialsFromCaptures) {

@@ -51,6 +51,10 @@ double material_parameter(const cloth::ClothMaterial& material, const std::strin
 // terms (9). Ranges span the fabrics of the thesis and Blender's presets.
 std::vector<FittedParameter> static_test_parameters();
 std::vector<FittedParameter> waving_test_parameters();
+// `parameters` with bend_stiffness_N_m's lower bound raised to
+// `min_bending_N_m` (and its upper bound to at least 10x that); unchanged
+// when it is 0 or bending is not fitted.
+std::vector<FittedParameter> with_bending_floor(std::vector<FittedParameter> parameters, double min_bending_N_m);
 
 // What a fit compares simulations with: the footage (angle maps and
 // silhouettes, thesis 2.4.3), the swatch's shape the footage's projector

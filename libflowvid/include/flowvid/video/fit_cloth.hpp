@@ -74,6 +74,11 @@ struct ClothFitRequest {
     DragModel drag = DragModel::nonlinear;
     // The fitted parameters and their ranges; empty: parameters_for(trials, drag).
     std::vector<FittedParameter> parameters;
+    // A floor on the fitted bending stiffness (N m; 0: the parameters' own
+    // range). Folds much finer than a mesh edge make a drape depend on the
+    // mesh; a floor buys a preset that drapes alike on 12x12 to 48x48 meshes
+    // at the cost of reach (docs/cloth_model.md, "Resolution").
+    double min_bending_N_m = 0.0;
     long long evaluations = 400;           // main search: design + annealing
     int design_points = 0;                 // 0: min(16 n, evaluations / 4)
     // Fits to tracks or a scan: after the search, a Levenberg-Marquardt
