@@ -27,6 +27,7 @@
 #include "flowvid/cloth/swatch_output.hpp"
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/vertex_animation.hpp"
 #include "flowvid/video/cloth_eval.hpp"
 #include "flowvid/optim/least_squares.hpp"
@@ -444,7 +445,11 @@ int main(int argc, char** argv) {
                 request.threads = o.threads;
                 const std::string tag = fabric + "/" + variant + "/" + std::to_string(evaluations);
                 auto last = std::make_shared<long long>(-1000);
-                request.progress = [tag, last](const fv::ClothFitProgress& p) {
+                // The evaluations-to-error curve: the best training error after each evaluation reported.
+                auto curve = std::make_shared<nlohmann::json>(nlohmann::json::array());
+                request.progress = [tag, last, curve](const fv::ClothFitProgress& p) {
+                    if (p.evaluations > 0 && (curve->empty() || curve->back()[0].get<long long>() != p.evaluations))
+                        curve->push_back({p.evaluations, p.best_error});
                     if (p.evaluations - *last >= 50 || p.phase == "polish") {
                         std::fprintf(stderr, "  [%s] %s, %lld evaluations, best %.4g\n", tag.c_str(), p.phase.c_str(), p.evaluations,
                                      p.best_error);
@@ -478,6 +483,17 @@ int main(int argc, char** argv) {
                     fit.evaluations += nested.evaluations;
                 }
                 if (!nested_start || variant == "today") nested_start = fit.fitted;
+                if (fit.preset) {
+                    // The fitted fabric as a preset (recognition, other meshes); the nested
+                    // polish may have moved it, so its values are the final ones.
+                    ff::FabricPreset preset = *fit.preset;
+                    const ff::FabricParameters values =
+                        fc::fabric_from_material(fc::experiment_material(fit.trials.front().experiment, fit.fitted));
+                    for (const ff::FabricParameterInfo& info : ff::fabric_parameter_table())
+                        (preset.parameters.*(info.member)).value = (values.*(info.member)).value;
+                    ff::write_fabric_preset((scratch / (fabric + "-" + variant + "-" + std::to_string(evaluations) + ".fabric.json")).string(),
+                                            preset);
+                }
                 last_fitted = fit.fitted;
                 const Windows held_out = predict(copies[waving2], fit.fitted, o.threads);
                 const Windows start = predict(copies[waving2], fit.start, o.threads);
@@ -505,6 +521,7 @@ int main(int argc, char** argv) {
                     {"seconds", fit.seconds},
                     {"training_error", fit.final_evaluation.total},
                     {"fit_to", fv::fit_target_name(o.fit_to)},
+                    {"curve", *curve},
                     {"held_out_waving", windows_json(held_out)},
                     {"start_waving", windows_json(start)},
                     {"training_waving", windows_json(training_waving)},

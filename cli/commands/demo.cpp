@@ -335,6 +335,19 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
             body << " " << link(out / "fabric" / "eval" / "eval.html", out, "evaluation report (plots per frame)");
         body << "</p>\n";
         if (!eval.is_discarded() && eval.contains("captures")) {
+            // At a glance: each window's error bar above its floor's (grey);
+            // an error bar near its floor is as good as the footage allows.
+            html::BarChart chart;
+            chart.title = "metric E_k per window (blue) next to its predictability floor (grey)";
+            chart.value_label = "mean metric E_k per frame";
+            for (const auto& w : eval["captures"][0]["windows"]) {
+                const std::string frames = w.value("frames", "");
+                if (w["metric_mean"].is_number())
+                    chart.bars.push_back({"frames " + frames, w["metric_mean"].get<double>(), "#2e86c1"});
+                if (w["metric_floor"].is_number())
+                    chart.bars.push_back({"floor " + frames, w["metric_floor"].get<double>(), "#aab7b8"});
+            }
+            if (!chart.bars.empty()) body << "<figure>" << html::bar_chart_svg(chart) << "</figure>\n";
             html::Table table;
             table.caption = "metric E_k per window next to its predictability floor";
             table.header = {"frames", "metric E_k", "floor"};

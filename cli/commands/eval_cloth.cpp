@@ -27,6 +27,7 @@ struct TrialOptions {
     int full_weight_frames = 10;
     double half_life_frames = 10.0;
     std::string metric = "xor";
+    std::string compare = "footage";  // or "scan": the shape the stripes measure
 };
 
 void add_trial_options(CLI::App& app, TrialOptions& options) {
@@ -42,10 +43,23 @@ void add_trial_options(CLI::App& app, TrialOptions& options) {
     app.add_option("--metric", options.metric, "silhouette term: xor or edge")
         ->check(CLI::IsMember({"xor", "edge"}))
         ->capture_default_str();
+    app.add_option("--compare", options.compare,
+                   "footage: angle maps and silhouettes; scan: the swatch's shape the projector's stripes measure "
+                   "(RMS depth error, mm; 20 waving frames, half-life 5 unless given)")
+        ->check(CLI::IsMember({"footage", "scan"}))
+        ->capture_default_str();
+}
+
+// --compare scan: the scan fits' frame defaults unless --frames or --half-life-frames were given.
+void apply_compare_defaults(const CLI::Option* frames, const CLI::Option* half_life, TrialOptions& options) {
+    if (options.compare != "scan") return;
+    if (frames->count() == 0) options.frames = video::kTracksWavingFrames;
+    if (half_life->count() == 0) options.half_life_frames = video::kTracksHalfLifeFrames;
 }
 
 video::TrialLoadSettings load_settings(const TrialOptions& options) {
     video::TrialLoadSettings load;
+    load.target = options.compare == "scan" ? video::FitTarget::scan : video::FitTarget::footage;
     load.waving_frames = options.frames;
     load.full_weight_frames = options.full_weight_frames;
     load.half_life_frames = options.half_life_frames;
@@ -175,6 +189,7 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
                                                                                        " at frame " + std::to_string(a.report.frame)},
                                 {"weighted_error", a.weighted_error},
                                 {"windows", window_json}};
+        if (trial.measures_shape()) entry["rms_mm"] = video::tracks_rms_mm(trial, a.weighted_error);  // E_k in mm^2
         if (!a.vertex_rms_m.empty())
             entry["vertex_rms_mm_all_frames"] = 1e3 * video::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
         if (a.floor)
@@ -250,7 +265,12 @@ const RegisterEvalKind eval_registration{FitKind{
         add_trial_options(app, options->trial);
         add_cloth_run_options(app, options->run);
         app.add_flag("--json", options->json, "print the summary as JSON");
-        return [options](const GlobalOptions& global) { return run_eval_cloth(*options, global); };
+        const CLI::Option* frames = app.get_option("--frames");
+        const CLI::Option* half_life = app.get_option("--half-life-frames");
+        return [options, frames, half_life](const GlobalOptions& global) {
+            apply_compare_defaults(frames, half_life, options->trial);
+            return run_eval_cloth(*options, global);
+        };
     }}};
 
 // ---------------------------------------------------------------- recognize
@@ -293,7 +313,10 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
 
     nlohmann::json rows = nlohmann::json::array();
     std::ostringstream table;
-    table << "weighted metric error (rows: captures, columns: presets; * = lowest; the floor is the spread of\n"
+    const bool scan = options.trial.compare == "scan";
+    table << (scan ? "RMS depth error against the footage's stripe scan, mm"
+                   : "weighted metric error")
+          << " (rows: captures, columns: presets; * = lowest; the floor is the spread of\n"
              "runs of the lowest preset changed by one part in a million)\n";
     for (std::size_t c = 0; c < trials.size(); ++c) {
         std::size_t best = 0;
@@ -305,7 +328,8 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
             const video::TrialAssessment& a = assessments[p * trials.size() + c];
             errors[options.presets[p]] = a.weighted_error;
             char cell[64];
-            std::snprintf(cell, sizeof cell, "  %12.1f%s", a.weighted_error, p == best ? "*" : " ");
+            const double shown = scan ? video::tracks_rms_mm(trials[c], a.weighted_error) : a.weighted_error;
+            std::snprintf(cell, sizeof cell, scan ? "  %8.2f%s" : "  %12.1f%s", shown, p == best ? "*" : " ");
             table << cell;
             if (!a.vertex_rms_m.empty())
                 vertex[options.presets[p]] = 1e3 * video::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
@@ -317,7 +341,8 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
             trials[c], video::estimate_floor(trials[c], cloth::material_from_fabric(presets[best].parameters), *settings, floor,
                                              thread_count(options.run.threads)));
         char floor_text[48];
-        std::snprintf(floor_text, sizeof floor_text, "  (floor %.1f)", floor_error);
+        std::snprintf(floor_text, sizeof floor_text, scan ? "  (floor %.2f)" : "  (floor %.1f)",
+                      scan ? video::tracks_rms_mm(trials[c], floor_error) : floor_error);
         table << floor_text << '\n';
         nlohmann::json row = {{"capture", trials[c].name}, {"metric_error", errors}, {"recognized_as", options.presets[best]},
                               {"floor", floor_error}};
@@ -336,8 +361,9 @@ const RegisterCommand recognize_registration{Command{
         app.footer(
             "Simulates every preset in every capture's experiment and prints the matrix of weighted\n"
             "angle-map errors; each capture is recognised as the preset with the lowest error. With\n"
-            "--json, also the RMS vertex error against captures' ground truth where it exists\n"
-            "(evaluation only).\n\n"
+            "--compare scan the matrix holds RMS depth errors (mm) against the swatch's shape measured\n"
+            "from the footage's projector stripes instead. With --json, also the RMS vertex error\n"
+            "against captures' ground truth where it exists (evaluation only).\n\n"
             "Examples:\n"
             "  flowvid recognize --preset cotton.fabric.json --preset silk.fabric.json \\\n"
             "                    --capture ../shared/captures/cloth-cotton-waving-2 --capture ../shared/captures/cloth-silk-waving-2");
@@ -346,7 +372,12 @@ const RegisterCommand recognize_registration{Command{
         add_trial_options(app, options->trial);
         add_cloth_run_options(app, options->run);
         app.add_flag("--json", options->json, "print the matrix as JSON");
-        return [options](const GlobalOptions& global) { return run_recognize(*options, global); };
+        const CLI::Option* frames = app.get_option("--frames");
+        const CLI::Option* half_life = app.get_option("--half-life-frames");
+        return [options, frames, half_life](const GlobalOptions& global) {
+            apply_compare_defaults(frames, half_life, options->trial);
+            return run_recognize(*options, global);
+        };
     }}};
 
 }  // namespace
