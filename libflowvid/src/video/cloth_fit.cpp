@@ -159,16 +159,22 @@ ClothTrial load_tracks_trial(const formats::Capture& capture, const TrialLoadSet
     return trial;
 }
 
-// A scan trial: the footage's frames scanned in order (each references its
-// stripe periods by the one before), sampled every stride pixels.
-ClothTrial load_scan_trial(const formats::Capture& capture, const TrialLoadSettings& settings) {
-    ClothFootage footage(capture, settings.segmentation);
+// What every trial compared with footage shares: name, test, experiment and calibration.
+ClothTrial footage_trial(const formats::Capture& capture, const ClothFootage& footage) {
     ClothTrial trial;
     trial.name = capture.folder;
     trial.is_static = capture.kind == "cloth.static";
     trial.experiment = cloth::experiment_from_capture(capture);
     trial.camera = footage.camera();
     trial.projector = footage.projector();
+    return trial;
+}
+
+// A scan trial: the footage's frames scanned in order (each references its
+// stripe periods by the one before), sampled every stride pixels.
+ClothTrial load_scan_trial(const formats::Capture& capture, const TrialLoadSettings& settings) {
+    ClothFootage footage(capture, settings.segmentation);
+    ClothTrial trial = footage_trial(capture, footage);
     const int count = compared_frame_count(trial, settings, footage.count());
     const std::vector<double> weights = frame_weights(trial, settings, count);
     StripeScanner scanner = scanner_for(capture);
@@ -250,12 +256,7 @@ ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& 
     if (settings.target == FitTarget::tracks) return load_tracks_trial(capture, settings);
     if (settings.target == FitTarget::scan) return load_scan_trial(capture, settings);
     ClothFootage footage(capture, settings.segmentation);
-    ClothTrial trial;
-    trial.name = capture.folder;
-    trial.is_static = capture.kind == "cloth.static";
-    trial.experiment = cloth::experiment_from_capture(capture);
-    trial.camera = footage.camera();
-    trial.projector = footage.projector();
+    ClothTrial trial = footage_trial(capture, footage);
     const double period = settings.stripe_period_px.value_or(expected_stripe_period_px(capture));
     trial.angle_map = AngleMapSettings::for_stripe_period(period);
     const int count = compared_frame_count(trial, settings, footage.count());
