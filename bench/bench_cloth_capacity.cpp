@@ -19,7 +19,14 @@
 //                                [--evaluations 400[,800]] [--threads 2] [--seed 1]
 //                                [--scratch DIR] [--json FILE]
 //                                [--blender PATH | --no-blender] [--blender-grids 12,24,48] [--no-resolution]
-//                                [--nested-from EARLIER.json]
+//                                [--nested-from EARLIER.json] [--min-bending N_m] [--fit-to tracks|scan|footage]
+//
+// --fit-to scan or footage fits the footage alone (the shared captures, not
+// the scratch copies) and scores its predictions the same way: how close
+// the footage fit gets to the model's capacity (docs/cloth_fitting.md).
+// Every fitted fabric is also written to the scratch folder as a preset,
+// and the JSON record keeps each fit's progress reports (evaluations, best
+// training error; as often as the optimizer reports).
 //
 // Blender runs are cached in the scratch folder (they take minutes at 48x48).
 
@@ -445,7 +452,7 @@ int main(int argc, char** argv) {
                 request.threads = o.threads;
                 const std::string tag = fabric + "/" + variant + "/" + std::to_string(evaluations);
                 auto last = std::make_shared<long long>(-1000);
-                // The evaluations-to-error curve: the best training error after each evaluation reported.
+                // Progress reports (evaluations, best training error), as often as the fit reports.
                 auto curve = std::make_shared<nlohmann::json>(nlohmann::json::array());
                 request.progress = [tag, last, curve](const fv::ClothFitProgress& p) {
                     if (p.evaluations > 0 && (curve->empty() || curve->back()[0].get<long long>() != p.evaluations))
