@@ -187,6 +187,19 @@ TEST(CliClothFit, ScanFitComparesTheStripesDepthAndSaysSo) {
     EXPECT_GT(final_rms, 1.0);   // not below the scan's own accuracy
     EXPECT_LT(final_rms, 12.0);  // a drape in the footage's fold state
     EXPECT_EQ(flowvid::formats::read_fabric_preset(dir + "/scan.fabric.json").provenance.metric, "scan_depth_mean_square_mm2");
+
+    // eval cloth --compare scan scores the preset the same way: an RMS depth
+    // error whose square is the drape's weighted error (weight 1), near the fit's.
+    const CliResult eval = run_flowvid({"eval", "cloth", "--preset", dir + "/scan.fabric.json", "--capture",
+                                        shared_path("captures/cloth-silk-static-1"), "--compare", "scan", "--resolution",
+                                        "12x12", "--floor-members", "0", "--json"});
+    ASSERT_EQ(eval.exit_code, 0) << eval.err;
+    const nlohmann::json scored = nlohmann::json::parse(eval.out)["captures"][0];
+    const double eval_rms = scored["rms_mm"].get<double>();
+    std::printf("[measured] eval cloth --compare scan: %.2f mm (the fit's final %.2f mm)\n", eval_rms, final_rms);
+    EXPECT_NEAR(eval_rms * eval_rms, scored["weighted_error"].get<double>(), 1e-9 * eval_rms * eval_rms);
+    EXPECT_LT(eval_rms, 12.0);
+    EXPECT_GT(eval_rms, 1.0);
 }
 
 TEST(CliClothFit, BadRequestsNameTheProblem) {
