@@ -550,8 +550,8 @@ const RegisterFitKind registration{FitKind{
             ->capture_default_str();
         app.add_option("--min-bending", options->min_bending_N_m,
                        "floor on the fitted bending stiffness, N m (0 = its range): the soft bending that reproduces "
-                       "folds at the footage's mesh scale drapes differently on other meshes; 1e-5 gives a preset "
-                       "that drapes alike on 12x12 to 48x48 meshes, at a cost in accuracy (docs/cloth_model.md)")
+                       "folds at the footage's mesh scale drapes differently on other meshes; with 1e-5 the silk captures' "
+                       "preset drapes alike on 12x12 to 48x48 meshes, at a cost in accuracy (docs/cloth_model.md)")
             ->check(CLI::Range(0.0, 1e-3))
             ->capture_default_str();
         app.add_option("--static-weight", options->static_weight,
