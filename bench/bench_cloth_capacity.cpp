@@ -367,10 +367,9 @@ int main(int argc, char** argv) {
         else if (a == "--static-weight") o.static_weight = std::atof(value().c_str());
         else if (a == "--min-bending") o.min_bending_N_m = std::atof(value().c_str());
         else if (a == "--fit-to") {
-            const std::string target = value();
-            if (target != "tracks" && target != "scan" && target != "footage")
-                return usage("--fit-to takes tracks, scan or footage");
-            o.fit_to = target == "scan" ? fv::FitTarget::scan : target == "footage" ? fv::FitTarget::footage : fv::FitTarget::tracks;
+            const std::optional<fv::FitTarget> target = fv::fit_target_from_name(value());
+            if (!target) return usage("--fit-to takes tracks, scan or footage");
+            o.fit_to = *target;
         }
         else if (a == "--blender-grids") {
             o.blender_grids.clear();

@@ -65,6 +65,13 @@ std::optional<cloth::SwatchOptions> swatch_options(const ClothRunOptions& option
     return swatch;
 }
 
+void apply_shape_target_frame_defaults(video::FitTarget target, const CLI::Option* frames_option,
+                                       const CLI::Option* half_life_option, int& frames, double& half_life_frames) {
+    if (target == video::FitTarget::footage) return;
+    if (frames_option->count() == 0) frames = video::kTracksWavingFrames;
+    if (half_life_option->count() == 0) half_life_frames = video::kTracksHalfLifeFrames;
+}
+
 int thread_count(int requested) {
     if (requested > 0) return requested;
     return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));

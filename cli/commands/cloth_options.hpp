@@ -6,6 +6,7 @@
 
 #include "flowvid/cloth/swatch.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
+#include "flowvid/video/cloth_fit.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -35,6 +36,12 @@ std::optional<std::pair<int, int>> parse_grid(const std::string& text, const std
 
 // The swatch options of a command's flags; nullopt (logged) for a bad --resolution.
 std::optional<cloth::SwatchOptions> swatch_options(const ClothRunOptions& options);
+
+// Tracks and scan targets compare point distances that grow with chaos:
+// unless --frames / --half-life-frames were given (their options here),
+// they take video::kTracksWavingFrames and kTracksHalfLifeFrames.
+void apply_shape_target_frame_defaults(video::FitTarget target, const CLI::Option* frames_option,
+                                       const CLI::Option* half_life_option, int& frames, double& half_life_frames);
 
 // Threads to use: the option, or every core for 0.
 int thread_count(int requested);

@@ -50,16 +50,18 @@ void add_trial_options(CLI::App& app, TrialOptions& options) {
         ->capture_default_str();
 }
 
+video::FitTarget compared_target(const TrialOptions& options) {
+    return video::fit_target_from_name(options.compare).value_or(video::FitTarget::footage);
+}
+
 // --compare scan: the scan fits' frame defaults unless --frames or --half-life-frames were given.
 void apply_compare_defaults(const CLI::Option* frames, const CLI::Option* half_life, TrialOptions& options) {
-    if (options.compare != "scan") return;
-    if (frames->count() == 0) options.frames = video::kTracksWavingFrames;
-    if (half_life->count() == 0) options.half_life_frames = video::kTracksHalfLifeFrames;
+    apply_shape_target_frame_defaults(compared_target(options), frames, half_life, options.frames, options.half_life_frames);
 }
 
 video::TrialLoadSettings load_settings(const TrialOptions& options) {
     video::TrialLoadSettings load;
-    load.target = options.compare == "scan" ? video::FitTarget::scan : video::FitTarget::footage;
+    load.target = compared_target(options);
     load.waving_frames = options.frames;
     load.full_weight_frames = options.full_weight_frames;
     load.half_life_frames = options.half_life_frames;

@@ -77,9 +77,7 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
     video::ClothFitRequest request;
     request.captures = std::move(captures);
     request.name = options.name.empty() ? std::filesystem::path(out).stem().stem().string() : options.name;
-    request.load.target = options.fit_to == "tracks" ? video::FitTarget::tracks
-                          : options.fit_to == "scan" ? video::FitTarget::scan
-                                                     : video::FitTarget::footage;
+    request.load.target = video::fit_target_from_name(options.fit_to).value_or(video::FitTarget::footage);
     request.load.waving_frames = options.frames;
     request.load.full_weight_frames = options.full_weight_frames;
     request.load.half_life_frames = options.half_life_frames;
@@ -586,10 +584,8 @@ const RegisterFitKind registration{FitKind{
         CLI::Option* half_life = app.get_option("--half-life-frames");
         return [options, variability_runs, frames, half_life](const GlobalOptions& global) {
             options->variability_runs_given = variability_runs->count() > 0;
-            if (options->fit_to == "tracks" || options->fit_to == "scan") {
-                if (frames->count() == 0) options->frames = video::kTracksWavingFrames;
-                if (half_life->count() == 0) options->half_life_frames = video::kTracksHalfLifeFrames;
-            }
+            apply_shape_target_frame_defaults(video::fit_target_from_name(options->fit_to).value_or(video::FitTarget::footage),
+                                              frames, half_life, options->frames, options->half_life_frames);
             return run_fit_cloth(*options, global);
         };
     }}};

@@ -101,6 +101,12 @@ const char* fit_target_name(FitTarget target) {
     return "footage";
 }
 
+std::optional<FitTarget> fit_target_from_name(std::string_view name) {
+    for (const FitTarget target : {FitTarget::footage, FitTarget::scan, FitTarget::tracks})
+        if (name == fit_target_name(target)) return target;
+    return std::nullopt;
+}
+
 namespace {
 
 // Simulate only as far as needed, plus two frames so that the pins' spline

@@ -75,6 +75,10 @@ TEST(ClothFit, MaterialKeysAndTies) {
     }
     EXPECT_EQ(with_bending_floor(plain, 1e-3)[2].upper, 1e-2);
     EXPECT_EQ(with_bending_floor(plain, 0.0)[2].lower, plain[2].lower);
+    // Fit targets by their command-line names, both ways.
+    for (const FitTarget target : {FitTarget::footage, FitTarget::scan, FitTarget::tracks})
+        EXPECT_EQ(fit_target_from_name(fit_target_name(target)), target);
+    EXPECT_FALSE(fit_target_from_name("Scan").has_value());
 }
 
 TEST(ClothFit, LoadsTrialsFromCaptures) {

@@ -28,6 +28,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace flowvid::video {
@@ -65,6 +66,8 @@ std::vector<FittedParameter> with_bending_floor(std::vector<FittedParameter> par
 // truth over as tracks).
 enum class FitTarget { footage, scan, tracks };
 const char* fit_target_name(FitTarget target);  // "footage", "scan", "tracks"
+// The target of one of those names; nullopt for any other text.
+std::optional<FitTarget> fit_target_from_name(std::string_view name);
 
 // A tracks fit's waving frames and their half-life by default: point
 // distances grow with chaos, so fewer and faster-fading frames than a
