@@ -20,6 +20,7 @@
 //                                [--scratch DIR] [--json FILE]
 //                                [--blender PATH | --no-blender] [--blender-grids 12,24,48] [--no-resolution]
 //                                [--nested-from EARLIER.json] [--min-bending N_m] [--fit-to tracks|scan|footage]
+//                                [--search annealing|cmaes]
 //
 // --fit-to scan or footage fits the footage alone (the shared captures, not
 // the scratch copies) and scores its predictions the same way: how close
@@ -93,6 +94,7 @@ struct Options {
     // Folds much finer than the mesh make a drape mesh-dependent; a floor
     // trades reach for a preset that is the same fabric on any mesh.
     double min_bending_N_m = 0.0;
+    std::string search = "annealing";  // or "cmaes" (fit cloth --search)
     // What the fit compares with: the scratch copies' tracks (the model's
     // capacity), or the footage alone (--fit-to scan: its stripe scan;
     // footage: its angle maps and silhouettes; the shared captures, never
@@ -366,6 +368,7 @@ int main(int argc, char** argv) {
         else if (a == "--half-life") o.half_life_frames = std::atof(value().c_str());
         else if (a == "--static-weight") o.static_weight = std::atof(value().c_str());
         else if (a == "--min-bending") o.min_bending_N_m = std::atof(value().c_str());
+        else if (a == "--search") o.search = value();
         else if (a == "--fit-to") {
             const std::optional<fv::FitTarget> target = fv::fit_target_from_name(value());
             if (!target) return usage("--fit-to takes tracks, scan or footage");
@@ -384,6 +387,7 @@ int main(int argc, char** argv) {
                         "   their weights' half-life after the first 10, the static drape's weight; predictions always\n"
                         "   cover the whole held-out trial)\n"
                         "  [--min-bending N_m] (a floor on the fitted bending stiffness; default: the fit's range)\n"
+                        "  [--search annealing|cmaes] (the search after the design, as fit cloth --search)\n"
                         "  [--fit-to tracks|scan|footage] (scan: the footage's stripe scan, footage: its angle maps and\n"
                         "   silhouettes, instead of the tracks; the predictions are scored against truth the same way)\n");
             return 0;
@@ -445,6 +449,7 @@ int main(int argc, char** argv) {
                 request.problem = fit_settings();
                 request.parameters = variant_parameters(variant);
                 request.min_bending_N_m = o.min_bending_N_m;
+                request.search = o.search == "cmaes" ? flowvid::optim::SearchMethod::cmaes : flowvid::optim::SearchMethod::annealing;
                 request.evaluations = evaluations;
                 request.variability_runs = 0;
                 request.seed = o.seed;

@@ -36,6 +36,7 @@ struct FitClothOptions {
     std::string drag = "nonlinear";
     std::string metric = "xor";
     std::string fit_to = "footage";       // or "scan" (the stripes' depth), "tracks" (measured 3D points)
+    std::string search = "cmaes";         // or "annealing" (the thesis's)
     std::uint64_t seed = 1;
     long long evaluations = 400;
     int variability_runs = 4;
@@ -89,6 +90,7 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
     request.load.silhouette_term = request.problem.metric.silhouette_term;
     request.drag = options.drag == "linear" ? video::DragModel::linear : video::DragModel::nonlinear;
     request.evaluations = options.evaluations;
+    request.search = options.search == "cmaes" ? optim::SearchMethod::cmaes : optim::SearchMethod::annealing;
     request.variability_runs = options.variability_runs;
     request.variability_evaluations = options.variability_evaluations;
     request.budget_seconds = options.budget_seconds;
@@ -188,6 +190,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
                               {"half_life_frames", request.load.half_life_frames},
                               {"static_weight", request.load.static_weight},
                               {"min_bending_N_m", request.min_bending_N_m},
+                              {"search", optim::search_method_name(request.search)},
                               {"drag", video::drag_model_name(request.drag)},
                               {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
                               {"start_error", outcome.start_evaluation.total},
@@ -200,7 +203,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
                               {"variability_runs", outcome.variability_runs_planned},
                               {"seconds", outcome.seconds},
                               {"total_seconds", seconds_since(command_started)},
-                              {"annealing_status", optim::status_name(outcome.search.annealing.status)}};
+                              {"search_status", optim::status_name(outcome.search.annealing.status)}};
     if (outcome.preset) formats::write_fabric_preset(options.out, *outcome.preset);
     else formats::write_file_atomically(options.out, [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
     if (options.json) std::cout << summary.dump(2) << '\n';
@@ -240,6 +243,9 @@ nlohmann::json result_options(const FitClothOptions& o) {
     if (o.fit_to != "footage") options["fit-to"] = o.fit_to;
     if (o.static_weight != 1.0) options["static-weight"] = o.static_weight;
     if (o.min_bending_N_m > 0.0) options["min-bending"] = o.min_bending_N_m;
+    // Written only when not the thesis's annealing, which shards written
+    // before the search could be chosen used (and have no "search").
+    if (o.search != "annealing") options["search"] = o.search;
     return options;
 }
 
@@ -263,6 +269,8 @@ FitClothOptions options_from_shard(const formats::FitShardFile& file) {
     one_of("drag", {"nonlinear", "linear"}, o.drag);
     one_of("metric", {"xor", "edge"}, o.metric);
     if (view.has("fit-to")) one_of("fit-to", {"footage", "scan", "tracks"}, o.fit_to);  // shards older than tracks fits: footage
+    o.search = "annealing";  // shards without "search" ran the annealing
+    if (view.has("search")) one_of("search", {"annealing", "cmaes"}, o.search);
     one_of("integrator", {"rk4", "dopri54", "bs32", "implicit", "bdf2"}, o.run.integrator);
     if (view.has("seed") && view.json().at("seed").is_number_unsigned()) o.seed = view.json().at("seed").get<std::uint64_t>();
     else o.seed = static_cast<std::uint64_t>(view.integer("seed", 0, std::numeric_limits<std::int64_t>::max()).value_or(1));
@@ -278,7 +286,7 @@ FitClothOptions options_from_shard(const formats::FitShardFile& file) {
     o.run.resolution = view.string("resolution").value_or(o.run.resolution);
     o.run.initial_bow = view.number("initial-bow", formats::NumberRange::closed(-2.0, 2.0)).value_or(o.run.initial_bow);
     view.check_known_keys({"drag", "metric", "fit-to", "seed", "evaluations", "budget-seconds", "frames", "full-weight-frames",
-                           "half-life-frames", "static-weight", "min-bending", "resolution", "integrator", "initial-bow"});
+                           "half-life-frames", "static-weight", "min-bending", "search", "resolution", "integrator", "initial-bow"});
     diagnostics.throw_if_errors();
     return o;
 }
@@ -496,14 +504,16 @@ const RegisterFitKind registration{FitKind{
             "also in mm. Several captures are fitted jointly:\n"
             "give the static drape(s) and the waving test(s) of one fabric. Static drapes alone fit the\n"
             "6 stiffness and damping parameters; with a waving test the 3 drag parameters too (9).\n"
-            "The search is a Halton design, then simulated annealing from its best point, then a\n"
+            "The search is CMA-ES (an evolution strategy that simulates a generation of candidates at\n"
+            "once and learns which parameters move together) from the better of the start and a small\n"
+            "Halton design (--search annealing: the thesis's design, then simulated annealing), then a\n"
             "variability analysis (restarts from +-5 % perturbed starts) whose spread becomes the\n"
             "preset's uncertainty. Waving cloth is chaotic: frames after --full-weight-frames count\n"
             "less (halving every --half-life-frames), so the fit does not chase unpredictable folds.\n"
             "Never reads truth/. Same seed and options give the same preset whatever --threads, unless\n"
             "--budget-seconds stops the search early. See docs/cloth_fitting.md.\n\n"
             "Farms and clusters (docs/farm.md): --shard i/n runs one of n independent tasks (its share of the\n"
-            "design, then one annealing of its own) and writes a partial result; `flowvid merge` picks the\n"
+            "design, then one search of its own) and writes a partial result; `flowvid merge` picks the\n"
             "best shard and writes the preset. --shards n does all of it here and writes the same bytes\n"
             "(set SOURCE_DATE_EPOCH to fix created_utc). Deterministic only without --budget-seconds (which\n"
             "then limits each shard).\n\n"
@@ -520,9 +530,9 @@ const RegisterFitKind registration{FitKind{
             ->required();
         app.add_option("--out", options->out, "fabric preset to write (*.fabric.json)")->required();
         app.add_option("--name", options->name, "fabric name in the preset (default: from --out)");
-        app.add_option("--seed", options->seed, "random seed (design scrambling, annealing)")->capture_default_str();
+        app.add_option("--seed", options->seed, "random seed (design scrambling, the search)")->capture_default_str();
         app.add_option("--evaluations", options->evaluations,
-                       "simulations of the trial set in the main search (design + annealing)")
+                       "simulations of the trial set in the main search (design + CMA-ES or annealing)")
             ->check(CLI::Range(10LL, 1000000LL))
             ->capture_default_str();
         app.add_option("--variability-runs", options->variability_runs,
@@ -564,13 +574,20 @@ const RegisterFitKind registration{FitKind{
                        "stripes measure (depth per pixel); tracks: the captures' measured 3D points")
             ->check(CLI::IsMember({"footage", "scan", "tracks"}))
             ->capture_default_str();
+        app.add_option("--search", options->search,
+                       "cmaes (an evolution strategy that simulates a generation of candidates on all threads at once "
+                       "and learns which parameters move together) or annealing (the thesis's simplex annealing, one "
+                       "candidate at a time, after a larger design): cmaes reached the same error in fewer simulations "
+                       "on every fit measured (docs/cloth_fitting.md, \"Search\")")
+            ->check(CLI::IsMember({"annealing", "cmaes"}))
+            ->capture_default_str();
         app.add_option("--drag", options->drag, "nonlinear (thesis: kN, kf, kT) or linear (the comparison model: kL, kT)")
             ->check(CLI::IsMember({"nonlinear", "linear"}))
             ->capture_default_str();
         add_cloth_run_options(app, options->run);
         CLI::Option* shard = app.add_option(
             "--shard", options->shard,
-            "i/n: run only shard i of n (a farm or cluster task): design points i-1, i-1+n, ... and one annealing; "
+            "i/n: run only shard i of n (a farm or cluster task): design points i-1, i-1+n, ... and one search; "
             "--out gets its partial result (JSON) for `flowvid merge`; no variability restarts");
         CLI::Option* shards =
             app.add_option("--shards", options->shards,

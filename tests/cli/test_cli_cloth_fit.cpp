@@ -202,6 +202,44 @@ TEST(CliClothFit, ScanFitComparesTheStripesDepthAndSaysSo) {
     EXPECT_GT(eval_rms, 1.0);
 }
 
+TEST(CliClothFit, CmaesSearchIsDeterministicImprovesOnItsStartAndTravelsThroughShards) {
+    // --search cmaes on the silk drape at 8x8: the same preset whatever the
+    // thread count (a generation is evaluated in parallel), a final error
+    // below the start's, the optimizer named in the preset, and
+    // a shard that records the search so that the merge finishes it alike.
+    const std::string dir = own_dir("cli_fit_cmaes");
+    const auto fit = [&](const std::string& out, std::vector<std::string> extra) {
+        std::vector<std::string> args = {"fit", "cloth", "--capture", shared_path("captures/cloth-silk-static-1"), "--out", out,
+                                         "--search", "cmaes", "--evaluations", "40", "--variability-runs", "0",
+                                         "--resolution", "8x8", "--seed", "5", "--json"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return run_flowvid(args);
+    };
+    const CliResult one = fit(dir + "/one.fabric.json", {"--threads", "1"});
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    const CliResult two = fit(dir + "/two.fabric.json", {"--threads", "2"});
+    ASSERT_EQ(two.exit_code, 0) << two.err;
+    const nlohmann::json summary = nlohmann::json::parse(one.out);
+    EXPECT_EQ(summary["search"], "cmaes");
+    EXPECT_LT(summary["final_error"].get<double>(), summary["start_error"].get<double>());
+    const flowvid::formats::FabricPreset a = flowvid::formats::read_fabric_preset(dir + "/one.fabric.json");
+    const flowvid::formats::FabricPreset b = flowvid::formats::read_fabric_preset(dir + "/two.fabric.json");
+    EXPECT_TRUE(a.parameters == b.parameters) << "the thread count changed the CMA-ES fit";
+    EXPECT_EQ(a.provenance.optimizer, "cmaes");
+
+    const CliResult shard = fit(dir + "/shard.json", {"--shard", "1/2"});
+    ASSERT_EQ(shard.exit_code, 0) << shard.err;
+    const nlohmann::json shard_file = nlohmann::json::parse(read_text(dir + "/shard.json"));
+    EXPECT_EQ(shard_file["request"]["options"]["search"], "cmaes") << shard_file.dump();
+    const CliResult merged = run_flowvid({"merge", "--out", dir + "/merged.fabric.json", dir + "/shard.json", "--json"});
+    EXPECT_NE(merged.exit_code, 0) << "one of two shards is not a whole fit";
+    const CliResult other = fit(dir + "/shard2.json", {"--shard", "2/2"});
+    ASSERT_EQ(other.exit_code, 0) << other.err;
+    const CliResult whole = run_flowvid({"merge", "--out", dir + "/merged.fabric.json", dir + "/shard.json", dir + "/shard2.json"});
+    ASSERT_EQ(whole.exit_code, 0) << whole.err;
+    EXPECT_EQ(flowvid::formats::read_fabric_preset(dir + "/merged.fabric.json").provenance.optimizer, "cmaes");
+}
+
 TEST(CliClothFit, BadRequestsNameTheProblem) {
     const CliResult rigid = run_flowvid({"fit", "cloth", "--capture", shared_path("captures/rigid-toss-major"), "--out",
                                          own_dir("cli_fit_bad") + "/x.fabric.json"});

@@ -1,5 +1,7 @@
 #include "flowvid/optim/annealing.hpp"
 
+#include "flowvid/optim/cmaes.hpp"
+
 #include "random.hpp"
 
 #include <algorithm>
@@ -21,6 +23,14 @@ const char* status_name(AnnealingResult::Status status) {
         case AnnealingResult::Status::time_budget: return "time_budget";
         case AnnealingResult::Status::cancelled: return "cancelled";
         case AnnealingResult::Status::no_finite_value: return "no_finite_value";
+    }
+    return "unknown";
+}
+
+const char* search_method_name(SearchMethod method) {
+    switch (method) {
+        case SearchMethod::annealing: return "annealing";
+        case SearchMethod::cmaes: return "cmaes";
     }
     return "unknown";
 }
@@ -428,6 +438,28 @@ MinimizeResult minimize(const Objective& objective, const ParameterSpace& space,
         annealing.max_evaluations = std::max<long long>(1, annealing.max_evaluations - design_charged);
     if (annealing.evaluation_seconds_hint <= 0.0 && design_evaluated > 0)
         annealing.evaluation_seconds_hint = design_seconds / static_cast<double>(design_evaluated);
+    if (settings.method == SearchMethod::cmaes) {
+        // CMA-ES evaluates whole generations in parallel, like the design:
+        // its pace per point is the design's, and it needs no schedule.
+        CmaesSettings strategy;
+        strategy.seed = detail::derive_seed(annealing.seed, 0xc3a5);
+        strategy.population = settings.cmaes_population;
+        strategy.initial_sigma = settings.cmaes_initial_sigma;
+        strategy.max_evaluations = annealing.max_evaluations;
+        strategy.budget_seconds = annealing.budget_seconds;
+        strategy.evaluation_seconds_hint = design_evaluated > 0 ? design_seconds / static_cast<double>(design_evaluated) *
+                                                                   static_cast<double>(evaluator.threads())
+                                                             : annealing.evaluation_seconds_hint;
+        strategy.progress = annealing.progress;
+        strategy.cancel = annealing.cancel;
+        const bool from_known = settings.cmaes_known_unit.size() == space.size() &&
+                                settings.cmaes_known_value < result.design.best_value();
+        result.annealing = from_known ? cmaes(evaluator, settings.cmaes_known_unit, strategy, settings.cmaes_known_value)
+                                      : cmaes(evaluator, result.design.points[result.design.best], strategy,
+                                              result.design.best_value());
+        result.evaluations = evaluator.evaluations();
+        return result;
+    }
     // A time budget with a budget-fitted schedule: plan the cooling for the
     // evaluations that fit in the time left, so that the search ends cooled
     // rather than cut off hot. A simplex step is one evaluation at a time

@@ -760,7 +760,7 @@ optim::Objective ClothFitProblem::objective() const {
 formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProblem& problem,
                                     const std::vector<formats::Capture>& captures, const cloth::ClothMaterial& material,
                                     const ClothEvaluation& final, std::uint64_t seed,
-                                    const optim::VariabilityReport* variability) {
+                                    const optim::VariabilityReport* variability, const std::string& optimizer) {
     if (captures.size() != problem.trials().size())
         throw std::invalid_argument("fitted_preset: " + std::to_string(captures.size()) + " captures for " +
                                     std::to_string(problem.trials().size()) + " trials");
@@ -806,7 +806,7 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
         prov.metric_weights["alpha"] = metric.alpha;
         if (metric.planar_weight > 0.0) prov.metric_weights["planar_weight"] = metric.planar_weight;
     }
-    prov.optimizer = "simulated_annealing";
+    prov.optimizer = optimizer;
     prov.seed = seed;
     for (std::size_t i = 0; i < final.trials.size() && i < captures.size(); ++i)
         prov.final_errors.push_back({captures[i].folder, final.trials[i].error});

@@ -154,7 +154,8 @@ bool end_fit(const ClothFitRequest& request, const ClothFitProblem& problem, int
     outcome.fitted = problem.material(best);
     outcome.final_evaluation = problem.evaluate(outcome.fitted, threads);
     outcome.preset = fitted_preset(request.name, problem, request.captures, outcome.fitted, outcome.final_evaluation,
-                                       request.seed, outcome.variability ? &*outcome.variability : nullptr);
+                                       request.seed, outcome.variability ? &*outcome.variability : nullptr,
+                                       request.search == optim::SearchMethod::cmaes ? "cmaes" : "simulated_annealing");
     return true;
 }
 
@@ -214,10 +215,19 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     const double variability_share = budget > 0.0 ? variability_seconds / budget : (variability_runs > 0 ? 0.2 : 0.0);
     optim::MinimizeSettings search;
     search.design = optim::DesignKind::halton;
-    search.design_points = request.design_points > 0
-                               ? request.design_points
-                               : static_cast<int>(std::clamp<long long>(request.evaluations / 4, n + 1, 16LL * n));
+    // CMA-ES explores by itself from its first generation: its design only
+    // picks the start (one point per shard at least), which leaves the
+    // simulations to the search that learns from them (docs/cloth_fitting.md, "Search").
+    const long long default_design = request.search == optim::SearchMethod::cmaes
+                                         ? std::max<long long>(n + 1, request.shard ? request.shard->count : 1)
+                                         : std::clamp<long long>(request.evaluations / 4, n + 1, 16LL * n);
+    search.design_points = request.design_points > 0 ? request.design_points : static_cast<int>(default_design);
     search.threads = threads;
+    search.method = request.search;
+    if (evaluate_start && std::isfinite(outcome.start_evaluation.total)) {
+        search.cmaes_known_unit = problem.space().to_unit(problem.values_of(outcome.start));
+        search.cmaes_known_value = outcome.start_evaluation.total;
+    }
     if (request.shard) {
         search.shard_index = request.shard->index;
         search.shard_count = request.shard->count;

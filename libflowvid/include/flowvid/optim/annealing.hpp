@@ -118,12 +118,32 @@ AnnealingResult anneal(Evaluator& evaluator, const Eigen::VectorXd& start_unit, 
                        double start_value = std::numeric_limits<double>::quiet_NaN(), double start_spread = 0.0,
                        int run = 0);
 
-// The thesis's procedure: a space-filling design, then annealing from its best point.
+struct CmaesSettings;
+
+// What searches from the design's best point: the thesis's annealing, or
+// CMA-ES (optim/cmaes.hpp), which evaluates a generation in parallel.
+enum class SearchMethod { annealing, cmaes };
+const char* search_method_name(SearchMethod method);
+
+// The thesis's procedure: a space-filling design, then annealing (or CMA-ES)
+// from its best point.
 struct MinimizeSettings {
     DesignKind design = DesignKind::halton;
     int grid_levels = 4;          // grid: levels^n points (the thesis's 4^n)
     int design_points = 0;        // halton: 0 = 16 n
     AnnealingSettings annealing;  // its seed also scrambles the Halton design
+    // The search after the design. Its seed, evaluation and time limits,
+    // progress callback and cancel flag are `annealing`'s for either method;
+    // CMA-ES takes its population and step size from `cmaes_population` and
+    // `cmaes_initial_sigma`.
+    SearchMethod method = SearchMethod::annealing;
+    int cmaes_population = 0;          // 0: 4 + floor(3 ln n)
+    double cmaes_initial_sigma = 0.2;  // unit-cube units
+    // A point the caller has evaluated already (unit cube; its value, NaN:
+    // none): CMA-ES starts from it when it beats the design's best (a
+    // design of a few points in many dimensions rarely beats a good guess).
+    Eigen::VectorXd cmaes_known_unit;
+    double cmaes_known_value = std::numeric_limits<double>::quiet_NaN();
     int threads = 0;              // 0: all cores
     // Wall-clock limit of the design (0 = none): points not started by then
     // are skipped (+inf) and the annealing starts from the best evaluated one.
@@ -146,7 +166,7 @@ struct MinimizeSettings {
 };
 struct MinimizeResult {
     DesignResult design;        // the points this search (or shard) evaluated
-    AnnealingResult annealing;
+    AnnealingResult annealing;  // the search after the design (CMA-ES fills it the same way)
     long long evaluations = 0;  // design + annealing
     int design_points_total = 0;  // of the whole design (sharded: all shards' points)
 };

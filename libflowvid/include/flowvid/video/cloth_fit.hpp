@@ -242,12 +242,14 @@ private:
 // variability analysis is given, the spread of its runs as the 1-sigma
 // uncertainty (thesis table 2.2). Provenance: the captures (path,
 // capture.json SHA-256, static or waving), the metric and its weights, the
-// optimizer, seed, per-trial errors of `final`, simulator and integrator.
-// `captures[i]` must be the capture of problem.trials()[i].
+// optimizer (`optimizer`: "simulated_annealing" or "cmaes"), seed, per-trial
+// errors of `final`, simulator and integrator. `captures[i]` must be the
+// capture of problem.trials()[i].
 formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProblem& problem,
                                     const std::vector<formats::Capture>& captures, const cloth::ClothMaterial& material,
                                     const ClothEvaluation& final, std::uint64_t seed,
-                                    const optim::VariabilityReport* variability = nullptr);
+                                    const optim::VariabilityReport* variability = nullptr,
+                                    const std::string& optimizer = "simulated_annealing");
 
 // Frames of a run that are good: all, or those before the frame it failed at.
 int usable_frames(const cloth::SwatchRun& run);

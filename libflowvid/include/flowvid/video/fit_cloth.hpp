@@ -79,8 +79,13 @@ struct ClothFitRequest {
     // mesh; a floor buys a preset that drapes alike on 12x12 to 48x48 meshes
     // at the cost of reach (docs/cloth_model.md, "Resolution").
     double min_bending_N_m = 0.0;
-    long long evaluations = 400;           // main search: design + annealing
-    int design_points = 0;                 // 0: min(16 n, evaluations / 4)
+    long long evaluations = 400;           // main search: design + annealing (or CMA-ES)
+    // The search after the design: CMA-ES, which evaluates a generation of
+    // candidates in parallel and learns the parameters' scales and
+    // correlations, or the thesis's annealing, which needed more simulations
+    // for the same error on every fit we measured (docs/cloth_fitting.md, "Search").
+    optim::SearchMethod search = optim::SearchMethod::cmaes;
+    int design_points = 0;                 // 0: annealing min(16 n, evaluations / 4) (at least n + 1); CMA-ES n + 1
     // Fits to tracks or a scan: after the search, a Levenberg-Marquardt
     // polish of its best point (their error is a sum of squares, so a few
     // Jacobians converge where annealing creeps). Evaluations it may use;
