@@ -3,6 +3,8 @@
 #include "flowvid/optim/cmaes.hpp"
 
 #include "random.hpp"
+#include "search_result.hpp"
+#include "timing.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -39,11 +41,8 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using detail::Clock;
+using detail::seconds_since;
 
 // The simplex and the search state of one run.
 class Annealer {
@@ -131,15 +130,7 @@ public:
                 }
             }
         }
-        if (!std::isfinite(m_best_value)) {
-            status = AnnealingResult::Status::no_finite_value;
-            r.reason = "no evaluated point gave a finite value";
-        }
-        r.status = status;
-        if (r.reason.empty() && status != AnnealingResult::Status::converged) r.reason = status_name(status);
-        r.best_unit = m_best;
-        r.best_values = m_ev.space().to_values(m_best);
-        r.best_value = m_best_value;
+        detail::close_result(r, status, m_best, m_best_value, m_ev.space());
         r.evaluations = m_ev.evaluations() - before;
         r.iterations = m_iterations;
         r.stages = m_stages;

@@ -1,6 +1,8 @@
 #include "flowvid/optim/cmaes.hpp"
 
 #include "random.hpp"
+#include "search_result.hpp"
+#include "timing.hpp"
 
 #include <Eigen/Eigenvalues>
 
@@ -16,11 +18,8 @@ namespace flowvid::optim {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-    return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using detail::Clock;
+using detail::seconds_since;
 
 // Standard normal numbers from the portable generator (Box-Muller, both
 // numbers of a pair used), so the samples are the same on every platform.
@@ -220,15 +219,7 @@ AnnealingResult cmaes(Evaluator& evaluator, const Eigen::VectorXd& start_unit, c
         if (std::isfinite(spread) && spread <= settings.tolerance * (std::abs(best_value) + 1e-12)) break;
     }
 
-    if (!std::isfinite(best_value)) {
-        status = AnnealingResult::Status::no_finite_value;
-        result.reason = "no evaluated point gave a finite value";
-    }
-    result.status = status;
-    if (result.reason.empty() && status != AnnealingResult::Status::converged) result.reason = status_name(status);
-    result.best_unit = best;
-    result.best_values = evaluator.space().to_values(best);
-    result.best_value = best_value;
+    detail::close_result(result, status, best, best_value, evaluator.space());
     result.evaluations = evaluator.evaluations() - before;
     result.iterations = generation;
     result.stages = generation;
