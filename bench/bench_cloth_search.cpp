@@ -87,7 +87,7 @@ long long evaluations_to_reach(const std::vector<CurvePoint>& curve, double targ
 
 // A small line plot of the curves (log error axis), readable at a glance.
 std::string curves_svg(const std::vector<std::pair<std::string, std::vector<CurvePoint>>>& curves, const std::string& title) {
-    const double width = 640, height = 360, left = 70, right = 20, top = 40, bottom = 50;
+    const double width = 660, height = 360, left = 90, right = 20, top = 40, bottom = 50;
     long long max_evaluations = 1;
     double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
     for (const auto& [name, curve] : curves)
@@ -217,7 +217,7 @@ int main() {
 
     std::printf("\n### Search: %s, static-1 + waving-1 + waving-2 (%d frames), --fit-to %s, budget %.0f s, %d threads\n\n",
                 fabric.c_str(), base.load.waving_frames, fit_to.c_str(), base.budget_seconds, base.threads);
-    std::printf("| search | parameters | design | search evaluations | best before polish | final error | evaluations (all phases) | wall s |\n"
+    std::printf("| search | parameters | design | search evaluations | best after search and polish | final error | evaluations (all phases) | wall s |\n"
                 "|---|---|---|---|---|---|---|---|\n");
     for (const std::string& method : methods) {
         const nlohmann::json& f = record["fits"][method];
