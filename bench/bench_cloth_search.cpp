@@ -16,7 +16,8 @@
 // (./cloth_search: curves.csv, search.json, curves.svg),
 // FLOWVID_SEARCH_METHODS (annealing,cmaes), FLOWVID_SEARCH_VARIABILITY_RUNS
 // (4, fit cloth's), FLOWVID_SEARCH_POLISH (-1: fit cloth's default),
-// FLOWVID_SEARCH_DESIGN_POINTS (0: fit cloth's default for each search).
+// FLOWVID_SEARCH_DESIGN_POINTS (0: fit cloth's default for each search),
+// FLOWVID_SEARCH_PLOT=DIR (only draw DIR/curves.svg again from its CSV).
 
 #include "flowvid/cloth/simulator.hpp"
 #include "flowvid/formats/capture.hpp"
@@ -90,12 +91,16 @@ std::string curves_svg(const std::vector<std::pair<std::string, std::vector<Curv
     const double width = 660, height = 360, left = 90, right = 20, top = 40, bottom = 50;
     long long max_evaluations = 1;
     double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+    // The top of the axis is the second-worst point of each curve: the first
+    // design point is often far off and would flatten everything after it
+    // (points above the top are drawn at the top).
     for (const auto& [name, curve] : curves)
-        for (const CurvePoint& p : curve) {
+        for (std::size_t k = 0; k < curve.size(); ++k) {
+            const CurvePoint& p = curve[k];
             if (!std::isfinite(p.best)) continue;
             max_evaluations = std::max(max_evaluations, p.evaluations);
             lo = std::min(lo, p.best);
-            hi = std::max(hi, p.best);
+            if (k > 0 || curve.size() == 1) hi = std::max(hi, p.best);
         }
     if (!(lo > 0.0) || !(hi > lo)) {
         lo = 1.0;
@@ -103,7 +108,9 @@ std::string curves_svg(const std::vector<std::pair<std::string, std::vector<Curv
     }
     const double log_lo = std::log10(lo) - 0.05, log_hi = std::log10(hi) + 0.05;
     const auto x_of = [&](double e) { return left + (width - left - right) * e / double(max_evaluations); };
-    const auto y_of = [&](double v) { return top + (height - top - bottom) * (log_hi - std::log10(v)) / (log_hi - log_lo); };
+    const auto y_of = [&](double v) {
+        return top + (height - top - bottom) * std::max(0.0, log_hi - std::log10(v)) / (log_hi - log_lo);
+    };
     std::ostringstream svg;
     svg << "<svg xmlns='http://www.w3.org/2000/svg' width='" << width << "' height='" << height
         << "' font-family='sans-serif' font-size='12'>\n<rect width='100%' height='100%' fill='white'/>\n"
@@ -146,7 +153,35 @@ std::string curves_svg(const std::vector<std::pair<std::string, std::vector<Curv
 
 }  // namespace
 
+// FLOWVID_SEARCH_PLOT=DIR: draw DIR/curves.svg again from DIR/curves.csv
+// (and DIR/search.json's fabric and target), without fitting.
+int replot(const fs::path& dir) {
+    std::vector<std::pair<std::string, std::vector<CurvePoint>>> curves;
+    std::ifstream csv((dir / "curves.csv").string());
+    std::string line;
+    std::getline(csv, line);  // header
+    while (std::getline(csv, line)) {
+        std::stringstream fields(line);
+        std::string method, evaluations, best;
+        if (!std::getline(fields, method, ',') || !std::getline(fields, evaluations, ',') || !std::getline(fields, best)) continue;
+        if (curves.empty() || curves.back().first != method) curves.emplace_back(method, std::vector<CurvePoint>{});
+        curves.back().second.push_back({std::atoll(evaluations.c_str()), std::atof(best.c_str())});
+    }
+    if (curves.empty()) {
+        std::fprintf(stderr, "%s: no curves to draw\n", (dir / "curves.csv").string().c_str());
+        return 1;
+    }
+    const nlohmann::json record = nlohmann::json::parse(std::ifstream((dir / "search.json").string()));
+    char title[160];
+    std::snprintf(title, sizeof title, "%s: best error against evaluations (%s fit, %.0f s, %d threads)",
+                  record.value("fabric", std::string("?")).c_str(), record.value("fit_to", std::string("?")).c_str(),
+                  record.value("budget_seconds", 0.0), record.value("threads", 0));
+    std::ofstream((dir / "curves.svg").string()) << curves_svg(curves, title);
+    return 0;
+}
+
 int main() {
+    if (const char* plot = std::getenv("FLOWVID_SEARCH_PLOT")) return replot(plot);
     const std::string fabric = env_text("FLOWVID_SEARCH_FABRIC", "cotton");
     const fs::path out = env_text("FLOWVID_SEARCH_OUT", "cloth_search");
     fs::create_directories(out);
@@ -241,7 +276,5 @@ int main() {
         }
     }
     std::ofstream((out / "search.json").string()) << record.dump(2) << '\n';
-    std::ofstream((out / "curves.svg").string())
-        << curves_svg(curves, fabric + ": best error against evaluations (" + fit_to + " fit)");
-    return 0;
+    return replot(out);
 }
