@@ -94,7 +94,7 @@ struct Options {
     // Folds much finer than the mesh make a drape mesh-dependent; a floor
     // trades reach for a preset that is the same fabric on any mesh.
     double min_bending_N_m = 0.0;
-    std::string search = "annealing";  // or "cmaes" (fit cloth --search)
+    flowvid::optim::SearchMethod search = flowvid::optim::SearchMethod::annealing;  // fit cloth --search
     // What the fit compares with: the scratch copies' tracks (the model's
     // capacity), or the footage alone (--fit-to scan: its stripe scan;
     // footage: its angle maps and silhouettes; the shared captures, never
@@ -368,7 +368,11 @@ int main(int argc, char** argv) {
         else if (a == "--half-life") o.half_life_frames = std::atof(value().c_str());
         else if (a == "--static-weight") o.static_weight = std::atof(value().c_str());
         else if (a == "--min-bending") o.min_bending_N_m = std::atof(value().c_str());
-        else if (a == "--search") o.search = value();
+        else if (a == "--search") {
+            const std::optional<flowvid::optim::SearchMethod> search = flowvid::optim::search_method_from_name(value());
+            if (!search) return usage("--search takes annealing or cmaes");
+            o.search = *search;
+        }
         else if (a == "--fit-to") {
             const std::optional<fv::FitTarget> target = fv::fit_target_from_name(value());
             if (!target) return usage("--fit-to takes tracks, scan or footage");
@@ -449,7 +453,7 @@ int main(int argc, char** argv) {
                 request.problem = fit_settings();
                 request.parameters = variant_parameters(variant);
                 request.min_bending_N_m = o.min_bending_N_m;
-                request.search = o.search == "cmaes" ? flowvid::optim::SearchMethod::cmaes : flowvid::optim::SearchMethod::annealing;
+                request.search = o.search;
                 request.evaluations = evaluations;
                 request.variability_runs = 0;
                 request.seed = o.seed;

@@ -32,6 +32,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -218,7 +219,12 @@ int main() {
     csv << "search,evaluations,best_error\n";
     for (const std::string& method : methods) {
         fv::ClothFitRequest request = base;
-        request.search = method == "cmaes" ? optim::SearchMethod::cmaes : optim::SearchMethod::annealing;
+        const std::optional<optim::SearchMethod> search = optim::search_method_from_name(method);
+        if (!search) {
+            std::fprintf(stderr, "FLOWVID_SEARCH_METHODS: \"%s\" is not annealing or cmaes\n", method.c_str());
+            return 2;
+        }
+        request.search = *search;
         long long last = -1000;
         std::string phase;
         request.progress = [&](const fv::ClothFitProgress& p) {

@@ -90,7 +90,7 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
     request.load.silhouette_term = request.problem.metric.silhouette_term;
     request.drag = options.drag == "linear" ? video::DragModel::linear : video::DragModel::nonlinear;
     request.evaluations = options.evaluations;
-    request.search = options.search == "cmaes" ? optim::SearchMethod::cmaes : optim::SearchMethod::annealing;
+    request.search = optim::search_method_from_name(options.search).value_or(optim::SearchMethod::cmaes);
     request.variability_runs = options.variability_runs;
     request.variability_evaluations = options.variability_evaluations;
     request.budget_seconds = options.budget_seconds;

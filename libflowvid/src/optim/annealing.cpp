@@ -37,6 +37,12 @@ const char* search_method_name(SearchMethod method) {
     return "unknown";
 }
 
+std::optional<SearchMethod> search_method_from_name(std::string_view name) {
+    for (const SearchMethod method : {SearchMethod::annealing, SearchMethod::cmaes})
+        if (name == search_method_name(method)) return method;
+    return std::nullopt;
+}
+
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -445,9 +451,8 @@ MinimizeResult minimize(const Objective& objective, const ParameterSpace& space,
         strategy.cancel = annealing.cancel;
         const bool from_known = settings.cmaes_known_unit.size() == space.size() &&
                                 settings.cmaes_known_value < result.design.best_value();
-        result.annealing = from_known ? cmaes(evaluator, settings.cmaes_known_unit, strategy, settings.cmaes_known_value)
-                                      : cmaes(evaluator, result.design.points[result.design.best], strategy,
-                                              result.design.best_value());
+        result.annealing = cmaes(evaluator, from_known ? settings.cmaes_known_unit : result.design.points[result.design.best],
+                                 strategy, from_known ? settings.cmaes_known_value : result.design.best_value());
         result.evaluations = evaluator.evaluations();
         return result;
     }

@@ -7,7 +7,6 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <numeric>
 #include <stdexcept>

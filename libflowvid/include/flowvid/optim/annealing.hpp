@@ -34,7 +34,9 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace flowvid::optim {
@@ -124,6 +126,8 @@ struct CmaesSettings;
 // CMA-ES (optim/cmaes.hpp), which evaluates a generation in parallel.
 enum class SearchMethod { annealing, cmaes };
 const char* search_method_name(SearchMethod method);
+// The method of one of those names; nullopt for any other text.
+std::optional<SearchMethod> search_method_from_name(std::string_view name);
 
 // The thesis's procedure: a space-filling design, then annealing (or CMA-ES)
 // from its best point.

@@ -11,7 +11,7 @@
 // scales and correlations of the fabric parameters (bending against drag,
 // say) from every generation and evaluates a generation on all cores at
 // once; on the cloth fits it reaches the annealing's final error in fewer
-// simulations (bench_cloth_fit --search both, docs/cloth_fitting.md).
+// simulations (bench/bench_cloth_search.cpp, docs/cloth_fitting.md "Search").
 //
 // It searches the unit cube of a ParameterSpace. A sample outside the cube
 // is reflected back into it (and the reflected point is what the update
@@ -40,7 +40,10 @@ struct CmaesSettings {
     double tolerance = 1e-10;      // ... or a generation's values and the best differ by less than this, relatively
     long long max_evaluations = 20000;  // the last generation is cut to what is left
     double budget_seconds = 0.0;        // wall-clock limit, 0 = none; a generation that cannot finish is not started
-    double evaluation_seconds_hint = 0.0;  // a generation's cost before the run has measured its own (per point, parallel)
+    // Wall seconds of one round of a batch (one point per thread), until the
+    // run has measured its own: a generation of lambda points costs
+    // ceil(lambda / threads) rounds.
+    double evaluation_seconds_hint = 0.0;
     // After every generation; AnnealingProgress::temperature carries sigma
     // and `stage` the generation. Return false to cancel.
     AnnealingCallback progress;
