@@ -94,6 +94,19 @@ struct Options {
     // Folds much finer than the mesh make a drape mesh-dependent; a floor
     // trades reach for a preset that is the same fabric on any mesh.
     double min_bending_N_m = 0.0;
+    // A scan fit's background band (px from the footage's outline; 0: off).
+    double outside_band_px = fv::ScanOutsideBand{}.max_px;
+    // Presets to score on the fit's own training objective instead of
+    // fitting (does the objective prefer the fabric nearer the truth?).
+    std::vector<std::string> score;
+    double budget_seconds = 0.0;  // fit cloth --budget-seconds (0: the evaluations alone end the fit)
+    // With --score: each preset's held-out waving-2 prediction is repeated
+    // with its bending and air drag changed by k parts in a million (k = 1..N,
+    // both signs), as the captures' README measured Blender's own chaos.
+    int chaos_members = 0;
+    bool score_from_measured_start = false;  // --score-from-measured-start
+    std::string score_start_material;        // --score-start-material
+    std::string start_from;                  // --start-from: the fits start from this preset (fit cloth --start)
     flowvid::optim::SearchMethod search = flowvid::optim::SearchMethod::annealing;  // fit cloth --search
     // What the fit compares with: the scratch copies' tracks (the model's
     // capacity), or the footage alone (--fit-to scan: its stripe scan;
@@ -368,6 +381,13 @@ int main(int argc, char** argv) {
         else if (a == "--half-life") o.half_life_frames = std::atof(value().c_str());
         else if (a == "--static-weight") o.static_weight = std::atof(value().c_str());
         else if (a == "--min-bending") o.min_bending_N_m = std::atof(value().c_str());
+        else if (a == "--outside-band") o.outside_band_px = std::atof(value().c_str());
+        else if (a == "--score") o.score = split(value());
+        else if (a == "--budget-seconds") o.budget_seconds = std::atof(value().c_str());
+        else if (a == "--chaos-members") o.chaos_members = std::atoi(value().c_str());
+        else if (a == "--score-from-measured-start") o.score_from_measured_start = true;
+        else if (a == "--score-start-material") o.score_start_material = value();
+        else if (a == "--start-from") o.start_from = value();
         else if (a == "--search") {
             const std::optional<flowvid::optim::SearchMethod> search = flowvid::optim::search_method_from_name(value());
             if (!search) return usage("--search takes annealing or cmaes");
@@ -391,6 +411,19 @@ int main(int argc, char** argv) {
                         "   their weights' half-life after the first 10, the static drape's weight; predictions always\n"
                         "   cover the whole held-out trial)\n"
                         "  [--min-bending N_m] (a floor on the fitted bending stiffness; default: the fit's range)\n"
+                        "  [--outside-band 16] (scan fits: background pixels this near the swatch's outline count\n"
+                        "   against a simulation covering them; 0: off)\n"
+                        "  [--budget-seconds 600] (each fit also ends at this wall-clock time, as fit cloth's)\n"
+                        "  [--score A.fabric.json,B.fabric.json] (instead of fitting: each preset's training objective\n"
+                        "   under the fit's settings and its held-out waving-2 prediction, first fabric only)\n"
+                        "  [--score-from-measured-start] (with --score: the trials start from their measured first\n"
+                        "   frames, a tracks fit's start, instead of the footage's own: how much the start decides)\n"
+                        "  [--score-start-material P.fabric.json] (with --score: the footage's start is chosen with\n"
+                        "   this preset's fabric instead of the middle of the ranges)\n"
+                        "  [--start-from P.fabric.json] (the fits start from this preset, its fabric also picking\n"
+                        "   the fold states, instead of the middle of the ranges: a second round of a fit)\n"
+                        "  [--chaos-members 0] (with --score: the prediction again with bending and drag changed by\n"
+                        "   +-k parts in a million, k = 1..N: the spread chaos alone gives each window)\n"
                         "  [--search annealing|cmaes] (the search after the design, as fit cloth --search)\n"
                         "  [--fit-to tracks|scan|footage] (scan: the footage's stripe scan, footage: its angle maps and\n"
                         "   silhouettes, instead of the tracks; the predictions are scored against truth the same way)\n");
@@ -399,10 +432,16 @@ int main(int argc, char** argv) {
     }
     const fs::path scratch = o.scratch;
     fs::create_directories(scratch);
-    std::printf("Model capacity study: each public capture's truth/positions.exr is handed to the fit as 3D tracks\n"
-                "in a scratch copy (%s); this is the one place truth reaches a fit, and it says nothing about\n"
-                "the footage fit, only about what the model can reach. RMS vertex error against truth, mm.\n",
-                (scratch / "tracks").string().c_str());
+    if (o.fit_to == fv::FitTarget::tracks)
+        std::printf("Model capacity study: each public capture's truth/positions.exr is handed to the fit as 3D tracks\n"
+                    "in a scratch copy (%s); this is the one place truth reaches a fit, and it says nothing about\n"
+                    "the footage fit, only about what the model can reach. RMS vertex error against truth, mm.\n",
+                    (scratch / "tracks").string().c_str());
+    else
+        std::printf("Footage fit (--fit-to %s): the fit reads the shared captures' footage, never truth/; the\n"
+                    "predictions start from each capture's measured first frame (truth handed over as tracks in\n"
+                    "%s) and are scored against truth/, evaluation only. RMS vertex error, mm.\n",
+                    fv::fit_target_name(o.fit_to), (scratch / "tracks").string().c_str());
     nlohmann::json record;
     for (const std::string& fabric : o.fabrics) {
         std::string other = fabric == "cotton" ? "silk" : "cotton";  // the wrong fabric of the bound rows
@@ -416,8 +455,79 @@ int main(int argc, char** argv) {
             copies[name] = tracks_copy(name, scratch);
         if (has_static2) copies[static2] = tracks_copy(static2, scratch);
 
-        std::printf("\n### %s: fit %s + %s to tracks, predict %s%s\n\n", fabric.c_str(), static1.c_str(), waving1.c_str(),
-                    waving2.c_str(), has_static2 ? (" and " + static2).c_str() : "");
+        std::printf("\n### %s: fit %s + %s to %s, predict %s%s\n\n", fabric.c_str(), static1.c_str(), waving1.c_str(),
+                    fv::fit_target_name(o.fit_to), waving2.c_str(), has_static2 ? (" and " + static2).c_str() : "");
+        if (!o.score.empty()) {
+            fv::TrialLoadSettings load;
+            load.target = o.fit_to;
+            load.half_life_frames = o.half_life_frames;
+            load.waving_frames = o.waving_frames;
+            load.static_weight = o.static_weight;
+            load.scan_outside.max_px = o.outside_band_px;
+            const std::vector<ff::Capture> captures =
+                o.fit_to == fv::FitTarget::tracks
+                    ? std::vector<ff::Capture>{ff::read_capture(copies[static1]), ff::read_capture(copies[waving1])}
+                    : std::vector<ff::Capture>{ff::read_capture(shared_capture(static1)), ff::read_capture(shared_capture(waving1))};
+            std::vector<fv::ClothTrial> trials = fv::load_trials(captures, load);
+            const std::vector<fv::FittedParameter> parameters = fv::parameters_for(trials, fv::DragModel::nonlinear);
+            fv::ClothFitSettings settings = fit_settings();
+            settings.base = fv::middle_of_ranges(settings.base, parameters);  // as the fit's (its warm start)
+            if (!o.score_start_material.empty()) {
+                // The start chosen with this fabric instead (as a second round of a fit would).
+                settings.base = fc::material_from_fabric(ff::read_fabric_preset(o.score_start_material).parameters);
+                std::printf("(the footage's start chosen with %s's fabric)\n", o.score_start_material.c_str());
+            }
+            fv::ClothFitProblem problem(std::move(trials), parameters, settings);
+            if (o.score_from_measured_start && o.fit_to != fv::FitTarget::tracks) {
+                // Each trial starts where its tracks fit would: the measured
+                // (truth's) first frame, instead of the footage's own start.
+                fv::TrialLoadSettings tracks_load = load;
+                tracks_load.target = fv::FitTarget::tracks;
+                const fv::ClothFitProblem measured(
+                    fv::load_trials({ff::read_capture(copies[static1]), ff::read_capture(copies[waving1])}, tracks_load),
+                    parameters, settings);
+                for (std::size_t t = 0; t < problem.trials().size(); ++t) problem.set_warm_start(t, measured.warm_start(t));
+                std::printf("(each trial started from its measured first frame, as a tracks fit's)\n");
+            }
+            for (const std::string& path : o.score) {
+                const fc::ClothMaterial m = fc::material_from_fabric(ff::read_fabric_preset(path).parameters);
+                const fv::ClothEvaluation e = problem.evaluate(m, o.threads);
+                std::printf("training objective of %s: %.1f (", path.c_str(), e.total);
+                for (std::size_t t = 0; t < e.trials.size(); ++t)
+                    std::printf("%s%s %.1f", t ? ", " : "", problem.trials()[t].name.c_str(), e.trials[t].error);
+                std::printf(")\n");
+                const Windows held_out = predict(copies[waving2], m, o.threads);
+                std::printf("  %s held out (frame 1 / 1-10 / 11-25 / 26-end / all): %.1f / %.1f / %.1f / %.1f / %.1f mm\n",
+                            waving2.c_str(), held_out.frame1, held_out.f1_10, held_out.f11_25, held_out.f26_end, held_out.all);
+                if (o.chaos_members > 0) {
+                    Windows low = held_out, high = held_out;
+                    auto widen = [](double& lo, double& hi, double v) {
+                        lo = std::min(lo, v);
+                        hi = std::max(hi, v);
+                    };
+                    for (int k = 1; k <= o.chaos_members; ++k)
+                        for (const double sign : {1.0, -1.0}) {
+                            fc::ClothMaterial changed = m;
+                            const double factor = 1.0 + sign * 1e-6 * k;
+                            changed.bend_N_m *= factor;
+                            changed.drag_normal_kg_per_m3 *= factor;
+                            changed.drag_linear_normal_kg_per_m2_s *= factor;
+                            const Windows w = predict(copies[waving2], changed, o.threads);
+                            widen(low.frame1, high.frame1, w.frame1);
+                            widen(low.f1_10, high.f1_10, w.f1_10);
+                            widen(low.f11_25, high.f11_25, w.f11_25);
+                            widen(low.f26_end, high.f26_end, w.f26_end);
+                            widen(low.all, high.all, w.all);
+                        }
+                    std::printf("  the same changed by up to %d parts in a million (%d runs): %.1f-%.1f / %.1f-%.1f / "
+                                "%.1f-%.1f / %.1f-%.1f / %.1f-%.1f mm\n",
+                                o.chaos_members, 2 * o.chaos_members + 1, low.frame1, high.frame1, low.f1_10, high.f1_10,
+                                low.f11_25, high.f11_25, low.f26_end, high.f26_end, low.all, high.all);
+                }
+                std::fflush(stdout);
+            }
+            break;
+        }
         std::printf("| model (waving-2 held out) | frame 1 | 1-10 | 11-25 | 26-end | all |\n|---|---|---|---|---|---|\n");
         std::optional<fc::ClothMaterial> nested_start;  // the best fit of a smaller model so far
         if (!o.nested_from.empty()) {
@@ -450,11 +560,15 @@ int main(int argc, char** argv) {
                 request.load.half_life_frames = o.half_life_frames;  // late, chaotic frames count less
                 request.load.waving_frames = o.waving_frames;
                 request.load.static_weight = o.static_weight;
+                request.load.scan_outside.max_px = o.outside_band_px;
                 request.problem = fit_settings();
                 request.parameters = variant_parameters(variant);
                 request.min_bending_N_m = o.min_bending_N_m;
                 request.search = o.search;
                 request.evaluations = evaluations;
+                request.budget_seconds = o.budget_seconds;
+                if (!o.start_from.empty())
+                    request.start = fc::material_from_fabric(ff::read_fabric_preset(o.start_from).parameters);
                 request.variability_runs = 0;
                 request.seed = o.seed;
                 request.threads = o.threads;

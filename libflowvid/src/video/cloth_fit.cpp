@@ -188,6 +188,8 @@ ClothTrial load_scan_trial(const formats::Capture& capture, const TrialLoadSetti
     reference.cap_m = settings.scan_cap_m;
     reference.period_units = trial.projector.pattern.period_px;
     const int stride = std::max(1, settings.scan_stride_px);
+    reference.stride_px = stride;
+    reference.outside_band = settings.scan_outside;
     StripeScan previous;
     for (int k = 0; k < count; ++k) {
         const ClothFrame frame = footage.frame(footage.first() + k);
@@ -205,6 +207,8 @@ ClothTrial load_scan_trial(const formats::Capture& capture, const TrialLoadSetti
                 samples.push_back({x, y, v, metres_per_unit});
             }
         reference.samples.push_back(std::move(samples));
+        if (settings.scan_outside.max_px > 0.0)
+            reference.outside.push_back(scan_outside_pixels(frame.silhouette, stride, settings.scan_outside));
         if (k == 0) {
             reference.width = scan.width;
             reference.height = scan.height;
@@ -238,7 +242,30 @@ std::vector<double> scan_residuals_m(const ScanReference& scan, std::size_t fram
         const double depth_m = difference * s.metres_per_unit;
         r.push_back(scan.cap_m * std::tanh(depth_m / scan.cap_m));
     }
+    if (frame < scan.outside.size())
+        for (const ScanReference::Pixel& p : scan.outside[frame])
+            r.push_back(std::isfinite(rendered.projector_coordinate.at(p.x, p.y)) ? scan.cap_m : 0.0);
     return r;
+}
+
+long long scan_measured_count(const ScanReference& scan, std::size_t frame) {
+    long long measured = 0;
+    for (const ScanReference::Sample& s : scan.samples[frame]) measured += std::isfinite(s.projector_coordinate) ? 1 : 0;
+    return measured;
+}
+
+std::vector<ScanReference::Pixel> scan_outside_pixels(const metrics::Silhouette& silhouette, int stride_px,
+                                                      const ScanOutsideBand& band) {
+    std::vector<ScanReference::Pixel> pixels;
+    if (band.max_px <= 0.0 || silhouette.width <= 0) return pixels;
+    const metrics::DistanceField distance = metrics::signed_distance_field(silhouette);
+    const int stride = std::max(1, stride_px);
+    for (int y = 0; y < silhouette.height; y += stride)
+        for (int x = 0; x < silhouette.width; x += stride) {
+            const double d = distance.at(x, y);
+            if (d >= band.min_px && d <= band.max_px) pixels.push_back({x, y});
+        }
+    return pixels;
 }
 
 double track_frame_error_mm2(const Eigen::MatrixX3d& measured_m, const Eigen::MatrixX3d& simulated_m) {
@@ -330,7 +357,8 @@ std::vector<metrics::FrameError> compare_scan(const ClothTrial& trial, const clo
             const std::vector<double> r = scan_residuals_m(scan, k, rendered);
             double sum = 0.0;
             for (const double v : r) sum += v * v;
-            fe.total = r.empty() ? 0.0 : 1e6 * sum / static_cast<double>(r.size());
+            const long long measured = scan_measured_count(scan, k);
+            fe.total = measured == 0 ? 0.0 : 1e6 * sum / static_cast<double>(measured);
         } else {
             fe.total = scan.missing_frame_error_mm2();
         }
@@ -394,6 +422,8 @@ ClothTrial simulated_trial(const ClothTrial& trial, const cloth::SwatchRun& run,
                             run.swatch.mesh.triangles, rendered);
             for (ScanReference::Sample& sample : out.scan->samples[k])
                 sample.projector_coordinate = rendered.projector_coordinate.at(sample.x, sample.y);
+            if (k < out.scan->outside.size())
+                out.scan->outside[k] = scan_outside_pixels(rendered.silhouette, out.scan->stride_px, out.scan->outside_band);
         }
         return out;
     }
@@ -524,11 +554,17 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
         if (trial.frames[k].number == 1) kept.push_back(k);
     first_frame.frames.clear();
     if (first_frame.tracks) first_frame.tracks->positions_m.clear();
-    if (first_frame.scan) first_frame.scan->samples.clear();
+    if (first_frame.scan) {
+        first_frame.scan->samples.clear();
+        first_frame.scan->outside.clear();
+    }
     for (const std::size_t k : kept) {
         first_frame.frames.push_back(trial.frames[k]);
         if (first_frame.tracks) first_frame.tracks->positions_m.push_back(trial.tracks->positions_m[k]);
-        if (first_frame.scan) first_frame.scan->samples.push_back(trial.scan->samples[k]);
+        if (first_frame.scan) {
+            first_frame.scan->samples.push_back(trial.scan->samples[k]);
+            if (k < trial.scan->outside.size()) first_frame.scan->outside.push_back(trial.scan->outside[k]);
+        }
     }
     // Candidate starts: the bows, and for a tracks trial the measured first
     // frame itself (the solve then finds the equilibrium nearest to what was
@@ -687,14 +723,15 @@ void append_scan_residuals(const ClothTrial& trial, const cloth::SwatchRun& run,
     StripeRenderer renderer = scan_renderer(trial);
     StripeImage rendered;
     for (std::size_t k = 0; k < trial.frames.size(); ++k) {
-        long long measured = 0;
-        for (const ScanReference::Sample& s : scan.samples[k]) measured += std::isfinite(s.projector_coordinate) ? 1 : 0;
+        const long long measured = scan_measured_count(scan, k);
         if (measured == 0) continue;
+        const std::size_t outside = k < scan.outside.size() ? scan.outside[k].size() : 0;
         const double weight = trial.frames[k].weight;
         const int index = trial.frames[k].number - 1;
         if (index < 0 || index >= usable) {
             const double entry = std::sqrt(weight * scan.missing_frame_error_mm2() / static_cast<double>(measured));
             out.insert(out.end(), static_cast<std::size_t>(measured), entry);
+            out.insert(out.end(), outside, 0.0);  // same length as a simulated frame's
             continue;
         }
         renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]), run.swatch.mesh.triangles,
@@ -800,6 +837,10 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
         // E_k in mm^2: the mean squared, softly capped depth error at the scan's samples.
         prov.metric = "scan_depth_mean_square_mm2";
         prov.metric_weights["cap_m"] = scan->cap_m;
+        if (!scan->outside.empty()) {
+            prov.metric_weights["outside_min_px"] = scan->outside_band.min_px;
+            prov.metric_weights["outside_max_px"] = scan->outside_band.max_px;
+        }
     } else {
         prov.metric = metric.silhouette_term == metrics::SilhouetteTerm::pixel_xor ? "angle_map+silhouette_xor"
                                                                                      : "angle_map+silhouette_edge_distance";

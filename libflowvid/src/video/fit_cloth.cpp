@@ -94,6 +94,11 @@ std::vector<ClothTrial> load_fit_trials(const ClothFitRequest& request, ClothFit
 ClothFitProblem make_problem(const ClothFitRequest& request, std::vector<ClothTrial> trials, ClothFitOutcome& outcome) {
     ClothFitSettings settings = request.problem;
     settings.base = middle_of_ranges(request.problem.base, outcome.parameters);
+    if (request.start) {
+        settings.base = *request.start;
+        for (const FittedParameter& p : outcome.parameters)
+            set_material_parameter(settings.base, p.key, std::clamp(material_parameter(*request.start, p.key), p.lower, p.upper));
+    }
     outcome.start = settings.base;
     ClothFitProblem problem(std::move(trials), outcome.parameters, settings);
     outcome.trials = problem.trials();

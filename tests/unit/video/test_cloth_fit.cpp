@@ -7,6 +7,7 @@
 
 #include "flowvid/optim/annealing.hpp"
 #include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/video/fit_cloth.hpp"
 #include "flowvid/video/stripe_render.hpp"
 
 #include "test_support.hpp"
@@ -299,4 +300,34 @@ TEST(ClothFit, RecoversStretchAndBendFromSynthetic3dTracks) {
     EXPECT_LE(rms, 1.5 * tracks_rms_mm(problem.trials()[0], floor) + 0.2);
     EXPECT_GT(tracks_rms_mm(problem.trials()[0], problem.evaluate(settings.base).total), 5.0 * rms)
         << "the base material must be far off for the recovery to mean anything";
+}
+
+TEST(ClothFit, AGivenStartIsWhereTheFitBeginsClampedIntoTheRanges) {
+    // ClothFitRequest::start (refining an earlier fit): the fit starts from
+    // that fabric, its fitted values clamped into their ranges, its other
+    // values kept; without it, from the middle of the ranges.
+    ClothFitRequest request;
+    request.captures = {capture("cloth-cotton-static-1")};
+    request.problem.swatch.rows = request.problem.swatch.cols = 8;
+    request.parameters = {{"bend_stiffness_N_m", 1e-8, 1e-5, true}, {"stretch_stiffness_N_per_m", 10.0, 1e4, true}};
+    request.evaluations = 10;
+    request.variability_runs = 0;
+    request.polish_evaluations = 0;
+    request.threads = 2;
+    cloth::ClothMaterial start = cotton();
+    start.bend_N_m = 1e-3;              // above its range: clamped to 1e-5
+    start.stretch_warp_N_per_m = 80.0;  // inside
+    start.stretch_weft_N_per_m = 80.0;
+    start.shear_N_per_m = 77.0;         // not fitted: kept
+    request.start = start;
+    const ClothFitOutcome given = fit_cloth(request);
+    EXPECT_DOUBLE_EQ(given.start.bend_N_m, 1e-5);
+    EXPECT_DOUBLE_EQ(given.start.stretch_warp_N_per_m, 80.0);
+    EXPECT_DOUBLE_EQ(given.start.shear_N_per_m, 77.0);
+    EXPECT_LE(given.final_evaluation.total, given.start_evaluation.total);  // the search keeps a start it cannot beat
+
+    request.start.reset();
+    const ClothFitOutcome middle = fit_cloth(request);
+    EXPECT_NEAR(middle.start.bend_N_m, std::sqrt(1e-8 * 1e-5), 1e-12);
+    EXPECT_NEAR(middle.start.stretch_warp_N_per_m, std::sqrt(10.0 * 1e4), 1e-9);
 }

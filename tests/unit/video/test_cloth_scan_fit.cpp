@@ -41,7 +41,7 @@ double scan_rms_mm(const ClothTrial& trial, std::size_t frame, const std::vector
     const std::vector<double> r = scan_residuals_m(*trial.scan, frame, renderer.render(vertices, triangles));
     double sum = 0.0;
     for (const double v : r) sum += v * v;
-    return 1e3 * std::sqrt(sum / static_cast<double>(r.size()));
+    return 1e3 * std::sqrt(sum / static_cast<double>(scan_measured_count(*trial.scan, frame)));
 }
 
 }  // namespace
@@ -123,6 +123,44 @@ TEST(ClothScanFit, ScanMetricAgainstGroundTruth) {
     }
 }
 
+// Depth cannot see a swatch slid sideways within its own surface; the
+// background band around the footage's outline can.
+TEST(ClothScanFit, OutsideBandSeesASidewaysShiftThatDepthMisses) {
+    if (!have_capture("cloth-cotton-static-1")) GTEST_SKIP() << "shared captures not available";
+    const formats::Capture c = capture("cloth-cotton-static-1");
+    TrialLoadSettings load;
+    load.target = FitTarget::scan;
+    const ClothTrial with_band = load_trial(c, load);
+    load.scan_outside.max_px = 0.0;
+    const ClothTrial without_band = load_trial(c, load);
+    ASSERT_EQ(with_band.scan->outside.size(), 1u);
+    EXPECT_GT(with_band.scan->outside[0].size(), 1000u);
+    EXPECT_TRUE(without_band.scan->outside.empty());
+    // Every band pixel is background in the footage, 1.5-16 px from its outline.
+    ClothFootage footage(c);
+    const metrics::DistanceField distance = metrics::signed_distance_field(footage.frame(footage.first()).silhouette);
+    for (const ScanReference::Pixel& p : with_band.scan->outside[0]) {
+        ASSERT_GE(distance.at(p.x, p.y), 1.5);
+        ASSERT_LE(distance.at(p.x, p.y), 16.0);
+    }
+    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(c);
+    const auto triangles = grid_triangles(*truth.grid_rows, *truth.grid_cols);
+    std::vector<Eigen::Vector3d> vertices = vertices_of_frame(truth, 0);
+    const double own_with = scan_rms_mm(with_band, 0, vertices, triangles);
+    const double own_without = scan_rms_mm(without_band, 0, vertices, triangles);
+    // 15 mm along the camera's own x axis: across the view.
+    const Eigen::Vector3d across = c.camera->camera_from_world.block<3, 3>(0, 0).row(0).transpose();
+    for (Eigen::Vector3d& v : vertices) v += 0.015 * across;
+    const double moved_with = scan_rms_mm(with_band, 0, vertices, triangles);
+    const double moved_without = scan_rms_mm(without_band, 0, vertices, triangles);
+    std::printf("[ measured ] truth: %.2f mm with the band, %.2f without; 15 mm sideways: %.2f with, %.2f without\n",
+                own_with, own_without, moved_with, moved_without);
+    EXPECT_LT(own_with - own_without, 0.5);  // the truth stays within its own outline
+    // The band adds the cap (30 mm) for each covered background pixel: the
+    // shifted swatch covers a strip about 6 px wide along one side.
+    EXPECT_GT(moved_with * moved_with - moved_without * moved_without, 25.0);
+}
+
 TEST(ClothScanFit, ResidualsMatchTheObjectiveAndTheScannedStartIsNearerTruth) {
     if (!have_capture("cloth-cotton-static-2")) GTEST_SKIP() << "shared captures not available";
     const formats::Capture c = capture("cloth-cotton-static-2");
@@ -145,7 +183,7 @@ TEST(ClothScanFit, ResidualsMatchTheObjectiveAndTheScannedStartIsNearerTruth) {
     const double total = problem.evaluate(m).total;
     const Eigen::VectorXd r = problem.residuals(m);
     EXPECT_NEAR(r.squaredNorm(), total, 1e-9 * total);
-    EXPECT_EQ(static_cast<std::size_t>(r.size()), trial.scan->samples[0].size());
+    EXPECT_EQ(static_cast<std::size_t>(r.size()), trial.scan->samples[0].size() + trial.scan->outside[0].size());
 
     // Start in the scanned fold state, against the hanging start's equilibria.
     const formats::VertexAnimation truth = *formats::read_capture_truth_positions(c);

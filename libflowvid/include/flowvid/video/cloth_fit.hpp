@@ -89,6 +89,16 @@ struct TrackReference {
     double missing_frame_error_mm2 = 0.0;
 };
 
+// Background pixels that count against a simulation covering them: those
+// whose distance from the swatch's outline in the footage's silhouette lies
+// in [min_px, max_px] (min_px leaves the outline's own uncertain pixels
+// out; a simulation beyond max_px has lost scan samples too). max_px 0
+// turns the term off.
+struct ScanOutsideBand {
+    double min_px = 1.5;
+    double max_px = 16.0;
+};
+
 // The footage's own shape measurement a scan trial is compared with: per
 // compared frame, sampled pixels where the stripe scan measured the absolute
 // projector coordinate v_p of the swatch. Per sample the simulated surface
@@ -96,11 +106,18 @@ struct TrackReference {
 // ray's metres per unit of v_p is the depth error d along the camera ray
 // (m), softly capped, r = cap tanh(d / cap), so that a region the scan
 // placed a stripe period off (about 6 cm in the captures) costs a bounded
-// amount. A sample the simulation does not cover costs the cap. E_k is the
-// mean of r^2 over the frame's samples, in mm^2: sum_k w_k E_k / sum_k w_k
-// is a mean square whose root is an RMS depth error in mm, comparable to a
-// tracks fit's RMS distance.
+// amount. A sample the simulation does not cover costs the cap, and so does
+// each `outside` pixel it covers: the footage shows background there, so
+// the simulated swatch reaches too far sideways, which depth alone cannot
+// see. E_k is the sum of r^2 over both, divided by the number of scan
+// samples, in mm^2: for a simulation within the outline, sum_k w_k E_k /
+// sum_k w_k is a mean square whose root is an RMS depth error in mm,
+// comparable to a tracks fit's RMS distance.
 struct ScanReference {
+    struct Pixel {
+        int x = 0;
+        int y = 0;
+    };
     struct Sample {
         int x = 0;  // pixel
         int y = 0;
@@ -108,6 +125,11 @@ struct ScanReference {
         double metres_per_unit = 0.0;       // depth along the ray per unit of v_p there
     };
     std::vector<std::vector<Sample>> samples;  // per compared frame
+    // Per compared frame: sampled background pixels near the swatch's
+    // outline (ScanOutsideBand); empty when the term is off.
+    std::vector<std::vector<Pixel>> outside;
+    int stride_px = 2;             // of both grids
+    ScanOutsideBand outside_band;  // where `outside` was taken from
     // Frame 1's scanned world points per pixel (row-major, NaN where not
     // measured), for starting the simulation in the fold state the footage
     // shows; empty when frame 1 is not compared.
@@ -147,6 +169,10 @@ struct ClothTrial {
     bool measures_shape() const { return tracks.has_value() || scan.has_value(); }
 };
 
+// The stride-grid pixels of `silhouette`'s background within `band` of it.
+std::vector<ScanReference::Pixel> scan_outside_pixels(const metrics::Silhouette& silhouette, int stride_px,
+                                                      const ScanOutsideBand& band);
+
 struct TrialLoadSettings {
     FitTarget target = FitTarget::footage;
     int static_frames = 1;        // a static drape does not move: its first frame(s)
@@ -158,6 +184,7 @@ struct TrialLoadSettings {
     std::optional<double> stripe_period_px;  // default: expected_stripe_period_px(capture)
     int scan_stride_px = 2;       // scan fits: every this many pixels in x and y is a sample
     double scan_cap_m = 0.03;     // scan fits: ScanReference::cap_m
+    ScanOutsideBand scan_outside;  // scan fits: where ScanReference::outside samples lie
     metrics::SilhouetteTerm silhouette_term = metrics::SilhouetteTerm::pixel_xor;  // prepares edge distances when needed
 };
 
@@ -225,6 +252,13 @@ public:
     Eigen::VectorXd residuals(const cloth::ClothMaterial& material, int threads = 1) const;
     bool all_measure_shape() const;
 
+    // The shape each trial's simulations start from (its equilibrium solve's
+    // first guess: the chosen fold state; empty when none), and a way to
+    // replace it, e.g. by a first frame measured some other way (the
+    // capacity bench's study of how much the start decides).
+    const Eigen::VectorXd& warm_start(std::size_t trial) const { return m_warm_starts.at(trial); }
+    void set_warm_start(std::size_t trial, Eigen::VectorXd positions_m) { m_warm_starts.at(trial) = std::move(positions_m); }
+
 private:
     // Calls run_trial(trial, simulation threads) for every trial, in parallel
     // when they cost alike; each trial writes only its own slot.
@@ -285,8 +319,12 @@ double track_frame_error_mm2(const Eigen::MatrixX3d& measured_m, const Eigen::Ma
 double tracks_rms_mm(const ClothTrial& trial, double weighted_error);
 
 // r (m) of each of a scan frame's samples for a render of the simulation
-// with projector coordinates (StripeRenderSettings::projector_coordinates);
-// samples without a measured v_p are left out.
+// with projector coordinates (StripeRenderSettings::projector_coordinates),
+// then of each of its outside pixels (the cap where the render covers it,
+// else 0); samples without a measured v_p are left out.
 std::vector<double> scan_residuals_m(const ScanReference& scan, std::size_t frame, const StripeImage& rendered);
+
+// The scan samples of a frame with a measured v_p: what E_k divides by.
+long long scan_measured_count(const ScanReference& scan, std::size_t frame);
 
 }  // namespace flowvid::video

@@ -79,6 +79,11 @@ struct ClothFitRequest {
     // mesh; a floor buys a preset that drapes alike on 12x12 to 48x48 meshes
     // at the cost of reach (docs/cloth_model.md, "Resolution").
     double min_bending_N_m = 0.0;
+    // The fit's start instead of the middle of the parameters' ranges (its
+    // fitted values clamped into them): where the search begins, and the
+    // fabric whose equilibrium picks each trial's fold state (an earlier
+    // fit's preset, to refine it).
+    std::optional<cloth::ClothMaterial> start;
     long long evaluations = 400;           // main search: design + annealing (or CMA-ES)
     // The search after the design: CMA-ES, which evaluates a generation of
     // candidates in parallel and learns the parameters' scales and
