@@ -242,6 +242,45 @@ TEST(CliClothFit, CmaesSearchIsDeterministicImprovesOnItsStartAndTravelsThroughS
     EXPECT_EQ(flowvid::formats::read_fabric_preset(dir + "/merged.fabric.json").provenance.optimizer, "cmaes");
 }
 
+TEST(CliClothFit, StartRefinesAPresetAndStaysOutOfShards) {
+    // --start: the fit begins at a preset's fabric instead of the middle of
+    // the ranges. Its start error is then that preset's own error on the
+    // capture (eval cloth scores the same drape from the same fabric), and the
+    // fit keeps it when it finds nothing better.
+    const std::string dir = own_dir("cli_fit_start");
+    const std::string preset = source_path("formats/examples/cotton.fabric.json");
+    const auto fit = [&](const std::vector<std::string>& extra) {
+        std::vector<std::string> args = {"fit", "cloth", "--capture", shared_path(kStatic), "--out", dir + "/refined.fabric.json",
+                                         "--evaluations", "10", "--variability-runs", "0", "--resolution", "8x8", "--json"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return run_flowvid(args);
+    };
+    const CliResult refined = fit({"--start", preset});
+    ASSERT_EQ(refined.exit_code, 0) << refined.err;
+    const nlohmann::json summary = nlohmann::json::parse(refined.out);
+    EXPECT_EQ(summary["start"], preset);
+    const CliResult middle = fit({});
+    ASSERT_EQ(middle.exit_code, 0) << middle.err;
+    const nlohmann::json from_middle = nlohmann::json::parse(middle.out);
+    EXPECT_EQ(from_middle["start"], "middle of the ranges");
+    const double start_error = summary["start_error"].get<double>();
+    std::printf("[measured] start error from the preset %.4g, from the middle of the ranges %.4g; final %.4g\n", start_error,
+                from_middle["start_error"].get<double>(), summary["final_error"].get<double>());
+    EXPECT_NE(start_error, from_middle["start_error"].get<double>());
+    EXPECT_LE(summary["final_error"].get<double>(), start_error);
+    const CliResult eval = run_flowvid({"eval", "cloth", "--preset", preset, "--capture", shared_path(kStatic), "--resolution",
+                                        "8x8", "--floor-members", "0", "--json"});
+    ASSERT_EQ(eval.exit_code, 0) << eval.err;
+    EXPECT_NEAR(nlohmann::json::parse(eval.out)["captures"][0]["weighted_error"].get<double>(), start_error, 1e-6 * start_error);
+
+    const CliResult sharded = fit({"--start", preset, "--shards", "2"});
+    EXPECT_EQ(sharded.exit_code, 2);
+    EXPECT_NE(sharded.err.find("--start"), std::string::npos) << sharded.err;
+    const CliResult missing = fit({"--start", dir + "/no-such.fabric.json"});
+    EXPECT_EQ(missing.exit_code, 2);
+    EXPECT_NE(missing.err.find("no-such.fabric.json"), std::string::npos) << missing.err;
+}
+
 TEST(CliClothFit, BadRequestsNameTheProblem) {
     const CliResult rigid = run_flowvid({"fit", "cloth", "--capture", shared_path("captures/rigid-toss-major"), "--out",
                                          own_dir("cli_fit_bad") + "/x.fabric.json"});
