@@ -276,12 +276,24 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     // Tracks fits: polish the search's best point by least squares.
     const long long polish_evaluations =
         request.polish_evaluations >= 0 ? request.polish_evaluations : (problem.all_measure_shape() ? 8LL * (n + 1) : 0LL);
-    if (polish_evaluations > 0 && problem.all_measure_shape()) {
+    // Under a budget (which already keeps the final evaluation's time), the
+    // polish checks the clock before each iteration (a Jacobian, n + 1
+    // evaluations, and a few steps): it may start one only while a whole
+    // iteration still fits, at the pace the search measured, or it would
+    // overrun the budget.
+    double polish_budget_seconds = 0.0;
+    if (budget > 0.0) {
+        const optim::AnnealingResult& a = outcome.search.annealing;
+        const double pace = a.evaluations > 0 ? a.elapsed_s / static_cast<double>(a.evaluations) : evaluation_seconds;
+        const double left = budget - seconds_since(started);
+        polish_budget_seconds = std::min(0.5 * left, left - static_cast<double>(n + 4) * pace);
+    }
+    if (polish_evaluations > 0 && problem.all_measure_shape() && (budget <= 0.0 || polish_budget_seconds > 0.0)) {
         optim::LeastSquaresSettings polish;
         polish.max_evaluations = polish_evaluations;
         polish.threads = threads;
         polish.cancel = &cancelled;
-        if (budget > 0.0) polish.budget_seconds = std::max(1.0, 0.5 * (budget - seconds_since(started)));
+        if (budget > 0.0) polish.budget_seconds = polish_budget_seconds;
         polish.progress = [&](const optim::LeastSquaresProgress& p) {
             return report({"polish", main_share, outcome.evaluations + p.evaluations, p.best_value, 0.0, 0.0});
         };
