@@ -214,6 +214,17 @@ fv::ClothFitSettings fit_settings() {
     return settings;
 }
 
+// What the fits (and --score) read: the trials' frames and weights.
+fv::TrialLoadSettings training_load(const Options& o) {
+    fv::TrialLoadSettings load;
+    load.target = o.fit_to;
+    load.half_life_frames = o.half_life_frames;  // late, chaotic frames count less
+    load.waving_frames = o.waving_frames;
+    load.static_weight = o.static_weight;
+    load.scan_outside.max_px = o.outside_band_px;
+    return load;
+}
+
 // The material on one capture, started from the capture's measured first
 // frame (its tracks), against its truth per window (read from the shared
 // capture: the scratch copy has tracks, not truth/).
@@ -454,21 +465,18 @@ int main(int argc, char** argv) {
         for (const std::string& name : {static1, waving1, waving2})
             copies[name] = tracks_copy(name, scratch);
         if (has_static2) copies[static2] = tracks_copy(static2, scratch);
+        // A tracks fit reads the scratch copies (truth as tracks); the others the shared footage.
+        const auto training_captures = [&] {
+            if (o.fit_to == fv::FitTarget::tracks)
+                return std::vector<ff::Capture>{ff::read_capture(copies[static1]), ff::read_capture(copies[waving1])};
+            return std::vector<ff::Capture>{ff::read_capture(shared_capture(static1)), ff::read_capture(shared_capture(waving1))};
+        };
 
         std::printf("\n### %s: fit %s + %s to %s, predict %s%s\n\n", fabric.c_str(), static1.c_str(), waving1.c_str(),
                     fv::fit_target_name(o.fit_to), waving2.c_str(), has_static2 ? (" and " + static2).c_str() : "");
         if (!o.score.empty()) {
-            fv::TrialLoadSettings load;
-            load.target = o.fit_to;
-            load.half_life_frames = o.half_life_frames;
-            load.waving_frames = o.waving_frames;
-            load.static_weight = o.static_weight;
-            load.scan_outside.max_px = o.outside_band_px;
-            const std::vector<ff::Capture> captures =
-                o.fit_to == fv::FitTarget::tracks
-                    ? std::vector<ff::Capture>{ff::read_capture(copies[static1]), ff::read_capture(copies[waving1])}
-                    : std::vector<ff::Capture>{ff::read_capture(shared_capture(static1)), ff::read_capture(shared_capture(waving1))};
-            std::vector<fv::ClothTrial> trials = fv::load_trials(captures, load);
+            const fv::TrialLoadSettings load = training_load(o);
+            std::vector<fv::ClothTrial> trials = fv::load_trials(training_captures(), load);
             const std::vector<fv::FittedParameter> parameters = fv::parameters_for(trials, fv::DragModel::nonlinear);
             fv::ClothFitSettings settings = fit_settings();
             settings.base = fv::middle_of_ranges(settings.base, parameters);  // as the fit's (its warm start)
@@ -552,15 +560,8 @@ int main(int argc, char** argv) {
             for (const long long evaluations : o.evaluations) {
                 fv::ClothFitRequest request;
                 request.name = fabric + " " + variant;
-                if (o.fit_to == fv::FitTarget::tracks)
-                    request.captures = {ff::read_capture(copies[static1]), ff::read_capture(copies[waving1])};
-                else
-                    request.captures = {ff::read_capture(shared_capture(static1)), ff::read_capture(shared_capture(waving1))};
-                request.load.target = o.fit_to;
-                request.load.half_life_frames = o.half_life_frames;  // late, chaotic frames count less
-                request.load.waving_frames = o.waving_frames;
-                request.load.static_weight = o.static_weight;
-                request.load.scan_outside.max_px = o.outside_band_px;
+                request.captures = training_captures();
+                request.load = training_load(o);
                 request.problem = fit_settings();
                 request.parameters = variant_parameters(variant);
                 request.min_bending_N_m = o.min_bending_N_m;
