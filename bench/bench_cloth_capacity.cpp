@@ -107,6 +107,7 @@ struct Options {
     bool score_from_measured_start = false;  // --score-from-measured-start
     std::string score_start_material;        // --score-start-material
     std::string start_from;                  // --start-from: the fits start from this preset (fit cloth --start)
+    int refine_rounds = -1;                  // --refine-rounds (fit cloth's; -1: its default)
     flowvid::optim::SearchMethod search = flowvid::optim::SearchMethod::annealing;  // fit cloth --search
     // What the fit compares with: the scratch copies' tracks (the model's
     // capacity), or the footage alone (--fit-to scan: its stripe scan;
@@ -399,6 +400,7 @@ int main(int argc, char** argv) {
         else if (a == "--score-from-measured-start") o.score_from_measured_start = true;
         else if (a == "--score-start-material") o.score_start_material = value();
         else if (a == "--start-from") o.start_from = value();
+        else if (a == "--refine-rounds") o.refine_rounds = std::atoi(value().c_str());
         else if (a == "--search") {
             const std::optional<flowvid::optim::SearchMethod> search = flowvid::optim::search_method_from_name(value());
             if (!search) return usage("--search takes annealing or cmaes");
@@ -425,6 +427,7 @@ int main(int argc, char** argv) {
                         "  [--outside-band 16] (scan fits: background pixels this near the swatch's outline count\n"
                         "   against a simulation covering them; 0: off)\n"
                         "  [--budget-seconds 600] (each fit also ends at this wall-clock time, as fit cloth's)\n"
+                        "  [--refine-rounds N] (fit cloth --refine-rounds; default: one for footage and scan fits)\n"
                         "  [--score A.fabric.json,B.fabric.json] (instead of fitting: each preset's training objective\n"
                         "   under the fit's settings and its held-out waving-2 prediction, first fabric only)\n"
                         "  [--score-from-measured-start] (with --score: the trials start from their measured first\n"
@@ -570,6 +573,7 @@ int main(int argc, char** argv) {
                 request.budget_seconds = o.budget_seconds;
                 if (!o.start_from.empty())
                     request.start = fc::material_from_fabric(ff::read_fabric_preset(o.start_from).parameters);
+                request.refine_rounds = o.refine_rounds;
                 request.variability_runs = 0;
                 request.seed = o.seed;
                 request.threads = o.threads;
@@ -589,6 +593,13 @@ int main(int argc, char** argv) {
                 };
                 std::fprintf(stderr, "fitting %s\n", tag.c_str());
                 fv::ClothFitOutcome fit = fv::fit_cloth(request);
+                nlohmann::json rounds = nlohmann::json::array();
+                for (const fv::ClothFitRound& r : fit.rounds) {
+                    std::fprintf(stderr, "  [%s] round %zu: %.4g -> %.4g, %lld evaluations, %.0f s\n", tag.c_str(), rounds.size() + 1,
+                                 r.start_error, r.best_error, r.evaluations, r.seconds);
+                    rounds.push_back({{"start_error", r.start_error}, {"best_error", r.best_error}, {"evaluations", r.evaluations},
+                                      {"seconds", r.seconds}});
+                }
                 // A larger model nests the smaller one: also polish from the
                 // best smaller fit so far (its new terms at their neutral
                 // values, clamped into range), and keep whichever fits better.
@@ -650,6 +661,7 @@ int main(int argc, char** argv) {
                     {"evaluations", fit.evaluations},
                     {"seconds", fit.seconds},
                     {"training_error", fit.final_evaluation.total},
+                    {"rounds", rounds},
                     {"fit_to", fv::fit_target_name(o.fit_to)},
                     {"curve", *curve},
                     {"held_out_waving", windows_json(held_out)},

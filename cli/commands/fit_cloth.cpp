@@ -53,6 +53,7 @@ struct FitClothOptions {
     double static_weight = 1.0;  // each static drape against one full-weight waving frame
     double min_bending_N_m = 0.0;  // a floor on the fitted bending (0: its range)
     std::string start;             // a preset to refine (empty: the middle of the ranges)
+    int refine_rounds = -1;        // searches again after the first (-1: the library's default)
     ClothRunOptions run;
     bool json = false;
     // Farm and cluster splitting (docs/farm.md).
@@ -93,6 +94,7 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
     request.load.silhouette_term = request.problem.metric.silhouette_term;
     request.drag = options.drag == "linear" ? video::DragModel::linear : video::DragModel::nonlinear;
     request.evaluations = options.evaluations;
+    request.refine_rounds = options.refine_rounds;
     request.search = optim::search_method_from_name(options.search).value_or(optim::SearchMethod::cmaes);
     request.variability_runs = options.variability_runs;
     request.variability_evaluations = options.variability_evaluations;
@@ -209,6 +211,13 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
                               {"seconds", outcome.seconds},
                               {"total_seconds", seconds_since(command_started)},
                               {"search_status", optim::status_name(outcome.search.annealing.status)}};
+    // Each round's errors are on its own fold states: a refinement round's
+    // start is the previous round's best, scored again.
+    nlohmann::json rounds = nlohmann::json::array();
+    for (const video::ClothFitRound& r : outcome.rounds)
+        rounds.push_back({{"start_error", r.start_error}, {"best_error", r.best_error}, {"evaluations", r.evaluations},
+                          {"seconds", r.seconds}});
+    summary["rounds"] = rounds;
     if (outcome.preset) formats::write_fabric_preset(options.out, *outcome.preset);
     else formats::write_file_atomically(options.out, [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
     if (options.json) std::cout << summary.dump(2) << '\n';
@@ -613,6 +622,16 @@ const RegisterFitKind registration{FitKind{
                 ->check(CLI::ExistingFile);
         start->excludes(shard);
         start->excludes(shards);
+        CLI::Option* refine_rounds =
+            app.add_option("--refine-rounds", options->refine_rounds,
+                           "searches after the first, each from the best fabric so far, which also picks again the fold "
+                           "state each trial starts in (the first round's is picked by the start's fabric, which biases "
+                           "the fit: docs/cloth_fitting.md). Default: 1 for footage and scan fits, 0 for tracks fits; "
+                           "the rounds share --evaluations and --budget-seconds (40 % to the refinement); not with "
+                           "--shard/--shards")
+                ->check(CLI::Range(0, 8));
+        refine_rounds->excludes(shard);
+        refine_rounds->excludes(shards);
         app.add_flag("--json", options->json, "print the summary as JSON");
         CLI::Option* variability_runs = app.get_option("--variability-runs");
         CLI::Option* frames = app.get_option("--frames");

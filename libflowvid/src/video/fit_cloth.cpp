@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
@@ -176,17 +177,16 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     const Reporter& report = control.report;
     report({"loading", 0.0, 0, 0.0, 0.0, 0.0});
 
-    const ClothFitProblem problem = make_problem(request, load_fit_trials(request, outcome), outcome);
+    const ClothFitProblem first_problem = make_problem(request, load_fit_trials(request, outcome), outcome);
     const int threads = fit_threads(request);
     // A shard without a time budget needs no start evaluation (it only
     // times the budget and is reported beside a whole fit's final error).
     const bool evaluate_start = !request.shard || request.budget_seconds > 0.0;
     const Clock::time_point start_evaluation_began = Clock::now();
-    if (evaluate_start) outcome.start_evaluation = problem.evaluate(outcome.start, threads);
+    if (evaluate_start) outcome.start_evaluation = first_problem.evaluate(outcome.start, threads);
     const double evaluation_seconds = seconds_since(start_evaluation_began);
 
-    // Main search: design, then annealing on the rest of the evaluations.
-    const int n = problem.space().size();
+    const int n = first_problem.space().size();
     // The final evaluation comes after the search: keep time for it (it
     // costs about what the start's did) so the whole fit stays in budget.
     const double budget = request.budget_seconds > 0.0
@@ -197,7 +197,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     // moves. Reserve that time up front (a budget too small for it keeps
     // fewer restarts, then none), instead of letting restarts overrun.
     const double single_thread_evaluation_seconds =
-        evaluation_seconds * static_cast<double>(std::min<std::size_t>(threads, problem.trials().size()));
+        evaluation_seconds * static_cast<double>(std::min<std::size_t>(threads, first_problem.trials().size()));
     int variability_runs = request.shard ? 0 : request.variability_runs;  // shards skip the restarts
     double variability_seconds = 0.0;
     const auto restart_rounds = [&](int runs) { return std::ceil(double(runs) / std::max(1, threads)); };
@@ -218,100 +218,180 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     }
     outcome.variability_runs_planned = variability_runs;
     const double variability_share = budget > 0.0 ? variability_seconds / budget : (variability_runs > 0 ? 0.2 : 0.0);
-    optim::MinimizeSettings search;
-    search.design = optim::DesignKind::halton;
-    // CMA-ES explores by itself from its first generation: its design only
-    // picks the start (one point per shard at least), which leaves the
-    // simulations to the search that learns from them (docs/cloth_fitting.md, "Search").
-    const long long default_design = request.search == optim::SearchMethod::cmaes
-                                         ? std::max<long long>(n + 1, request.shard ? request.shard->count : 1)
-                                         : std::clamp<long long>(request.evaluations / 4, n + 1, 16LL * n);
-    search.design_points = request.design_points > 0 ? request.design_points : static_cast<int>(default_design);
-    search.threads = threads;
-    search.method = request.search;
-    if (evaluate_start && std::isfinite(outcome.start_evaluation.total)) {
-        search.cmaes_known_unit = problem.space().to_unit(problem.values_of(outcome.start));
-        search.cmaes_known_value = outcome.start_evaluation.total;
-    }
-    if (request.shard) {
-        search.shard_index = request.shard->index;
-        search.shard_count = request.shard->count;
-    }
-    optim::AnnealingSettings& annealing = search.annealing;
-    annealing.seed = request.seed;
-    annealing.max_evaluations = request.evaluations;
-    annealing.fit_schedule_to_budget = true;
-    annealing.evaluations_per_stage = static_cast<int>(std::max<long long>(n + 1, (request.evaluations - search.design_points) / 16));
-    annealing.cancel = &cancelled;
-    if (budget > 0.0) {
-        // A third of the search's time at most for the design, the rest for annealing.
-        search.design_budget_seconds = std::max(1.0, (1.0 - variability_share) * budget / 3.0);
-        // minimize measures the design, then plans the cooling for what is left.
-        search.total_budget_seconds = std::max(2.0, (1.0 - variability_share) * budget - seconds_since(started));
-    }
     const double main_share = 1.0 - variability_share;
-    annealing.progress = [&](const optim::AnnealingProgress& p) {
-        return report({"annealing", main_share * p.fraction_done, p.evaluations, p.best_value, p.temperature, p.eta_s});
-    };
-    report({"design", 0.02, 0, 0.0, 0.0, 0.0});
-    if (request.cancel && request.cancel->load()) cancelled = true;
-    // The annealer polls `cancelled`; an external cancel is forwarded by the progress callback.
-    outcome.search = optim::minimize(problem.objective(), problem.space(), search);
-    outcome.evaluations = outcome.search.evaluations;
-    if (outcome.search.annealing.status == optim::AnnealingResult::Status::cancelled || stop_requested()) {
-        outcome.status = ClothFitOutcome::Status::cancelled;
-        outcome.seconds = seconds_since(started);
-        return outcome;
-    }
-    if (request.shard) {
-        // A shard ends with its search: the merge evaluates the winner.
-        if (evaluate_start) outcome.evaluations += 1;
-        outcome.fitted = problem.material(outcome.search.annealing.best_values);
-        outcome.simulations = outcome.evaluations * static_cast<long long>(problem.trials().size());
-        outcome.seconds = seconds_since(started);
-        report({"final", 1.0, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
-        return outcome;
-    }
 
-    // Tracks fits: polish the search's best point by least squares.
-    const long long polish_evaluations =
-        request.polish_evaluations >= 0 ? request.polish_evaluations : (problem.all_measure_shape() ? 8LL * (n + 1) : 0LL);
-    // Under a budget (which already keeps the final evaluation's time), the
-    // polish checks the clock before each iteration (a Jacobian, n + 1
-    // evaluations, and a few steps): it may start one only while a whole
-    // iteration still fits, at the pace the search measured, or it would
-    // overrun the budget.
-    double polish_budget_seconds = 0.0;
-    if (budget > 0.0) {
-        const optim::AnnealingResult& a = outcome.search.annealing;
-        const double pace = a.evaluations > 0 ? a.elapsed_s / static_cast<double>(a.evaluations) : evaluation_seconds;
-        const double left = budget - seconds_since(started);
-        polish_budget_seconds = std::min(0.5 * left, left - static_cast<double>(n + 4) * pace);
+    // The rounds: the first search, then the refinement rounds that its
+    // evaluations and time can pay for (each at least a design and two
+    // CMA-ES generations, and under a budget the time of that many
+    // evaluations and of picking the fold states again).
+    const bool any_tracks = std::any_of(first_problem.trials().begin(), first_problem.trials().end(),
+                                        [](const ClothTrial& t) { return t.tracks.has_value(); });
+    int refine_rounds = request.shard ? 0 : request.refine_rounds >= 0 ? request.refine_rounds : (any_tracks ? 0 : 1);
+    const double refine_share = std::clamp(request.refine_share, 0.0, 0.9);
+    const long long smallest_round = (n + 1) + 2LL * (4 + static_cast<long long>(std::floor(3.0 * std::log(std::max(1.0, double(n))))));
+    const double search_seconds = budget > 0.0 ? std::max(2.0, main_share * budget - seconds_since(started)) : 0.0;
+    const auto refinement_affordable = [&](int rounds) {
+        if (rounds <= 0 || refine_share <= 0.0) return false;
+        const double share = refine_share / rounds;
+        if (static_cast<double>(request.evaluations) * share < static_cast<double>(smallest_round)) return false;
+        return budget <= 0.0 || search_seconds * share >= static_cast<double>(smallest_round + 4) * evaluation_seconds;
+    };
+    while (refine_rounds > 0 && !refinement_affordable(refine_rounds)) --refine_rounds;
+    const int round_count = 1 + refine_rounds;
+    // Each round's share of the search (evaluations, time, progress).
+    std::vector<double> round_shares(static_cast<std::size_t>(round_count), 1.0);
+    if (refine_rounds > 0) {
+        round_shares[0] = 1.0 - refine_share;
+        for (int r = 1; r < round_count; ++r) round_shares[std::size_t(r)] = refine_share / refine_rounds;
     }
-    if (polish_evaluations > 0 && problem.all_measure_shape() && (budget <= 0.0 || polish_budget_seconds > 0.0)) {
-        optim::LeastSquaresSettings polish;
-        polish.max_evaluations = polish_evaluations;
-        polish.threads = threads;
-        polish.cancel = &cancelled;
-        if (budget > 0.0) polish.budget_seconds = polish_budget_seconds;
-        polish.progress = [&](const optim::LeastSquaresProgress& p) {
-            return report({"polish", main_share, outcome.evaluations + p.evaluations, p.best_value, 0.0, 0.0});
+    const double search_began_s = seconds_since(started);
+
+    // The problem each round searches: the first picks its fold states with
+    // the start's fabric, each refinement round with the best fabric so far.
+    std::optional<ClothFitProblem> refined_problem;
+    const ClothFitProblem* problem = &first_problem;
+    cloth::ClothMaterial round_start = outcome.start;
+    ClothEvaluation round_start_evaluation = outcome.start_evaluation;
+    double share_done = 0.0;
+    for (int round = 0; round < round_count; ++round) {
+        const Clock::time_point round_began = Clock::now();
+        const long long evaluations_before = outcome.evaluations;
+        const double share = round_shares[std::size_t(round)];
+        const bool last_round = round + 1 == round_count;
+        const double progress_begin = main_share * share_done;
+        if (round > 0) {
+            report({"refining", progress_begin, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
+            round_start = outcome.rounds.back().best;
+            ClothFitSettings settings = problem->settings();
+            settings.base = round_start;
+            refined_problem.emplace(problem->trials(), outcome.parameters, settings);
+            problem = &*refined_problem;
+            round_start_evaluation = problem->evaluate(round_start, threads);
+            outcome.evaluations += 1;
+            if (stop_requested()) {
+                outcome.status = ClothFitOutcome::Status::cancelled;
+                outcome.seconds = seconds_since(started);
+                return outcome;
+            }
+        }
+        // The round's search ends at its share of the search time; a round
+        // before the last keeps a fifth of it for its polish (the last
+        // round's polish, as a single search's, uses what the restarts leave).
+        // Tracks and scan fits: a least-squares polish of the search's best point.
+        const long long polish_evaluations =
+            request.polish_evaluations >= 0 ? request.polish_evaluations : (problem->all_measure_shape() ? 8LL * (n + 1) : 0LL);
+        const bool polishes = polish_evaluations > 0 && problem->all_measure_shape();
+        const double round_end_s = search_began_s + search_seconds * (share_done + share);
+        const double search_end_s = last_round ? round_end_s : round_end_s - (polishes ? 0.2 * search_seconds * share : 0.0);
+
+        optim::MinimizeSettings search;
+        search.design = optim::DesignKind::halton;
+        // CMA-ES explores by itself from its first generation: its design only
+        // picks the start (one point per shard at least), which leaves the
+        // simulations to the search that learns from them (docs/cloth_fitting.md, "Search").
+        const long long round_evaluations =
+            last_round ? request.evaluations - std::llround(static_cast<double>(request.evaluations) * share_done)
+                       : std::llround(static_cast<double>(request.evaluations) * share);
+        const long long default_design = request.search == optim::SearchMethod::cmaes
+                                             ? std::max<long long>(n + 1, request.shard ? request.shard->count : 1)
+                                             : std::clamp<long long>(round_evaluations / 4, n + 1, 16LL * n);
+        search.design_points = request.design_points > 0 ? request.design_points : static_cast<int>(default_design);
+        search.threads = threads;
+        search.method = request.search;
+        if ((evaluate_start || round > 0) && std::isfinite(round_start_evaluation.total)) {
+            search.cmaes_known_unit = problem->space().to_unit(problem->values_of(round_start));
+            search.cmaes_known_value = round_start_evaluation.total;
+        }
+        if (request.shard) {
+            search.shard_index = request.shard->index;
+            search.shard_count = request.shard->count;
+        }
+        optim::AnnealingSettings& annealing = search.annealing;
+        // Each round searches with a seed of its own (the first, the request's).
+        annealing.seed = request.seed + 0x9e3779b97f4a7c15ULL * static_cast<std::uint64_t>(round);
+        annealing.max_evaluations = round_evaluations;
+        annealing.fit_schedule_to_budget = true;
+        annealing.evaluations_per_stage =
+            static_cast<int>(std::max<long long>(n + 1, (round_evaluations - search.design_points) / 16));
+        annealing.cancel = &cancelled;
+        if (budget > 0.0) {
+            const double round_seconds = search_end_s - seconds_since(started);
+            // A third of the round's search time at most for the design, the rest for the search.
+            search.design_budget_seconds = std::max(1.0, main_share * budget * share / 3.0);
+            // minimize measures the design, then plans the search for what is left.
+            search.total_budget_seconds = std::max(2.0, round_seconds);
+        }
+        const double progress_span = main_share * share;
+        annealing.progress = [&](const optim::AnnealingProgress& p) {
+            return report({round > 0 ? "refining" : "annealing", progress_begin + progress_span * p.fraction_done,
+                           outcome.evaluations + p.evaluations, p.best_value, p.temperature, p.eta_s});
         };
-        const optim::ResidualFunction residuals = [&problem](const Eigen::VectorXd& values, int residual_threads) {
-            return problem.residuals(problem.material(values), residual_threads);
-        };
-        outcome.polish = optim::levenberg_marquardt(residuals, problem.space(), outcome.search.annealing.best_values, polish);
-        outcome.evaluations += outcome.polish->evaluations;
-        if (stop_requested()) {
+        if (round == 0) report({"design", 0.02, 0, 0.0, 0.0, 0.0});
+        if (request.cancel && request.cancel->load()) cancelled = true;
+        // The annealer polls `cancelled`; an external cancel is forwarded by the progress callback.
+        outcome.search = optim::minimize(problem->objective(), problem->space(), search);
+        outcome.polish.reset();
+        outcome.evaluations += outcome.search.evaluations;
+        if (outcome.search.annealing.status == optim::AnnealingResult::Status::cancelled || stop_requested()) {
             outcome.status = ClothFitOutcome::Status::cancelled;
             outcome.seconds = seconds_since(started);
             return outcome;
         }
-        if (outcome.polish->best_value < outcome.search.annealing.best_value) {
-            outcome.search.annealing.best_value = outcome.polish->best_value;
-            outcome.search.annealing.best_values = outcome.polish->best_values;
-            outcome.search.annealing.best_unit = outcome.polish->best_unit;
+        if (request.shard) {
+            // A shard ends with its search: the merge evaluates the winner.
+            if (evaluate_start) outcome.evaluations += 1;
+            outcome.fitted = problem->material(outcome.search.annealing.best_values);
+            outcome.simulations = outcome.evaluations * static_cast<long long>(problem->trials().size());
+            outcome.seconds = seconds_since(started);
+            outcome.rounds.push_back({outcome.fitted, round_start_evaluation.total, outcome.search.annealing.best_value,
+                                      outcome.evaluations, outcome.seconds});
+            report({"final", 1.0, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
+            return outcome;
         }
+
+        // Under a budget (which already keeps the final evaluation's time), the
+        // polish checks the clock before each iteration (a Jacobian, n + 1
+        // evaluations, and a few steps): it may start one only while a whole
+        // iteration still fits, at the pace the search measured, or it would
+        // overrun the budget (or the next round's share).
+        double polish_budget_seconds = 0.0;
+        if (budget > 0.0) {
+            const optim::AnnealingResult& a = outcome.search.annealing;
+            const double pace = a.evaluations > 0 ? a.elapsed_s / static_cast<double>(a.evaluations) : evaluation_seconds;
+            const double left = (last_round ? budget : round_end_s) - seconds_since(started);
+            polish_budget_seconds = last_round ? std::min(0.5 * left, left - static_cast<double>(n + 4) * pace)
+                                               : left - static_cast<double>(n + 4) * pace;
+        }
+        if (polishes && (budget <= 0.0 || polish_budget_seconds > 0.0)) {
+            optim::LeastSquaresSettings polish;
+            polish.max_evaluations = polish_evaluations;
+            polish.threads = threads;
+            polish.cancel = &cancelled;
+            if (budget > 0.0) polish.budget_seconds = polish_budget_seconds;
+            const double polish_progress = progress_begin + progress_span;
+            polish.progress = [&](const optim::LeastSquaresProgress& p) {
+                return report({"polish", polish_progress, outcome.evaluations + p.evaluations, p.best_value, 0.0, 0.0});
+            };
+            const optim::ResidualFunction residuals = [problem](const Eigen::VectorXd& values, int residual_threads) {
+                return problem->residuals(problem->material(values), residual_threads);
+            };
+            outcome.polish = optim::levenberg_marquardt(residuals, problem->space(), outcome.search.annealing.best_values, polish);
+            outcome.evaluations += outcome.polish->evaluations;
+            if (stop_requested()) {
+                outcome.status = ClothFitOutcome::Status::cancelled;
+                outcome.seconds = seconds_since(started);
+                return outcome;
+            }
+            if (outcome.polish->best_value < outcome.search.annealing.best_value) {
+                outcome.search.annealing.best_value = outcome.polish->best_value;
+                outcome.search.annealing.best_values = outcome.polish->best_values;
+                outcome.search.annealing.best_unit = outcome.polish->best_unit;
+            }
+        }
+        outcome.rounds.push_back({problem->material(outcome.search.annealing.best_values), round_start_evaluation.total,
+                                  outcome.search.annealing.best_value, outcome.evaluations - evaluations_before,
+                                  seconds_since(round_began)});
+        share_done += share;
     }
 
     // Re-plan the restarts at the pace the search just measured: when the
@@ -324,20 +404,20 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
         const optim::AnnealingResult& a = outcome.search.annealing;
         const double pace = a.evaluations > 0 ? a.elapsed_s / static_cast<double>(a.evaluations) : evaluation_seconds;
         const double latest = std::max(evaluation_seconds, pace);
-        restart_hint = std::max(restart_hint, latest * static_cast<double>(std::min<std::size_t>(threads, problem.trials().size())));
+        restart_hint = std::max(restart_hint, latest * static_cast<double>(std::min<std::size_t>(threads, problem->trials().size())));
         const double left = request.budget_seconds - seconds_since(started) - (1.5 + request.evaluations_after_fit) * latest;
         variability_runs = affordable_runs(variability_runs, restart_hint, left);
         outcome.variability_runs_planned = variability_runs;
         restart_budget = std::max(1.0, left) / std::max(1.0, restart_rounds(variability_runs));
     }
-    if (!end_fit(request, problem, threads, variability_runs, restart_budget, restart_hint, main_share,
+    if (!end_fit(request, *problem, threads, variability_runs, restart_budget, restart_hint, main_share,
                  cancelled, stop_requested, report, outcome.search.annealing.best_values, outcome)) {
         outcome.status = ClothFitOutcome::Status::cancelled;
         outcome.seconds = seconds_since(started);
         return outcome;
     }
     outcome.evaluations += 2;  // start and final evaluations
-    outcome.simulations = outcome.evaluations * static_cast<long long>(problem.trials().size());
+    outcome.simulations = outcome.evaluations * static_cast<long long>(problem->trials().size());
     outcome.seconds = seconds_since(started);
     report({"final", 1.0, outcome.evaluations, outcome.final_evaluation.total, 0.0, 0.0});
     return outcome;

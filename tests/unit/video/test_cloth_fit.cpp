@@ -321,6 +321,7 @@ TEST(ClothFit, AGivenStartIsWhereTheFitBeginsClampedIntoTheRanges) {
     start.shear_N_per_m = 77.0;         // not fitted: kept
     request.start = start;
     const ClothFitOutcome given = fit_cloth(request);
+    EXPECT_EQ(given.rounds.size(), 1u) << "10 evaluations pay for no refinement round (a design and two generations)";
     EXPECT_DOUBLE_EQ(given.start.bend_N_m, 1e-5);
     EXPECT_DOUBLE_EQ(given.start.stretch_warp_N_per_m, 80.0);
     EXPECT_DOUBLE_EQ(given.start.shear_N_per_m, 77.0);
@@ -330,4 +331,44 @@ TEST(ClothFit, AGivenStartIsWhereTheFitBeginsClampedIntoTheRanges) {
     const ClothFitOutcome middle = fit_cloth(request);
     EXPECT_NEAR(middle.start.bend_N_m, std::sqrt(1e-8 * 1e-5), 1e-12);
     EXPECT_NEAR(middle.start.stretch_warp_N_per_m, std::sqrt(10.0 * 1e4), 1e-9);
+}
+
+TEST(ClothFit, ARefinementRoundStartsFromTheFirstRoundsFabricWithItsFoldStates) {
+    // A footage fit searches a second time from its first round's best
+    // fabric, whose equilibrium picks the fold states again (the first
+    // round's were picked by the middle of the ranges). The second round's
+    // start error must be that fabric scored by a problem built afresh with
+    // it as the base, its best must not be worse than that start, and the
+    // rounds share the evaluations.
+    ClothFitRequest request;
+    request.captures = {capture("cloth-cotton-static-1")};
+    request.problem.swatch.rows = request.problem.swatch.cols = 8;
+    request.parameters = {{"bend_stiffness_N_m", 1e-8, 1e-5, true}, {"stretch_stiffness_N_per_m", 10.0, 1e4, true}};
+    request.evaluations = 60;
+    request.variability_runs = 0;
+    request.threads = 2;
+    const ClothFitOutcome fit = fit_cloth(request);
+    ASSERT_EQ(fit.rounds.size(), 2u) << "footage fits refine once by default";
+    const ClothFitRound& first = fit.rounds[0];
+    const ClothFitRound& second = fit.rounds[1];
+
+    ClothFitSettings settings = request.problem;
+    settings.base = fit.start;
+    const ClothFitProblem first_problem(load_trials(request.captures, request.load), request.parameters, settings);
+    EXPECT_DOUBLE_EQ(first_problem.evaluate(first.best).total, first.best_error);
+    settings.base = first.best;
+    const ClothFitProblem refined_problem(load_trials(request.captures, request.load), request.parameters, settings);
+    EXPECT_DOUBLE_EQ(refined_problem.evaluate(first.best).total, second.start_error);
+    std::printf("[measured] refinement: first round %.4g -> %.4g (%lld evaluations), second %.4g -> %.4g (%lld), final %.4g\n",
+                first.start_error, first.best_error, first.evaluations, second.start_error, second.best_error,
+                second.evaluations, fit.final_evaluation.total);
+    EXPECT_LE(second.best_error, second.start_error);
+    EXPECT_DOUBLE_EQ(fit.final_evaluation.total, second.best_error);
+    EXPECT_EQ(first.evaluations, 36);  // 60 % of the search
+    EXPECT_EQ(second.evaluations, 1 + 24);  // its start, then the rest
+
+    request.refine_rounds = 0;
+    const ClothFitOutcome single = fit_cloth(request);
+    ASSERT_EQ(single.rounds.size(), 1u);
+    EXPECT_EQ(single.rounds[0].evaluations, 60);
 }

@@ -1,10 +1,12 @@
 #pragma once
 // The whole cloth fit (thesis 2.4.5-2.5) as one call: load the trials of
 // several captures (static drapes and waving tests, fitted jointly), search
-// the fabric parameters (space-filling Halton design, then simulated
-// annealing from its best point), repeat from +-5 % perturbed starts for the
-// variability analysis, and produce the fabric preset. Used by `flowvid fit
-// cloth`, the fit benchmark and the tests.
+// the fabric parameters (a small Halton design, then CMA-ES or the thesis's
+// simulated annealing from its best point; a least-squares polish for
+// tracks and scan fits), search again from the best fabric with each
+// trial's fold state picked by it (refinement rounds), repeat from +-5 %
+// perturbed starts for the variability analysis, and produce the fabric
+// preset. Used by `flowvid fit cloth`, the fit benchmarks and the tests.
 
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
@@ -84,7 +86,20 @@ struct ClothFitRequest {
     // fabric whose equilibrium picks each trial's fold state (an earlier
     // fit's preset, to refine it).
     std::optional<cloth::ClothMaterial> start;
-    long long evaluations = 400;           // main search: design + annealing (or CMA-ES)
+    // Refinement rounds after the first search. Each trial's fold state is
+    // picked by the start's fabric, and a footage objective then rewards
+    // fabrics that suit that start (docs/cloth_fitting.md, "What the start
+    // decides"): a refinement round picks the fold states again with the
+    // fabric found so far and searches again from it, as `fit cloth --start`
+    // does by hand. -1: one for footage and scan fits, none for tracks fits
+    // (their starts come from the measured first frame) and shards. A round
+    // the evaluations or the budget cannot pay for (its design and two
+    // generations) is dropped.
+    int refine_rounds = -1;
+    // The refinement rounds' share of the search's evaluations and, under a
+    // budget, of its time (split evenly between them).
+    double refine_share = 0.4;
+    long long evaluations = 400;           // main search, all rounds: design + CMA-ES (or annealing)
     // The search after the design: CMA-ES, which evaluates a generation of
     // candidates in parallel and learns the parameters' scales and
     // correlations, or the thesis's annealing, which needed more simulations
@@ -113,18 +128,32 @@ struct ClothFitRequest {
     const std::atomic<bool>* cancel = nullptr;
 };
 
+// One search round of a fit: its start (the previous round's best, or the
+// request's start), its best point, both on this round's objective (its fold
+// states), and what it cost, polish included.
+struct ClothFitRound {
+    cloth::ClothMaterial best;             // the next round's start
+    double start_error = 0.0;
+    double best_error = 0.0;
+    long long evaluations = 0;
+    double seconds = 0.0;
+};
+
 struct ClothFitOutcome {
     enum class Status { ok, cancelled };
     Status status = Status::ok;
     std::vector<FittedParameter> parameters;
     std::vector<std::string> trial_names;
     std::vector<ClothTrial> trials;        // as loaded and fitted (footage angle maps, weights)
-    cloth::ClothMaterial start;            // middle_of_ranges
+    cloth::ClothMaterial start;            // middle_of_ranges, or the request's start (the first round's)
     cloth::ClothMaterial fitted;
-    ClothEvaluation start_evaluation;
-    ClothEvaluation final_evaluation;
-    optim::MinimizeResult search;          // its annealing's best is the polished point when there was a polish
+    ClothEvaluation start_evaluation;      // the first round's start
+    ClothEvaluation final_evaluation;      // on the last round's objective
+    // The last round's search (its annealing's best is the polished point
+    // when there was a polish) and polish.
+    optim::MinimizeResult search;
     std::optional<optim::LeastSquaresResult> polish;
+    std::vector<ClothFitRound> rounds;     // the first search, then each refinement round run
     std::optional<optim::VariabilityReport> variability;
     std::optional<formats::FabricPreset> preset;
     // Variability restarts the budget allowed (the request's, or fewer when a
