@@ -522,15 +522,17 @@ const RegisterFitKind registration{FitKind{
             "6 stiffness and damping parameters; with a waving test the 3 drag parameters too (9).\n"
             "The search is CMA-ES (an evolution strategy that simulates a generation of candidates at\n"
             "once and learns which parameters move together) from the better of the start and a small\n"
-            "Halton design (--search annealing: the thesis's design, then simulated annealing), then a\n"
+            "Halton design (--search annealing: the thesis's design, then simulated annealing). Footage\n"
+            "and scan fits then search a second time from the best fabric, which first picks again the\n"
+            "fold state each trial starts in (--refine-rounds). Last, a\n"
             "variability analysis (restarts from +-5 % perturbed starts) whose spread becomes the\n"
             "preset's uncertainty. Waving cloth is chaotic: frames after --full-weight-frames count\n"
             "less (halving every --half-life-frames), so the fit does not chase unpredictable folds.\n"
             "Never reads truth/. Same seed and options give the same preset whatever --threads, unless\n"
             "--budget-seconds stops the search early. See docs/cloth_fitting.md.\n\n"
             "Farms and clusters (docs/farm.md): --shard i/n runs one of n independent tasks (its share of the\n"
-            "design, then one search of its own) and writes a partial result; `flowvid merge` picks the\n"
-            "best shard and writes the preset. --shards n does all of it here and writes the same bytes\n"
+            "design, then one search of its own, no refinement round) and writes a partial result;\n"
+            "`flowvid merge` picks the best shard and writes the preset. --shards n does all of it here and writes the same bytes\n"
             "(set SOURCE_DATE_EPOCH to fix created_utc). Deterministic only without --budget-seconds (which\n"
             "then limits each shard).\n\n"
             "Examples:\n"
@@ -616,9 +618,8 @@ const RegisterFitKind registration{FitKind{
         CLI::Option* start =
             app.add_option("--start", options->start,
                            "fabric preset to refine: the search begins at its values (clamped into the ranges) instead of "
-                           "the middle of the ranges, and its fabric picks the fold state each trial starts in. A second "
-                           "--fit-to scan round from the first's preset brought the held-out whole trial from 25.4 to "
-                           "22.6 mm (cotton) and 25.6 to 21.2 mm (silk) (docs/cloth_fitting.md); not with --shard/--shards")
+                           "the middle of the ranges, and its fabric picks the fold state each trial starts in (e.g. to "
+                           "go on from a fit with a small budget); not with --shard/--shards")
                 ->check(CLI::ExistingFile);
         start->excludes(shard);
         start->excludes(shards);
@@ -626,9 +627,10 @@ const RegisterFitKind registration{FitKind{
             app.add_option("--refine-rounds", options->refine_rounds,
                            "searches after the first, each from the best fabric so far, which also picks again the fold "
                            "state each trial starts in (the first round's is picked by the start's fabric, which biases "
-                           "the fit: docs/cloth_fitting.md). Default: 1 for footage and scan fits, 0 for tracks fits; "
-                           "the rounds share --evaluations and --budget-seconds (40 % to the refinement); not with "
-                           "--shard/--shards")
+                           "the fit). Default: 1 for footage and scan fits, 0 for tracks fits; the rounds share "
+                           "--evaluations and --budget-seconds (40 % to the refinement). In 600 s a second --fit-to scan "
+                           "round brought the held-out whole trial from 26.7 to 22.2 mm (cotton) and 25.0 to 23.2 mm "
+                           "(silk) (docs/cloth_fitting.md); not with --shard/--shards")
                 ->check(CLI::Range(0, 8));
         refine_rounds->excludes(shard);
         refine_rounds->excludes(shards);

@@ -281,6 +281,39 @@ TEST(CliClothFit, StartRefinesAPresetAndStaysOutOfShards) {
     EXPECT_NE(missing.err.find("no-such.fabric.json"), std::string::npos) << missing.err;
 }
 
+TEST(CliClothFit, RefinementRoundsAreReportedShareTheEvaluationsAndStayOutOfShards) {
+    // A footage fit refines once by default when its evaluations pay for a
+    // design and two generations (static drape: 6 parameters, 7 + 2 x 9 =
+    // 25, 40 % of 64); the summary lists each round, and the final error is
+    // the last round's best on its own fold states.
+    const std::string dir = own_dir("cli_fit_rounds");
+    const auto fit = [&](const std::vector<std::string>& extra) {
+        std::vector<std::string> args = {"fit", "cloth", "--capture", shared_path(kStatic), "--out", dir + "/r.fabric.json",
+                                         "--evaluations", "64", "--variability-runs", "0", "--resolution", "8x8", "--json"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        return run_flowvid(args);
+    };
+    const CliResult refined = fit({});
+    ASSERT_EQ(refined.exit_code, 0) << refined.err;
+    const nlohmann::json summary = nlohmann::json::parse(refined.out);
+    ASSERT_EQ(summary["rounds"].size(), 2u) << summary.dump(1);
+    const nlohmann::json& first = summary["rounds"][0];
+    const nlohmann::json& second = summary["rounds"][1];
+    EXPECT_DOUBLE_EQ(first["start_error"].get<double>(), summary["start_error"].get<double>());
+    EXPECT_LE(first["best_error"].get<double>(), first["start_error"].get<double>());
+    EXPECT_LE(second["best_error"].get<double>(), second["start_error"].get<double>());
+    EXPECT_DOUBLE_EQ(summary["final_error"].get<double>(), second["best_error"].get<double>());
+    EXPECT_EQ(first["evaluations"].get<long long>() + second["evaluations"].get<long long>(), 64 + 1)
+        << "the rounds share --evaluations (+ the second round's start)";
+
+    const CliResult single = fit({"--refine-rounds", "0"});
+    ASSERT_EQ(single.exit_code, 0) << single.err;
+    EXPECT_EQ(nlohmann::json::parse(single.out)["rounds"].size(), 1u);
+    const CliResult sharded = fit({"--refine-rounds", "1", "--shards", "2"});
+    EXPECT_EQ(sharded.exit_code, 2);
+    EXPECT_NE(sharded.err.find("--refine-rounds"), std::string::npos) << sharded.err;
+}
+
 TEST(CliClothFit, BadRequestsNameTheProblem) {
     const CliResult rigid = run_flowvid({"fit", "cloth", "--capture", shared_path("captures/rigid-toss-major"), "--out",
                                          own_dir("cli_fit_bad") + "/x.fabric.json"});

@@ -274,15 +274,14 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
                 return outcome;
             }
         }
-        // The round's search ends at its share of the search time; a round
-        // before the last keeps a fifth of it for its polish (the last
-        // round's polish, as a single search's, uses what the restarts leave).
+        // The round's search ends at its share of the search time, less a
+        // fifth of it for its polish: the variability restarts keep theirs.
         // Tracks and scan fits: a least-squares polish of the search's best point.
         const long long polish_evaluations =
             request.polish_evaluations >= 0 ? request.polish_evaluations : (problem->all_measure_shape() ? 8LL * (n + 1) : 0LL);
         const bool polishes = polish_evaluations > 0 && problem->all_measure_shape();
         const double round_end_s = search_began_s + search_seconds * (share_done + share);
-        const double search_end_s = last_round ? round_end_s : round_end_s - (polishes ? 0.2 * search_seconds * share : 0.0);
+        const double search_end_s = round_end_s - (polishes ? 0.2 * search_seconds * share : 0.0);
 
         optim::MinimizeSettings search;
         search.design = optim::DesignKind::halton;
@@ -353,14 +352,13 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
         // polish checks the clock before each iteration (a Jacobian, n + 1
         // evaluations, and a few steps): it may start one only while a whole
         // iteration still fits, at the pace the search measured, or it would
-        // overrun the budget (or the next round's share).
+        // overrun its share (the next round's, or the restarts').
         double polish_budget_seconds = 0.0;
         if (budget > 0.0) {
             const optim::AnnealingResult& a = outcome.search.annealing;
             const double pace = a.evaluations > 0 ? a.elapsed_s / static_cast<double>(a.evaluations) : evaluation_seconds;
-            const double left = (last_round ? budget : round_end_s) - seconds_since(started);
-            polish_budget_seconds = last_round ? std::min(0.5 * left, left - static_cast<double>(n + 4) * pace)
-                                               : left - static_cast<double>(n + 4) * pace;
+            const double left = round_end_s - seconds_since(started);
+            polish_budget_seconds = left - static_cast<double>(n + 4) * pace;
         }
         if (polishes && (budget <= 0.0 || polish_budget_seconds > 0.0)) {
             optim::LeastSquaresSettings polish;
