@@ -107,7 +107,7 @@ struct Options {
     bool score_from_measured_start = false;  // --score-from-measured-start
     std::string score_start_material;        // --score-start-material
     std::string start_from;                  // --start-from: the fits start from this preset (fit cloth --start)
-    int refine_rounds = -1;                  // --refine-rounds (fit cloth's; -1: its default)
+    int refine_rounds = 0;                   // --refine-rounds (fit cloth's)
     flowvid::optim::SearchMethod search = flowvid::optim::SearchMethod::annealing;  // fit cloth --search
     // What the fit compares with: the scratch copies' tracks (the model's
     // capacity), or the footage alone (--fit-to scan: its stripe scan;
@@ -427,7 +427,7 @@ int main(int argc, char** argv) {
                         "  [--outside-band 16] (scan fits: background pixels this near the swatch's outline count\n"
                         "   against a simulation covering them; 0: off)\n"
                         "  [--budget-seconds 600] (each fit also ends at this wall-clock time, as fit cloth's)\n"
-                        "  [--refine-rounds N] (fit cloth --refine-rounds; default: one for footage and scan fits)\n"
+                        "  [--refine-rounds N] (fit cloth --refine-rounds: searches again from the best fabric, its fold states picked again)\n"
                         "  [--score A.fabric.json,B.fabric.json] (instead of fitting: each preset's training objective\n"
                         "   under the fit's settings and its held-out waving-2 prediction, first fabric only)\n"
                         "  [--score-from-measured-start] (with --score: the trials start from their measured first\n"

@@ -53,7 +53,7 @@ struct FitClothOptions {
     double static_weight = 1.0;  // each static drape against one full-weight waving frame
     double min_bending_N_m = 0.0;  // a floor on the fitted bending (0: its range)
     std::string start;             // a preset to refine (empty: the middle of the ranges)
-    int refine_rounds = -1;        // searches again after the first (-1: the library's default)
+    int refine_rounds = 0;         // searches again after the first, from its fabric
     ClothRunOptions run;
     bool json = false;
     // Farm and cluster splitting (docs/farm.md).
@@ -522,9 +522,9 @@ const RegisterFitKind registration{FitKind{
             "6 stiffness and damping parameters; with a waving test the 3 drag parameters too (9).\n"
             "The search is CMA-ES (an evolution strategy that simulates a generation of candidates at\n"
             "once and learns which parameters move together) from the better of the start and a small\n"
-            "Halton design (--search annealing: the thesis's design, then simulated annealing). Footage\n"
-            "and scan fits then search a second time from the best fabric, which first picks again the\n"
-            "fold state each trial starts in (--refine-rounds). Last, a\n"
+            "Halton design (--search annealing: the thesis's design, then simulated annealing), with\n"
+            "--refine-rounds a second search from the best fabric, which first picks again the fold\n"
+            "state each trial starts in. Last, a\n"
             "variability analysis (restarts from +-5 % perturbed starts) whose spread becomes the\n"
             "preset's uncertainty. Waving cloth is chaotic: frames after --full-weight-frames count\n"
             "less (halving every --half-life-frames), so the fit does not chase unpredictable folds.\n"
@@ -625,12 +625,13 @@ const RegisterFitKind registration{FitKind{
         start->excludes(shards);
         CLI::Option* refine_rounds =
             app.add_option("--refine-rounds", options->refine_rounds,
-                           "searches after the first, each from the best fabric so far, which also picks again the fold "
-                           "state each trial starts in (the first round's is picked by the start's fabric, which biases "
-                           "the fit). Default: 1 for footage and scan fits, 0 for tracks fits; the rounds share "
-                           "--evaluations and --budget-seconds (40 % to the refinement). In 600 s a second --fit-to scan "
-                           "round brought the held-out whole trial from 26.7 to 22.2 mm (cotton) and 25.0 to 23.2 mm "
-                           "(silk) (docs/cloth_fitting.md); not with --shard/--shards")
+                           "searches after the first (footage and scan fits), each from the best fabric so far, which "
+                           "also picks again the fold state each trial starts in (the first round's is picked by the "
+                           "start's fabric, which biases the fit). The rounds share --evaluations and --budget-seconds "
+                           "(40 % to the refinement), so it pays only when the first round still gets enough: with "
+                           "--budget-seconds 600 --variability-runs 0 one round brought the held-out whole trial from "
+                           "26.7 to 22.2 mm (cotton) and 25.0 to 23.2 mm (silk); with the default restarts it made both "
+                           "worse (docs/cloth_fitting.md). Not with --shard/--shards")
                 ->check(CLI::Range(0, 8));
         refine_rounds->excludes(shard);
         refine_rounds->excludes(shards);

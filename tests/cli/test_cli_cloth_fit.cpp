@@ -282,10 +282,10 @@ TEST(CliClothFit, StartRefinesAPresetAndStaysOutOfShards) {
 }
 
 TEST(CliClothFit, RefinementRoundsAreReportedShareTheEvaluationsAndStayOutOfShards) {
-    // A footage fit refines once by default when its evaluations pay for a
-    // design and two generations (static drape: 6 parameters, 7 + 2 x 9 =
-    // 25, 40 % of 64); the summary lists each round, and the final error is
-    // the last round's best on its own fold states.
+    // --refine-rounds 1: a footage fit refines once when its evaluations pay
+    // for a design and two generations (static drape: 6 parameters, 7 + 2 x
+    // 9 = 25, 40 % of 64); the summary lists each round, and the final error
+    // is the last round's best on its own fold states. One round by default.
     const std::string dir = own_dir("cli_fit_rounds");
     const auto fit = [&](const std::vector<std::string>& extra) {
         std::vector<std::string> args = {"fit", "cloth", "--capture", shared_path(kStatic), "--out", dir + "/r.fabric.json",
@@ -293,7 +293,7 @@ TEST(CliClothFit, RefinementRoundsAreReportedShareTheEvaluationsAndStayOutOfShar
         args.insert(args.end(), extra.begin(), extra.end());
         return run_flowvid(args);
     };
-    const CliResult refined = fit({});
+    const CliResult refined = fit({"--refine-rounds", "1"});
     ASSERT_EQ(refined.exit_code, 0) << refined.err;
     const nlohmann::json summary = nlohmann::json::parse(refined.out);
     ASSERT_EQ(summary["rounds"].size(), 2u) << summary.dump(1);
@@ -306,7 +306,7 @@ TEST(CliClothFit, RefinementRoundsAreReportedShareTheEvaluationsAndStayOutOfShar
     EXPECT_EQ(first["evaluations"].get<long long>() + second["evaluations"].get<long long>(), 64 + 1)
         << "the rounds share --evaluations (+ the second round's start)";
 
-    const CliResult single = fit({"--refine-rounds", "0"});
+    const CliResult single = fit({});
     ASSERT_EQ(single.exit_code, 0) << single.err;
     EXPECT_EQ(nlohmann::json::parse(single.out)["rounds"].size(), 1u);
     const CliResult sharded = fit({"--refine-rounds", "1", "--shards", "2"});

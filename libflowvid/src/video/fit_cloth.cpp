@@ -226,7 +226,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     // evaluations and of picking the fold states again).
     const bool any_tracks = std::any_of(first_problem.trials().begin(), first_problem.trials().end(),
                                         [](const ClothTrial& t) { return t.tracks.has_value(); });
-    int refine_rounds = request.shard ? 0 : request.refine_rounds >= 0 ? request.refine_rounds : (any_tracks ? 0 : 1);
+    int refine_rounds = request.shard || any_tracks ? 0 : std::max(0, request.refine_rounds);
     const double refine_share = std::clamp(request.refine_share, 0.0, 0.9);
     const long long smallest_round = (n + 1) + 2LL * (4 + static_cast<long long>(std::floor(3.0 * std::log(std::max(1.0, double(n))))));
     const double search_seconds = budget > 0.0 ? std::max(2.0, main_share * budget - seconds_since(started)) : 0.0;

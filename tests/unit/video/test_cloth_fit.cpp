@@ -334,9 +334,9 @@ TEST(ClothFit, AGivenStartIsWhereTheFitBeginsClampedIntoTheRanges) {
 }
 
 TEST(ClothFit, ARefinementRoundStartsFromTheFirstRoundsFabricWithItsFoldStates) {
-    // A footage fit searches a second time from its first round's best
-    // fabric, whose equilibrium picks the fold states again (the first
-    // round's were picked by the middle of the ranges). The second round's
+    // With a refinement round, a footage fit searches a second time from its
+    // first round's best fabric, whose equilibrium picks the fold states
+    // again (the first round's were picked by the middle of the ranges). The second round's
     // start error must be that fabric scored by a problem built afresh with
     // it as the base, its best must not be worse than that start, and the
     // rounds share the evaluations.
@@ -347,8 +347,9 @@ TEST(ClothFit, ARefinementRoundStartsFromTheFirstRoundsFabricWithItsFoldStates) 
     request.evaluations = 60;
     request.variability_runs = 0;
     request.threads = 2;
+    request.refine_rounds = 1;
     const ClothFitOutcome fit = fit_cloth(request);
-    ASSERT_EQ(fit.rounds.size(), 2u) << "footage fits refine once by default";
+    ASSERT_EQ(fit.rounds.size(), 2u);
     const ClothFitRound& first = fit.rounds[0];
     const ClothFitRound& second = fit.rounds[1];
 
@@ -367,7 +368,7 @@ TEST(ClothFit, ARefinementRoundStartsFromTheFirstRoundsFabricWithItsFoldStates) 
     EXPECT_EQ(first.evaluations, 36);  // 60 % of the search
     EXPECT_EQ(second.evaluations, 1 + 24);  // its start, then the rest
 
-    request.refine_rounds = 0;
+    request.refine_rounds = 0;  // the default
     const ClothFitOutcome single = fit_cloth(request);
     ASSERT_EQ(single.rounds.size(), 1u);
     EXPECT_EQ(single.rounds[0].evaluations, 60);
