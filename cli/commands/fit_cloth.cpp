@@ -628,10 +628,8 @@ const RegisterFitKind registration{FitKind{
                            "searches after the first (footage and scan fits), each from the best fabric so far, which "
                            "also picks again the fold state each trial starts in (the first round's is picked by the "
                            "start's fabric, which biases the fit). The rounds share --evaluations and --budget-seconds "
-                           "(40 % to the refinement), so it pays only when the first round still gets enough: with "
-                           "--budget-seconds 600 --variability-runs 0 one round brought the held-out whole trial from "
-                           "26.7 to 22.2 mm (cotton) and 25.0 to 23.2 mm (silk); with the default restarts it made both "
-                           "worse (docs/cloth_fitting.md). Not with --shard/--shards")
+                           "(40 % to the refinement). An experiment: measured with 600 s scan fits it helped in the "
+                           "bench and hurt in all four fit cloth runs (docs/cloth_fitting.md). Not with --shard/--shards")
                 ->check(CLI::Range(0, 8));
         refine_rounds->excludes(shard);
         refine_rounds->excludes(shards);

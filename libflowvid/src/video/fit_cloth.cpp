@@ -274,12 +274,12 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
                 return outcome;
             }
         }
-        // The round's search ends at its share of the search time, less a
-        // fifth of it for its polish: the variability restarts keep theirs.
         // Tracks and scan fits: a least-squares polish of the search's best point.
         const long long polish_evaluations =
             request.polish_evaluations >= 0 ? request.polish_evaluations : (problem->all_measure_shape() ? 8LL * (n + 1) : 0LL);
         const bool polishes = polish_evaluations > 0 && problem->all_measure_shape();
+        // The round's search ends at its share of the search time, less a
+        // fifth of it for its polish: the variability restarts keep theirs.
         const double round_end_s = search_began_s + search_seconds * (share_done + share);
         const double search_end_s = round_end_s - (polishes ? 0.2 * search_seconds * share : 0.0);
 

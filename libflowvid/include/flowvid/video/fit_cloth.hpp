@@ -91,11 +91,9 @@ struct ClothFitRequest {
     // fabrics that suit that start (docs/cloth_fitting.md, "What the start
     // decides"): a refinement round picks the fold states again with the
     // fabric found so far and searches again from it, as `fit cloth --start`
-    // does by hand. It pays only after a first round that converged: with
-    // about 240 first-round evaluations (a 600 s scan fit with no restarts)
-    // it improved both public fabrics' held-out trials, with 155-177 (the
-    // same budget paying restarts and floors) it made both worse, so it is
-    // not the default. Tracks fits and shards never refine. A round the
+    // does by hand. Not the default: in 600 s scan fits it improved both
+    // public fabrics' held-out trials in the capacity bench and made them
+    // worse in all four `fit cloth` runs (docs/cloth_fitting.md). Tracks fits and shards never refine. A round the
     // evaluations or the budget cannot pay for (its design and two
     // generations) is dropped.
     int refine_rounds = 0;
