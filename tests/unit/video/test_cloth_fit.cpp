@@ -302,18 +302,26 @@ TEST(ClothFit, RecoversStretchAndBendFromSynthetic3dTracks) {
         << "the base material must be far off for the recovery to mean anything";
 }
 
-TEST(ClothFit, AGivenStartIsWhereTheFitBeginsClampedIntoTheRanges) {
-    // ClothFitRequest::start (refining an earlier fit): the fit starts from
-    // that fabric, its fitted values clamped into their ranges, its other
-    // values kept; without it, from the middle of the ranges.
+namespace {
+// A small fit of bending and stretch to the cotton drape on an 8 x 8 mesh.
+ClothFitRequest small_drape_fit(long long evaluations) {
     ClothFitRequest request;
     request.captures = {capture("cloth-cotton-static-1")};
     request.problem.swatch.rows = request.problem.swatch.cols = 8;
     request.parameters = {{"bend_stiffness_N_m", 1e-8, 1e-5, true}, {"stretch_stiffness_N_per_m", 10.0, 1e4, true}};
-    request.evaluations = 10;
+    request.evaluations = evaluations;
     request.variability_runs = 0;
-    request.polish_evaluations = 0;
     request.threads = 2;
+    return request;
+}
+}  // namespace
+
+TEST(ClothFit, AGivenStartIsWhereTheFitBeginsClampedIntoTheRanges) {
+    // ClothFitRequest::start (refining an earlier fit): the fit starts from
+    // that fabric, its fitted values clamped into their ranges, its other
+    // values kept; without it, from the middle of the ranges.
+    ClothFitRequest request = small_drape_fit(10);
+    request.polish_evaluations = 0;
     cloth::ClothMaterial start = cotton();
     start.bend_N_m = 1e-3;              // above its range: clamped to 1e-5
     start.stretch_warp_N_per_m = 80.0;  // inside
@@ -336,17 +344,11 @@ TEST(ClothFit, AGivenStartIsWhereTheFitBeginsClampedIntoTheRanges) {
 TEST(ClothFit, ARefinementRoundStartsFromTheFirstRoundsFabricWithItsFoldStates) {
     // With a refinement round, a footage fit searches a second time from its
     // first round's best fabric, whose equilibrium picks the fold states
-    // again (the first round's were picked by the middle of the ranges). The second round's
-    // start error must be that fabric scored by a problem built afresh with
-    // it as the base, its best must not be worse than that start, and the
-    // rounds share the evaluations.
-    ClothFitRequest request;
-    request.captures = {capture("cloth-cotton-static-1")};
-    request.problem.swatch.rows = request.problem.swatch.cols = 8;
-    request.parameters = {{"bend_stiffness_N_m", 1e-8, 1e-5, true}, {"stretch_stiffness_N_per_m", 10.0, 1e4, true}};
-    request.evaluations = 60;
-    request.variability_runs = 0;
-    request.threads = 2;
+    // again (the first round's were picked by the middle of the ranges).
+    // The second round's start error must be that fabric scored by a
+    // problem built afresh with it as the base, its best must not be worse
+    // than that start, and the rounds share the evaluations.
+    ClothFitRequest request = small_drape_fit(60);
     request.refine_rounds = 1;
     const ClothFitOutcome fit = fit_cloth(request);
     ASSERT_EQ(fit.rounds.size(), 2u);
