@@ -50,7 +50,7 @@ std::vector<FittedParameter> parameters_for(const std::vector<ClothTrial>& trial
 cloth::ClothMaterial middle_of_ranges(const cloth::ClothMaterial& base, const std::vector<FittedParameter>& parameters);
 
 struct ClothFitProgress {
-    std::string phase;          // "loading", "design", "annealing", "variability", "final"
+    std::string phase;          // "loading", "design", "annealing", "polish", "refining", "variability", "final"
     double fraction = 0.0;      // of the whole fit, in [0, 1]
     long long evaluations = 0;  // objective evaluations so far (each simulates every trial)
     double best_error = 0.0;
