@@ -176,6 +176,12 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     const std::function<bool()>& stop_requested = control.stop_requested;
     const Reporter& report = control.report;
     report({"loading", 0.0, 0, 0.0, 0.0, 0.0});
+    // What a cancelled fit returns: everything so far, marked cancelled.
+    const auto cancelled_outcome = [&] {
+        outcome.status = ClothFitOutcome::Status::cancelled;
+        outcome.seconds = seconds_since(started);
+        return outcome;
+    };
 
     const ClothFitProblem first_problem = make_problem(request, load_fit_trials(request, outcome), outcome);
     const int threads = fit_threads(request);
@@ -185,6 +191,12 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     const Clock::time_point start_evaluation_began = Clock::now();
     if (evaluate_start) outcome.start_evaluation = first_problem.evaluate(outcome.start, threads);
     const double evaluation_seconds = seconds_since(start_evaluation_began);
+    // Seconds per evaluation of the latest search (its generations run in
+    // parallel), or of the start's evaluation before any search.
+    const auto search_pace = [&] {
+        const optim::AnnealingResult& a = outcome.search.annealing;
+        return a.evaluations > 0 ? a.elapsed_s / static_cast<double>(a.evaluations) : evaluation_seconds;
+    };
 
     const int n = first_problem.space().size();
     // The final evaluation comes after the search: keep time for it (it
@@ -269,9 +281,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
             round_start_evaluation = problem->evaluate(round_start, threads);
             outcome.evaluations += 1;
             if (stop_requested()) {
-                outcome.status = ClothFitOutcome::Status::cancelled;
-                outcome.seconds = seconds_since(started);
-                return outcome;
+                return cancelled_outcome();
             }
         }
         // Tracks and scan fits: a least-squares polish of the search's best point.
@@ -332,9 +342,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
         outcome.polish.reset();
         outcome.evaluations += outcome.search.evaluations;
         if (outcome.search.annealing.status == optim::AnnealingResult::Status::cancelled || stop_requested()) {
-            outcome.status = ClothFitOutcome::Status::cancelled;
-            outcome.seconds = seconds_since(started);
-            return outcome;
+            return cancelled_outcome();
         }
         if (request.shard) {
             // A shard ends with its search: the merge evaluates the winner.
@@ -355,8 +363,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
         // overrun its share (the next round's, or the restarts').
         double polish_budget_seconds = 0.0;
         if (budget > 0.0) {
-            const optim::AnnealingResult& a = outcome.search.annealing;
-            const double pace = a.evaluations > 0 ? a.elapsed_s / static_cast<double>(a.evaluations) : evaluation_seconds;
+            const double pace = search_pace();
             const double left = round_end_s - seconds_since(started);
             polish_budget_seconds = left - static_cast<double>(n + 4) * pace;
         }
@@ -376,9 +383,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
             outcome.polish = optim::levenberg_marquardt(residuals, problem->space(), outcome.search.annealing.best_values, polish);
             outcome.evaluations += outcome.polish->evaluations;
             if (stop_requested()) {
-                outcome.status = ClothFitOutcome::Status::cancelled;
-                outcome.seconds = seconds_since(started);
-                return outcome;
+                return cancelled_outcome();
             }
             if (outcome.polish->best_value < outcome.search.annealing.best_value) {
                 outcome.search.annealing.best_value = outcome.polish->best_value;
@@ -399,9 +404,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     double restart_hint = single_thread_evaluation_seconds;
     double restart_budget = 0.0;
     if (budget > 0.0) {
-        const optim::AnnealingResult& a = outcome.search.annealing;
-        const double pace = a.evaluations > 0 ? a.elapsed_s / static_cast<double>(a.evaluations) : evaluation_seconds;
-        const double latest = std::max(evaluation_seconds, pace);
+        const double latest = std::max(evaluation_seconds, search_pace());
         restart_hint = std::max(restart_hint, latest * static_cast<double>(std::min<std::size_t>(threads, problem->trials().size())));
         const double left = request.budget_seconds - seconds_since(started) - (1.5 + request.evaluations_after_fit) * latest;
         variability_runs = affordable_runs(variability_runs, restart_hint, left);
@@ -410,9 +413,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     }
     if (!end_fit(request, *problem, threads, variability_runs, restart_budget, restart_hint, main_share,
                  cancelled, stop_requested, report, outcome.search.annealing.best_values, outcome)) {
-        outcome.status = ClothFitOutcome::Status::cancelled;
-        outcome.seconds = seconds_since(started);
-        return outcome;
+        return cancelled_outcome();
     }
     outcome.evaluations += 2;  // start and final evaluations
     outcome.simulations = outcome.evaluations * static_cast<long long>(problem->trials().size());

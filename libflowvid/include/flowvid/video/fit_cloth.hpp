@@ -93,9 +93,9 @@ struct ClothFitRequest {
     // fabric found so far and searches again from it, as `fit cloth --start`
     // does by hand. Not the default: in 600 s scan fits it improved both
     // public fabrics' held-out trials in the capacity bench and made them
-    // worse in all four `fit cloth` runs (docs/cloth_fitting.md). Tracks fits and shards never refine. A round the
-    // evaluations or the budget cannot pay for (its design and two
-    // generations) is dropped.
+    // worse in all four `fit cloth` runs (docs/cloth_fitting.md). Tracks
+    // fits and shards never refine. A round the evaluations or the budget
+    // cannot pay for (its design and two generations) is dropped.
     int refine_rounds = 0;
     // The refinement rounds' share of the search's evaluations and, under a
     // budget, of its time (split evenly between them).
