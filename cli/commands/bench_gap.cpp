@@ -7,7 +7,9 @@
 //   flowvid bench gap --score DIR
 // DIR/cases/case-NNN/ hold captures and base.fabric.json (what the
 // diagnoser gets); DIR/labels.json holds the hidden effects (never read by
-// the diagnoser: only --score reads it).
+// the diagnoser: only --score reads it; format flowvid.gap_bench_labels,
+// formats/specs/gap_bench_labels.md); DIR/results/case-NNN/diagnosis.json
+// the diagnoses (flowvid.diagnosis, formats/specs/diagnosis.md).
 
 #include "commands/diagnose.hpp"
 #include "commands/fit.hpp"
@@ -15,7 +17,9 @@
 
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/diagnosis.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
+#include "flowvid/formats/gap_bench_labels.hpp"
 #include "flowvid/gap/bench.hpp"
 #include "flowvid/gap/rigid_model.hpp"
 
@@ -50,8 +54,8 @@ struct BenchGapOptions {
     int threads = 0;
 };
 
-nlohmann::json values_json(const gap::EffectValues& values) {
-    nlohmann::json out = nlohmann::json::object();
+std::map<std::string, double> label_values(const gap::EffectValues& values) {
+    std::map<std::string, double> out;
     for (const auto& [name, v] : values) {
         const gap::Effect& effect = gap::find_effect(name);
         for (std::size_t i = 0; i < effect.parameters.size(); ++i) out[effect.parameters[i].key] = v(static_cast<Eigen::Index>(i));
@@ -80,7 +84,7 @@ int generate(const BenchGapOptions& options, const GlobalOptions& global) {
     Progress progress(global, "bench gap: making cases");
     const InterruptWatch interrupt;
     const int threads = thread_count(options.threads);
-    nlohmann::json labels = nlohmann::json::array();
+    formats::GapBenchLabels labels;
     for (std::size_t i = 0; i < cases.size(); ++i) {
         if (interrupt.requested()) return kExitInterrupted;
         gap::BenchCase& c = cases[i];
@@ -98,12 +102,14 @@ int generate(const BenchGapOptions& options, const GlobalOptions& global) {
             double sum = 0.0;
             for (const gap::FrameResidual& f : r.frames) sum += f.error / f.floor;
             c.effect_to_noise = r.frames.empty() ? 0.0 : sum / static_cast<double>(r.frames.size());
-            labels.push_back({{"case", c.id},
-                              {"kind", "rigid"},
-                              {"effect", c.effect},
-                              {"values", values_json(c.values)},
-                              {"scene", options.rigid_scenes[static_cast<std::size_t>(c.scene)]},
-                              {"effect_to_noise", c.effect_to_noise}});
+            formats::GapBenchLabel label;
+            label.id = c.id;
+            label.kind = "rigid";
+            label.effect = c.effect;
+            label.values = label_values(c.values);
+            label.scene = options.rigid_scenes[static_cast<std::size_t>(c.scene)];
+            label.effect_to_noise = c.effect_to_noise;
+            labels.cases.push_back(std::move(label));
             continue;
         }
         const cloth::ClothMaterial fabric = cloth::material_from_fabric(fabrics[static_cast<std::size_t>(c.fabric)].parameters);
@@ -129,27 +135,25 @@ int generate(const BenchGapOptions& options, const GlobalOptions& global) {
         base.adapters.clear();
         formats::write_fabric_preset(folder + "/base.fabric.json", base);
         c.effect_to_noise = gap::measure_effect_to_noise(folder, c, fabric, settings, threads);
-        labels.push_back({{"case", c.id},
-                          {"kind", "cloth"},
-                          {"effect", c.effect},
-                          {"values", values_json(c.values)},
-                          {"scene", options.scenes[static_cast<std::size_t>(c.scene)]},
-                          {"fabric", options.fabrics[static_cast<std::size_t>(c.fabric)]},
-                          {"effect_to_noise", c.effect_to_noise},
-                          {"weakened", weakened}});
+        formats::GapBenchLabel label;
+        label.id = c.id;
+        label.kind = "cloth";
+        label.effect = c.effect;
+        label.values = label_values(c.values);
+        label.scene = options.scenes[static_cast<std::size_t>(c.scene)];
+        label.fabric = options.fabrics[static_cast<std::size_t>(c.fabric)];
+        label.effect_to_noise = c.effect_to_noise;
+        label.weakened = weakened;
+        labels.cases.push_back(std::move(label));
     }
     progress.done();
-    const nlohmann::json document = {{"format", "flowvid.gap_bench_labels"},
-                                     {"version", 1},
-                                     {"seed", options.seed},
-                                     {"footage_mesh", std::to_string(settings.rows) + "x" + std::to_string(settings.cols)},
-                                     {"footage_integrator", options.footage_integrator},
-                                     {"footage_substeps_per_frame", settings.implicit_substeps},
-                                     {"frames", settings.frames},
-                                     {"strength", settings.strength},
-                                     {"cases", labels}};
-    formats::write_file_atomically((fs::path(options.out) / "labels.json").string(),
-                                   [&](std::ostream& o) { o << document.dump(2) << '\n'; });
+    labels.seed = options.seed;
+    labels.footage_mesh = std::to_string(settings.rows) + "x" + std::to_string(settings.cols);
+    labels.footage_integrator = options.footage_integrator;
+    labels.footage_substeps_per_frame = settings.implicit_substeps;
+    labels.frames = settings.frames;
+    labels.strength = settings.strength;
+    formats::write_gap_bench_labels((fs::path(options.out) / "labels.json").string(), labels);
     std::cout << "wrote " << cases.size() << " cases to " << (fs::path(options.out) / "cases").string()
               << " and their labels to " << (fs::path(options.out) / "labels.json").string() << '\n';
     return kExitOk;
@@ -213,18 +217,50 @@ double median(std::vector<double> v) {
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-gap::EffectValues values_from_json(const std::string& name, const nlohmann::json& values) {
+gap::EffectValues values_from_label(const std::string& name, const std::map<std::string, double>& values) {
     const gap::Effect& effect = gap::find_effect(name);
     Eigen::VectorXd v = gap::neutral_values(effect);
     for (std::size_t i = 0; i < effect.parameters.size(); ++i)
-        if (values.contains(effect.parameters[i].key)) v(static_cast<Eigen::Index>(i)) = values.at(effect.parameters[i].key).get<double>();
+        if (values.count(effect.parameters[i].key)) v(static_cast<Eigen::Index>(i)) = values.at(effect.parameters[i].key);
     return {{name, v}};
+}
+
+// The labels' effects and values against the catalogue (the format's reader
+// checks their form only): every problem, named by file and field.
+void check_labels_against_catalogue(const std::string& path, const formats::GapBenchLabels& labels) {
+    std::vector<Problem> problems;
+    const auto problem = [&](std::string field, std::string message, std::string fix) {
+        problems.push_back(Problem{Problem::Severity::error, path, std::move(field), std::move(message), std::move(fix)});
+    };
+    std::string known = "\"none\"";
+    for (const gap::Effect& effect : gap::effect_catalogue()) known += ", " + effect.name;
+    for (std::size_t i = 0; i < labels.cases.size(); ++i) {
+        const formats::GapBenchLabel& label = labels.cases[i];
+        const std::string at = "/cases/" + std::to_string(i);
+        if (label.effect == "none") continue;  // the reader has checked that it has no values
+        const auto effect = std::find_if(gap::effect_catalogue().begin(), gap::effect_catalogue().end(),
+                                         [&](const gap::Effect& e) { return e.name == label.effect; });
+        if (effect == gap::effect_catalogue().end()) {
+            problem(at + "/effect", "\"" + label.effect + "\" is not an effect of the catalogue", "use one of " + known);
+            continue;
+        }
+        std::string keys;
+        for (const gap::EffectParameter& p : effect->parameters) keys += (keys.empty() ? "" : ", ") + p.key;
+        for (const auto& [key, value] : label.values) {
+            const bool known_key = std::any_of(effect->parameters.begin(), effect->parameters.end(),
+                                               [&](const gap::EffectParameter& p) { return p.key == key; });
+            if (!known_key)
+                problem(formats::json_pointer_child(at + "/values", key), "not a parameter of " + label.effect,
+                        "use the effect's parameters (" + keys + ")");
+        }
+    }
+    if (!problems.empty()) throw ValidationError(std::move(problems));
 }
 
 // The share of the held-out gap the hidden effect itself, at its true values,
 // closes in the diagnoser's model: the most any diagnosis could close, the
 // rest being the model's own discretisation against the footage's.
-double oracle_gap_closed(const std::string& folder, const std::string& effect, const nlohmann::json& values,
+double oracle_gap_closed(const std::string& folder, const std::string& effect, const std::map<std::string, double>& values,
                          const BenchGapOptions& options) {
     nlohmann::json ignored;
     const bool rigid = formats::read_capture(folder).is_rigid();
@@ -232,11 +268,31 @@ double oracle_gap_closed(const std::string& folder, const std::string& effect, c
         rigid ? rigid_gap_model({folder}, "", thread_count(options.threads), ignored)
               : cloth_gap_model({folder}, folder + "/base.fabric.json", options.diagnose, ignored);
     if (!model) return std::nan("");
-    return gap::held_out_gap_closed(model->evaluate({}), model->evaluate(values_from_json(effect, values)));
+    return gap::held_out_gap_closed(model->evaluate({}), model->evaluate(values_from_label(effect, values)));
 }
 
+// Reads labels.json and every diagnosis.json there is, validated (each
+// problem named by file and field: an invalid file stops the score before
+// any work, exit 3); cases without a diagnosis count as missing.
 int score(const std::string& dir, const BenchGapOptions& options) {
-    const nlohmann::json labels = nlohmann::json::parse(formats::read_text_file((fs::path(dir) / "labels.json").string()));
+    const std::string labels_path = (fs::path(dir) / "labels.json").string();
+    std::vector<Problem> warnings;
+    const formats::GapBenchLabels labels = formats::read_gap_bench_labels(labels_path, &warnings);
+    print_problems(warnings);
+    check_labels_against_catalogue(labels_path, labels);
+    std::map<std::string, formats::Diagnosis> diagnoses;
+    std::vector<Problem> problems;
+    for (const formats::GapBenchLabel& label : labels.cases) {
+        const fs::path result = fs::path(dir) / "results" / label.id / "diagnosis.json";
+        if (!fs::exists(result)) continue;
+        try {
+            diagnoses.emplace(label.id, formats::read_diagnosis(result.string(), &warnings));
+            print_problems(warnings);
+        } catch (const ValidationError& error) {
+            problems.insert(problems.end(), error.problems().begin(), error.problems().end());
+        }
+    }
+    if (!problems.empty()) throw ValidationError(std::move(problems));
     struct Tally {
         int cases = 0, correct = 0;
     };
@@ -245,41 +301,40 @@ int score(const std::string& dir, const BenchGapOptions& options) {
     std::vector<double> closed_named, closed_strong, oracle_strong;
     nlohmann::json oracle_by_case = nlohmann::json::object();
     int missing = 0;
-    for (const nlohmann::json& label : labels.at("cases")) {
-        const std::string id = label.at("case");
-        const fs::path result = fs::path(dir) / "results" / id / "diagnosis.json";
+    for (const formats::GapBenchLabel& label : labels.cases) {
+        const std::string& id = label.id;
         // The oracle needs no diagnosis: the ceiling of a diagnoser setting
         // can be measured before (or instead of) running it.
-        if (options.oracle && label.at("effect") != "none" && label.at("effect_to_noise").get<double>() >= 4.0) {
-            const double oracle = oracle_gap_closed((fs::path(dir) / "cases" / id).string(), label.at("effect"), label.at("values"), options);
+        if (options.oracle && label.effect != "none" && label.effect_to_noise >= 4.0) {
+            const double oracle = oracle_gap_closed((fs::path(dir) / "cases" / id).string(), label.effect, label.values, options);
             if (std::isfinite(oracle)) oracle_strong.push_back(oracle);
             oracle_by_case[id] = std::isfinite(oracle) ? nlohmann::json(oracle) : nlohmann::json();
         }
-        if (!fs::exists(result)) {
+        const auto found = diagnoses.find(id);
+        if (found == diagnoses.end()) {
             ++missing;
             continue;
         }
-        const nlohmann::json d = nlohmann::json::parse(formats::read_text_file(result.string()));
-        const std::string effect = label.at("effect");
-        const std::string status = d.at("verdict").at("status");
-        const std::vector<std::string> named = d.at("verdict").at("effects").get<std::vector<std::string>>();
-        const std::string named_class = d.at("verdict").value("class", "");
+        const formats::Diagnosis& d = found->second;
+        const std::string& effect = label.effect;
+        const std::string& status = d.verdict.status;
+        const std::vector<std::string>& named = d.verdict.effects;
+        const std::string& named_class = d.verdict.effect_class;
         if (effect == "none") {
             ++none.cases;
             none.correct += status == "named" ? 1 : 0;  // a false alarm
             any_gap_on_none.cases++;
-            any_gap_on_none.correct += d.at("gap").at("detected").get<bool>() ? 1 : 0;
+            any_gap_on_none.correct += d.gap.detected ? 1 : 0;
             continue;
         }
         // Top-1: the first named effect, or the class it belongs to.
         const bool correct = !named.empty() && (named.front() == effect || named_class.find(effect) != std::string::npos);
-        const double ratio = label.at("effect_to_noise");
+        const double ratio = label.effect_to_noise;
         by_effect[effect].cases++;
         by_effect[effect].correct += correct ? 1 : 0;
         by_bin[bin_of(ratio)].cases++;
         by_bin[bin_of(ratio)].correct += correct ? 1 : 0;
-        const nlohmann::json& closed = d.at("verdict").at("gap_closed");
-        const double gap_closed = correct && closed.is_number() ? closed.get<double>() : 0.0;
+        const double gap_closed = correct && d.verdict.gap_closed ? *d.verdict.gap_closed : 0.0;
         if (correct) closed_named.push_back(gap_closed);
         if (ratio >= 4.0) {
             strong.cases++;
@@ -288,7 +343,7 @@ int score(const std::string& dir, const BenchGapOptions& options) {
         }
     }
     const auto percent = [](const Tally& t) { return t.cases ? 100.0 * t.correct / t.cases : std::nan(""); };
-    nlohmann::json out = {{"cases_scored", static_cast<int>(labels.at("cases").size()) - missing}, {"missing", missing}};
+    nlohmann::json out = {{"cases_scored", static_cast<int>(labels.cases.size()) - missing}, {"missing", missing}};
     std::printf("top-1 accuracy per effect\n");
     for (const auto& [effect, t] : by_effect) {
         std::printf("  %-16s %3d / %-3d  %5.1f %%\n", effect.c_str(), t.correct, t.cases, percent(t));

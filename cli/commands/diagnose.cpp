@@ -9,6 +9,7 @@
 #include "output.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/diagnosis.hpp"
 #include "flowvid/gap/cloth_model.hpp"
 #include "flowvid/gap/diagnose.hpp"
 #include "flowvid/gap/rigid_model.hpp"
@@ -47,8 +48,8 @@ nlohmann::json base_changes_json(const std::vector<gap::BaseParameterChange>& ch
 
 nlohmann::json diagnosis_to_json(const gap::Diagnosis& d, const nlohmann::json& model) {
     nlohmann::json out;
-    out["format"] = "flowvid.diagnosis";
-    out["version"] = 1;
+    out["format"] = formats::kDiagnosisFormatName;
+    out["version"] = formats::kDiagnosisFormatVersion;
     out["kind"] = d.kind;
     out["trials"] = d.trials;
     out["model"] = model;
@@ -133,7 +134,8 @@ nlohmann::json diagnosis_to_json(const gap::Diagnosis& d, const nlohmann::json& 
 
 void write_diagnosis(const std::string& folder, const nlohmann::json& diagnosis) {
     std::filesystem::create_directories(folder);
-    formats::write_file_atomically(folder + "/diagnosis.json", [&](std::ostream& out) { out << diagnosis.dump(2) << '\n'; });
+    // Validated against formats/specs/diagnosis.md before it is written.
+    formats::write_diagnosis(folder + "/diagnosis.json", diagnosis);
     formats::write_file_atomically(folder + "/report.html",
                                    [&](std::ostream& out) { out << diagnosis_report_html(diagnosis); });
 }

@@ -101,7 +101,7 @@ const RegisterFitKind registration{FitKind{
             "the fit searches orientations and spins itself. Gravity's magnitude is taken as 9.81 m/s^2.\n"
             "Writes FILE (format flowvid.rigid_fit, keys as in a capture's truth/truth.json) with the\n"
             "final error and per-frame residuals; prints a summary on stdout (--json for machines).\n"
-            "See docs/rigid.md.\n\n"
+            "See docs/rigid.md; the file: formats/specs/rigid_fit.md.\n\n"
             "Examples:\n"
             "  flowvid fit rigid --capture ../shared/captures/rigid-toss-major --out fit.json\n"
             "  flowvid fit rigid --capture toss/ --out half.json --frames 1:18\n"

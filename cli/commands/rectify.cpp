@@ -7,6 +7,7 @@
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/json_fields.hpp"
+#include "flowvid/formats/rectification.hpp"
 #include "flowvid/rigid/fit_file.hpp"
 #include "flowvid/rigid/rectify.hpp"
 
@@ -92,14 +93,9 @@ int run_rectify(const RectifyOptions& options, const GlobalOptions& global) {
     }
     const std::string capture_text = formats::dump_json(document);
     formats::write_file_atomically((out / "capture.json").string(), [&](std::ostream& s) { s << capture_text; });
-    const nlohmann::json description = {{"format", "flowvid.rectification"},
-                                        {"version", "1.0"},
-                                        {"fit", options.fit},
-                                        {"roll_deg", rectification.roll_rad * 180.0 / M_PI},
-                                        {"tilt_deg_not_corrected", record.initial.gravity.tilt_rad * 180.0 / M_PI},
-                                        {"homography_output_from_input", matrix_json(rectification.homography)}};
-    const std::string description_text = formats::dump_json(description);
-    formats::write_file_atomically((out / "rectify.json").string(), [&](std::ostream& s) { s << description_text; });
+    // What was done, as a flowvid.rectification file (formats/specs/rectification.md).
+    formats::write_rectification((out / "rectify.json").string(),
+                                 rigid::rectification_file(rectification, record.initial.gravity, options.fit));
 
     const nlohmann::json summary = {{"out", options.out},
                                     {"frames", std::to_string(frames->first) + ":" + std::to_string(frames->second)},
@@ -117,7 +113,8 @@ const RegisterCommand registration{Command{
             "angle of a `flowvid fit rigid` result, so that gravity points straight down the image\n"
             "(thesis fig. 2.8). Tilt (pitch) is not corrected. Writes OUT/frames/NNNNNN.png, OUT/masks/,\n"
             "OUT/background.png, OUT/capture.json (the rectified footage as a capture: same intrinsics,\n"
-            "camera rolled) and OUT/rectify.json (the roll angle and the pixel homography).\n\n"
+            "camera rolled) and OUT/rectify.json (the roll angle and the pixel homography; format\n"
+            "flowvid.rectification, formats/specs/rectification.md).\n\n"
             "Examples:\n"
             "  flowvid rectify --fit fit.json --capture ../shared/captures/rigid-toss-major --out straight/\n"
             "  flowvid rectify --fit fit.json --capture rolled-shot/ --out straight/ --frames 1:120");

@@ -1,14 +1,19 @@
 #include "flowvid/formats/any_file.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/diagnosis.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/fit_shard.hpp"
-#include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/flowlines.hpp"
+#include "flowvid/formats/gap_bench_labels.hpp"
 #include "flowvid/formats/motion_gltf.hpp"
 #include "flowvid/formats/particle_bank.hpp"
+#include "flowvid/formats/rectification.hpp"
+#include "flowvid/formats/rigid_fit.hpp"
 #include "flowvid/formats/vertex_animation.hpp"
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -33,7 +38,11 @@ FileKind kind_from_json_format(const std::string& format) {
     if (format == "flowvid.fabric") return FileKind::fabric_preset;
     if (format == "flowvid.flowlines") return FileKind::flowline_set;
     if (format == "flowvid.capture") return FileKind::capture_folder;
-    if (format == "flowvid.fit_shard") return FileKind::fit_shard;
+    if (format == kFitShardFormatName) return FileKind::fit_shard;
+    if (format == kDiagnosisFormatName) return FileKind::diagnosis;
+    if (format == kGapBenchLabelsFormatName) return FileKind::gap_bench_labels;
+    if (format == kRigidFitFormatName) return FileKind::rigid_fit;
+    if (format == kRectificationFormatName) return FileKind::rectification;
     return FileKind::unknown;
 }
 
@@ -47,6 +56,20 @@ std::string declared_json_format(const std::string& head) {
     return close == std::string::npos ? std::string() : head.substr(open + 1, close - open - 1);
 }
 
+// Files that write their keys sorted (diagnosis.json, labels.json) may
+// declare their "format" after a long first array: when the head holds no
+// "format" key, a JSON object is searched further (up to 64 MiB).
+std::string declared_json_format_anywhere(const std::string& path, const std::string& head) {
+    std::string format = declared_json_format(head);
+    if (!format.empty() || head.size() < 4096) return format;
+    const std::size_t start = head.find_first_not_of(" \t\r\n");
+    if (start == std::string::npos || head[start] != '{') return format;
+    std::error_code ec;
+    const std::uintmax_t size = fs::file_size(path, ec);
+    if (ec || size <= head.size()) return format;
+    return declared_json_format(read_head(path, static_cast<std::size_t>(std::min<std::uintmax_t>(size, std::uintmax_t{64} << 20))));
+}
+
 // Why a file is not one flowvid reads: a JSON file declaring a format flowvid
 // does not know is told which formats it does know.
 Problem unrecognised_file(const std::string& path, const std::string& fix) {
@@ -56,7 +79,8 @@ Problem unrecognised_file(const std::string& path, const std::string& fix) {
     if (!format.empty())
         return Problem{Problem::Severity::error, path, "/format", "\"" + format + "\" is not a format flowvid reads",
                        "flowvid's JSON formats are flowvid.fabric (fabric presets), flowvid.flowlines, "
-                       "flowvid.capture (a capture folder's capture.json) and flowvid.fit_shard"};
+                       "flowvid.capture (a capture folder's capture.json), flowvid.fit_shard, flowvid.diagnosis, "
+                       "flowvid.gap_bench_labels, flowvid.rigid_fit and flowvid.rectification"};
     return Problem{Problem::Severity::error, path, "", "not a flowvid file (unrecognised content)", fix};
 }
 
@@ -72,6 +96,10 @@ const char* file_kind_name(FileKind kind) {
         case FileKind::motion_gltf: return "motion (glTF binary)";
         case FileKind::capture_folder: return "capture folder";
         case FileKind::fit_shard: return "fit shard";
+        case FileKind::diagnosis: return "gap diagnosis";
+        case FileKind::gap_bench_labels: return "gap-bench labels";
+        case FileKind::rigid_fit: return "rigid fit";
+        case FileKind::rectification: return "rectification";
         case FileKind::unknown: break;
     }
     return "unknown";
@@ -92,11 +120,15 @@ FileKind detect_file_kind(const std::string& path) {
     }
     if (head.rfind("glTF", 0) == 0) return FileKind::motion_gltf;
     if (head.find("<svg") != std::string::npos || ends_with(path, ".svg")) return FileKind::flowline_svg;
-    const FileKind declared = kind_from_json_format(declared_json_format(head));
+    const FileKind declared = kind_from_json_format(declared_json_format_anywhere(path, head));
     if (declared != FileKind::unknown) return declared;
     if (ends_with(path, ".fabric.json")) return FileKind::fabric_preset;
     if (ends_with(path, ".flowlines.json")) return FileKind::flowline_set;
     if (ends_with(path, "capture.json")) return FileKind::capture_folder;
+    if (ends_with(path, "diagnosis.json")) return FileKind::diagnosis;
+    if (ends_with(path, "labels.json")) return FileKind::gap_bench_labels;
+    if (ends_with(path, ".rigid_fit.json")) return FileKind::rigid_fit;
+    if (ends_with(path, "rectify.json") || ends_with(path, ".rectification.json")) return FileKind::rectification;
     if (ends_with(path, ".glb")) return FileKind::motion_gltf;
     return FileKind::unknown;
 }
@@ -106,7 +138,7 @@ std::vector<Problem> validate_any_file(const std::string& path, Strictness stric
     try {
         kind = detect_file_kind(path);
     } catch (const Error& error) {
-        return {Problem{Problem::Severity::error, path, error.field(), "cannot read: " + std::string(error.what()), error.fix()}};
+        return {Problem{Problem::Severity::error, path, error.field(), "cannot read: " + error.message(), error.fix()}};
     }
     switch (kind) {
         case FileKind::fabric_preset: return validate_fabric_preset_file(path, strictness);
@@ -117,10 +149,15 @@ std::vector<Problem> validate_any_file(const std::string& path, Strictness stric
         case FileKind::vertex_animation: return validate_vertex_animation_file(path, strictness);
         case FileKind::motion_gltf: return validate_motion_gltf_file(path, strictness);
         case FileKind::capture_folder: return validate_capture_folder(path, strictness);
+        case FileKind::diagnosis: return validate_diagnosis_file(path, strictness);
+        case FileKind::gap_bench_labels: return validate_gap_bench_labels_file(path, strictness);
+        case FileKind::rigid_fit: return validate_rigid_fit_file(path, strictness);
+        case FileKind::rectification: return validate_rectification_file(path, strictness);
         case FileKind::unknown: break;
     }
     return {unrecognised_file(path, "give a *.fabric.json, *.flowlines.json, flow-line SVG, bank or vertex-animation "
-                                    "EXR, .glb, or a capture folder")};
+                                    "EXR, .glb, a capture folder, a fit shard, diagnosis.json, labels.json, a rigid fit "
+                                    "or rectify.json")};
 }
 
 nlohmann::json summarize_any_file(const std::string& path) {
@@ -135,6 +172,10 @@ nlohmann::json summarize_any_file(const std::string& path) {
         case FileKind::motion_gltf: summary = summarize_motion_gltf(read_motion_gltf(path)); break;
         case FileKind::capture_folder: summary = summarize_capture(read_capture(path)); break;
         case FileKind::fit_shard: summary = summarize_fit_shard(read_fit_shard(path)); break;
+        case FileKind::diagnosis: summary = summarize_diagnosis(read_diagnosis(path)); break;
+        case FileKind::gap_bench_labels: summary = summarize_gap_bench_labels(read_gap_bench_labels(path)); break;
+        case FileKind::rigid_fit: summary = summarize_rigid_fit(read_rigid_fit(path)); break;
+        case FileKind::rectification: summary = summarize_rectification(read_rectification(path)); break;
         case FileKind::unknown:
             throw ValidationError({unrecognised_file(path, "run 'flowvid validate' on it for details")});
     }

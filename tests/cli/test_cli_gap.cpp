@@ -124,3 +124,92 @@ TEST(CliGap, DiagnoseRefusesACaptureWithoutAPreset) {
     EXPECT_EQ(r.exit_code, 2);
     EXPECT_NE(r.err.find("--preset"), std::string::npos) << r.err;
 }
+
+// --score reads labels.json and each results/*/diagnosis.json through their
+// format readers: a malformed file is invalid input (exit 3) named by file,
+// field and fix, before any work; valid files score as before.
+namespace {
+
+std::string bench_folder(const std::string& name) {
+    const std::string dir = scratch_dir(name);
+    fs::create_directories(fs::path(dir) / "results" / "case-002");
+    fs::copy_file(source_path("formats/examples/gapbench.labels.json"), fs::path(dir) / "labels.json");
+    fs::copy_file(source_path("formats/examples/toss.diagnosis.json"), fs::path(dir) / "results" / "case-002" / "diagnosis.json");
+    return dir;
+}
+
+void write_json(const fs::path& path, const nlohmann::json& document) { write_text(path.string(), document.dump(2)); }
+
+}  // namespace
+
+TEST(CliGap, ScoreOfValidLabelsAndDiagnoses) {
+    const std::string dir = bench_folder("cli_gap_score_valid");
+    const CliResult r = run_flowvid({"bench", "gap", "--score", dir});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.out.find("top-1 accuracy per effect"), std::string::npos) << r.out;
+    const nlohmann::json score = nlohmann::json::parse(read(fs::path(dir) / "score.json"));
+    EXPECT_EQ(score.at("cases_scored"), 1);
+    EXPECT_EQ(score.at("missing"), 2);
+    EXPECT_EQ(score.at("per_effect").at("air_drag").at("correct"), 1);
+    EXPECT_NEAR(score.at("median_gap_closed_strong").get<double>(), 1.0, 1e-3);
+}
+
+TEST(CliGap, ScoreRefusesAMalformedDiagnosisNamingFileAndField) {
+    const std::string dir = bench_folder("cli_gap_score_bad_diagnosis");
+    const fs::path path = fs::path(dir) / "results" / "case-002" / "diagnosis.json";
+    nlohmann::json d = nlohmann::json::parse(read(path));
+    d["verdict"]["effects"] = "air_drag";  // a string where a list belongs
+    d["gap"].erase("detected");
+    write_json(path, d);
+    // A second malformed one: every problem is listed, not only the first file's.
+    fs::create_directories(fs::path(dir) / "results" / "case-001");
+    const fs::path other = fs::path(dir) / "results" / "case-001" / "diagnosis.json";
+    write_text(other.string(), "{\"format\": \"flowvid.diagnosis\", \"version\": 1,");
+    const CliResult r = run_flowvid({"bench", "gap", "--score", dir});
+    EXPECT_EQ(r.exit_code, 3) << r.err;
+    EXPECT_NE(r.err.find(path.string() + ": /verdict/effects: expected an array"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(path.string() + ": /gap/detected: missing"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(other.string() + ": line 1"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("(fix: "), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("json.exception"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(fs::path(dir) / "score.json"));
+}
+
+TEST(CliGap, ScoreRefusesMalformedLabelsNamingFileAndField) {
+    const std::string dir = bench_folder("cli_gap_score_bad_labels");
+    const fs::path path = fs::path(dir) / "labels.json";
+    nlohmann::json labels = nlohmann::json::parse(read(path));
+    labels["cases"][0]["effect_to_noise"] = "high";
+    write_json(path, labels);
+    CliResult r = run_flowvid({"bench", "gap", "--score", dir});
+    EXPECT_EQ(r.exit_code, 3) << r.err;
+    EXPECT_NE(r.err.find(path.string() + ": /cases/0/effect_to_noise"), std::string::npos) << r.err;
+    // Well-formed, but not an effect of the catalogue.
+    labels = nlohmann::json::parse(read(source_path("formats/examples/gapbench.labels.json")));
+    labels["cases"][1]["effect"] = "air_dragg";
+    labels["cases"][0]["values"]["lag_ms"] = 3.0;
+    write_json(path, labels);
+    r = run_flowvid({"bench", "gap", "--score", dir});
+    EXPECT_EQ(r.exit_code, 3) << r.err;
+    EXPECT_NE(r.err.find(path.string() + ": /cases/1/effect: \"air_dragg\" is not an effect"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(path.string() + ": /cases/0/values/lag_ms: not a parameter of pin_lag"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(fs::path(dir) / "score.json"));
+}
+
+TEST(CliGap, ValidateAndInfoKnowTheBenchFiles) {
+    const std::string dir = bench_folder("cli_gap_validate");
+    const std::string labels = (fs::path(dir) / "labels.json").string();
+    const std::string diagnosis = (fs::path(dir) / "results" / "case-002" / "diagnosis.json").string();
+    const CliResult valid = run_flowvid({"validate", labels, diagnosis});
+    EXPECT_EQ(valid.exit_code, 0) << valid.err;
+    EXPECT_NE(valid.out.find(labels + ": valid"), std::string::npos) << valid.out;
+    const CliResult info = run_flowvid({"info", "--json", diagnosis});
+    ASSERT_EQ(info.exit_code, 0) << info.err;
+    const nlohmann::json summary = nlohmann::json::parse(info.out);
+    EXPECT_EQ(summary.at("kind"), "gap diagnosis");
+    EXPECT_EQ(summary.at("verdict"), "named");
+    write_text(diagnosis, "{\"format\": \"flowvid.diagnosis\", \"version\": 7}");
+    const CliResult invalid = run_flowvid({"validate", diagnosis});
+    EXPECT_EQ(invalid.exit_code, 3);
+    EXPECT_NE(invalid.err.find(diagnosis + ": /version"), std::string::npos) << invalid.err;
+}

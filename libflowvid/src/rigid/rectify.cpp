@@ -26,6 +26,16 @@ Rectification roll_rectification(const formats::CameraModel& camera, const Gravi
     return r;
 }
 
+formats::RectificationFile rectification_file(const Rectification& rectification, const GravityAngles& gravity,
+                                              const std::string& fit_path) {
+    formats::RectificationFile file;
+    file.fit = fit_path;
+    file.roll_deg = rectification.roll_rad * 180.0 / M_PI;
+    file.tilt_deg_not_corrected = gravity.tilt_rad * 180.0 / M_PI;
+    file.homography_output_from_input = rectification.homography;
+    return file;
+}
+
 formats::Image rectify_image(const formats::Image& image, const Rectification& rectification, bool nearest) {
     const int type = CV_32FC(image.channels);
     const cv::Mat source(image.height, image.width, type, const_cast<float*>(image.pixels.data()));

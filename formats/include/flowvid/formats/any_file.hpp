@@ -24,12 +24,17 @@ enum class FileKind {
     motion_gltf,        // .glb
     capture_folder,     // folder with capture.json (or the capture.json itself)
     fit_shard,          // *.fit_shard.json: one shard of a split fit (flowvid merge)
+    diagnosis,          // diagnosis.json, *.diagnosis.json: flowvid diagnose's result
+    gap_bench_labels,   // labels.json, *.labels.json: flowvid bench gap's hidden labels
+    rigid_fit,          // *.rigid_fit.json (and fit.json by content): flowvid fit rigid's result
+    rectification,      // rectify.json, *.rectify.json: what flowvid rectify did
 };
 
 const char* file_kind_name(FileKind kind);
 
 // Looks at the content (JSON "format", EXR attributes, glTF magic, SVG root),
-// falling back to the file name. Throws IoError when the path cannot be read.
+// falling back to the file name (patterns above). Throws IoError when the
+// path cannot be read.
 FileKind detect_file_kind(const std::string& path);
 
 // Every problem of the file; never throws on bad content (an unreadable or

@@ -3,17 +3,22 @@
 // version 1.0), read back by `flowvid predict rigid` and `flowvid rectify`,
 // and guess files for `flowvid fit rigid --guess`.
 //
+// The file format itself (reader, validator, writer) is
+// flowvid::formats::RigidFit (formats/include/flowvid/formats/rigid_fit.hpp,
+// spec formats/specs/rigid_fit.md); this header turns a fit of a body into
+// that file's content and back.
+//
 // The state keys and their meaning are those of a rigid.toss capture's
 // truth/truth.json (see its "conventions" string, repeated in the file):
 // camera space = the capture's OpenCV camera (x right, y down, z forward,
 // metres); orientation = rotation camera_from_body as (w, x, y, z); angular
 // velocity in rad/s in camera axes; "position_cam" is the body-frame (mesh)
 // origin, "com_cam" the centre of mass. "initial" holds at "initial_frame"
-// (the capture's first frame, whatever frames were fitted). docs/rigid.md
-// lists every key.
+// (the capture's first frame, whatever frames were fitted).
 
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/json_fields.hpp"
+#include "flowvid/formats/rigid_fit.hpp"
 #include "flowvid/rigid/fit.hpp"
 
 #include <nlohmann/json.hpp>
@@ -24,12 +29,9 @@
 
 namespace flowvid::rigid {
 
-inline constexpr const char* kRigidFitFormatName = "flowvid.rigid_fit";
-inline constexpr formats::FormatVersion kRigidFitVersion{1, 0};
-inline constexpr const char* kCameraSpaceConventions =
-    "camera space = OpenCV camera of capture.json (x right, y down, z forward). Orientation q = rotation "
-    "camera_from_body as (w,x,y,z). Angular velocity in rad/s in camera coordinates. 'position' is the body-frame "
-    "(mesh) origin; the COM is also given.";
+inline constexpr const char* kRigidFitFormatName = formats::kRigidFitFormatName;
+inline constexpr formats::FormatVersion kRigidFitVersion = formats::kRigidFitFormatVersion;
+inline constexpr const char* kCameraSpaceConventions = formats::kRigidFitConventions;
 
 struct RigidFitRecord {
     std::string capture;              // the capture folder as given to `fit`
@@ -56,12 +58,21 @@ struct RigidFitRecord {
 RigidFitRecord make_rigid_fit_record(const FitResult& fit, const RigidBody& body, const formats::Capture& capture,
                                      const std::string& capture_argument);
 
+// The file's content: the state at initial_frame with what the body adds
+// (its origin, velocities in body axes, symmetries), gravity as a vector and
+// as angles, the error summary over the frames.
+formats::RigidFit to_rigid_fit_file(const RigidFitRecord& record, const RigidBody& body);
+// The record a file holds (the state from com_cam, the orientation, the
+// velocities and gravity; what the body adds is derived again when needed).
+RigidFitRecord rigid_fit_record_from_file(const formats::RigidFit& file);
+
 nlohmann::json rigid_fit_to_json(const RigidFitRecord& record, const RigidBody& body);
 // Validates (finite numbers, unit quaternion, fps > 0) then writes atomically.
 void write_rigid_fit(const std::string& path, const RigidFitRecord& record, const RigidBody& body);
 // Throws IoError (cannot read) or ValidationError listing every problem.
-RigidFitRecord read_rigid_fit(const std::string& path);
-std::vector<Problem> validate_rigid_fit_file(const std::string& path, formats::Strictness strictness);
+RigidFitRecord read_rigid_fit(const std::string& path, std::vector<Problem>* warnings = nullptr);
+// Every problem of a file, for `flowvid validate` (the format's own validator).
+using formats::validate_rigid_fit_file;
 
 // A guess: a rigid_fit file, a capture's truth.json, or any JSON object with
 // some of "initial": {"position_cam", "orientation_cam_wxyz",

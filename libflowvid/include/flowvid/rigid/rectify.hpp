@@ -8,6 +8,7 @@
 // pinhole image (exact when the capture's dist is zero).
 
 #include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/rectification.hpp"
 #include "flowvid/rigid/dynamics.hpp"
 
 #include <Eigen/Core>
@@ -25,6 +26,13 @@ struct Rectification {
 };
 
 Rectification roll_rectification(const formats::CameraModel& camera, const GravityAngles& gravity);
+
+// What rectify.json records of a rectification made from the fit at
+// `fit_path` (format flowvid.rectification, formats/specs/rectification.md):
+// the roll removed, the tilt left (both from `gravity`, in degrees) and the
+// homography. Write it with formats::write_rectification.
+formats::RectificationFile rectification_file(const Rectification& rectification, const GravityAngles& gravity,
+                                              const std::string& fit_path);
 
 // The warped image, same size and channels; pixels coming from outside the
 // input are 0. Bilinear, or nearest for masks.
