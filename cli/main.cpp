@@ -5,6 +5,7 @@
 #include "output.hpp"
 
 #include "flowvid/error.hpp"
+#include "flowvid/formats/capture.hpp"
 #include "flowvid/version.hpp"
 
 #include <csignal>
@@ -48,6 +49,10 @@ int run(int argc, char** argv) {
         ->check(CLI::IsMember({"auto", "json", "none"}))
         ->capture_default_str();
     app.add_flag("-q,--quiet", options.quiet, "no progress and no informational logs");
+    bool allow_outside_paths = false;
+    app.add_flag("--allow-outside-paths", allow_outside_paths,
+                 "let captures name files outside their folder (../x, absolute paths); off by default so that "
+                 "a capture from elsewhere cannot make flowvid read other files");
 
     std::sort(command_registry().begin(), command_registry().end(),
               [](const Command& a, const Command& b) { return a.name < b.name; });
@@ -80,6 +85,8 @@ int run(int argc, char** argv) {
         return kExitUsage;
     }
 
+    formats::allow_capture_paths_outside_folder(allow_outside_paths);
+
     if (help->parsed()) {
         if (help_topic.empty()) {
             std::cout << app.help();
@@ -94,7 +101,10 @@ int run(int argc, char** argv) {
         return kExitUsage;
     }
     for (const Parsed& sub : subcommands)
-        if (sub.app->parsed()) return sub.run(options);
+        if (sub.app->parsed()) {
+            if (!outputs_spare_inputs(*sub.app)) return kExitUsage;
+            return sub.run(options);
+        }
 
     std::cout << app.help();
     return kExitUsage;

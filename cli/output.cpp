@@ -76,6 +76,66 @@ void Progress::done() {
     else if (m_mode == "bar") std::cerr << '\n';
 }
 
+namespace {
+bool is_output_option(const std::string& name) {
+    for (const char* output : {"--out", "--vat", "--report", "--dense-out", "--series", "OUT"})
+        if (name == output) return true;
+    return false;
+}
+
+// One spelling per file, whether or not it exists yet, so that "a/../x" and
+// "x" (or a symlink and its target) compare equal.
+std::filesystem::path identity(const std::string& path) {
+    std::error_code ec;
+    std::filesystem::path canonical = std::filesystem::weakly_canonical(path, ec);
+    return ec ? std::filesystem::path(path).lexically_normal() : canonical;
+}
+}  // namespace
+
+bool outputs_spare_inputs(const CLI::App& command) {
+    namespace fs = std::filesystem;
+    const CLI::App* leaf = &command;
+    while (!leaf->get_subcommands().empty()) leaf = leaf->get_subcommands().front();
+    struct Named {
+        std::string option;
+        std::string value;
+        fs::path path;
+    };
+    std::vector<Named> outputs, inputs;
+    for (const CLI::Option* option : leaf->get_options()) {
+        for (const std::string& value : option->results()) {
+            if (value.empty()) continue;
+            if (is_output_option(option->get_name())) {
+                outputs.push_back({option->get_name(), value, identity(value)});
+                continue;
+            }
+            std::error_code ec;
+            const fs::file_status status = fs::status(value, ec);
+            if (ec || !fs::exists(status)) continue;  // not a path: a number, a name
+            inputs.push_back({option->get_name(), value, identity(value)});
+            // A capture is named by its folder; its capture.json is the file at stake.
+            if (fs::is_directory(status))
+                inputs.push_back({option->get_name(), (fs::path(value) / "capture.json").string(),
+                                  identity((fs::path(value) / "capture.json").string())});
+        }
+    }
+    for (std::size_t i = 0; i < outputs.size(); ++i) {
+        for (std::size_t j = 0; j < i; ++j)
+            if (outputs[i].path == outputs[j].path) {
+                log_message("error: " + outputs[j].option + " and " + outputs[i].option + " both name " +
+                            outputs[i].value + "; one would overwrite the other (fix: give each output its own file)");
+                return false;
+            }
+        for (const Named& input : inputs)
+            if (outputs[i].path == input.path) {
+                log_message("error: " + outputs[i].option + " " + outputs[i].value + " is the input " + input.option +
+                            " " + input.value + "; writing it would destroy it (fix: write to another file)");
+                return false;
+            }
+    }
+    return true;
+}
+
 void prepare_output_folder(const std::string& file_path) {
     const std::filesystem::path folder = std::filesystem::path(file_path).parent_path();
     if (folder.empty()) return;
@@ -114,5 +174,6 @@ InterruptWatch::InterruptWatch() {
 }
 InterruptWatch::~InterruptWatch() { std::signal(SIGINT, g_previous_handler); }
 bool InterruptWatch::requested() const { return g_interrupt_requested.load(); }
+const std::atomic<bool>* InterruptWatch::flag() const { return &g_interrupt_requested; }
 
 }  // namespace flowvid::cli

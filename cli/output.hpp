@@ -4,6 +4,7 @@
 #include "command.hpp"
 #include "flowvid/error.hpp"
 
+#include <atomic>
 #include <nlohmann/json.hpp>
 
 #include <string>
@@ -34,6 +35,14 @@ private:
 // naming the option's path when it cannot.
 void prepare_output_folder(const std::string& file_path);
 
+// Refuses a command line whose outputs would destroy its inputs (--out equal
+// to --preset, or to a capture folder's capture.json) or write one file twice
+// (--out X --vat X). Looks at the parsed (sub)command's options: --out,
+// --vat, --report, --dense-out, --series and OUT are outputs; every other
+// value naming an existing file or folder is an input. Returns false after
+// printing the problem with its fix.
+bool outputs_spare_inputs(const CLI::App& command);
+
 // A check for a file option (`->check(...)`): the name must end in one of
 // `endings` (any case), e.g. {".exr"}, so a bank is not written as an EXR
 // file named "bank.png". `what` says what the file is ("a particle bank, an
@@ -50,6 +59,8 @@ public:
     InterruptWatch(const InterruptWatch&) = delete;
     InterruptWatch& operator=(const InterruptWatch&) = delete;
     bool requested() const;
+    // For solvers that poll a flag inside long steps (cloth::SimulationSettings::cancel).
+    const std::atomic<bool>* flag() const;
 };
 
 }  // namespace flowvid::cli

@@ -28,6 +28,8 @@
 namespace flowvid::cli {
 namespace {
 
+void apply_source_date_epoch(formats::FabricPreset& preset);
+
 // Members of the floor ensemble reported beside each trial's error.
 constexpr int kFloorMembers = 4;
 
@@ -218,8 +220,11 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
         rounds.push_back({{"start_error", r.start_error}, {"best_error", r.best_error}, {"evaluations", r.evaluations},
                           {"seconds", r.seconds}});
     summary["rounds"] = rounds;
-    if (outcome.preset) formats::write_fabric_preset(options.out, *outcome.preset);
-    else formats::write_file_atomically(options.out, [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
+    if (outcome.preset) {
+        formats::FabricPreset preset = *outcome.preset;
+        apply_source_date_epoch(preset);
+        formats::write_fabric_preset(options.out, preset);
+    } else formats::write_file_atomically(options.out, [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
     if (options.json) std::cout << summary.dump(2) << '\n';
     else std::cout << human_readable(summary);
     return kExitOk;

@@ -60,6 +60,11 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
     for (const std::string& path : {options.out, options.vat})
         if (!path.empty()) prepare_output_folder(path);
     const cloth::ClothMaterial material = cloth::material_from_fabric(preset.parameters);
+    // Ctrl-C is polled inside the equilibrium and every step, so it stops a
+    // fine mesh within a step rather than after its frame.
+    const InterruptWatch interrupt;
+    swatch->equilibrium.cancel = interrupt.flag();
+    swatch->simulation.cancel = interrupt.flag();
     if (options.match_footage) {
         video::ClothFitSettings settings;
         settings.swatch = *swatch;
@@ -68,7 +73,6 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
     }
 
     Progress progress(global, "simulate");
-    const InterruptWatch interrupt;
     const cloth::SwatchRun run = cloth::simulate_swatch(
         experiment, material, *swatch, [&](const cloth::SimulationProgress& p) {
             progress.update(static_cast<double>(p.frame) / std::max(1, p.frame_count),

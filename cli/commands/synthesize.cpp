@@ -202,7 +202,8 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
         return !interrupt->requested();
     });
     interrupt.reset();
-    writer.close();
+    if (written == total) writer.close();
+    else writer.discard();  // an interrupted video is not published as if it were whole
     progress.done();
 
     const flow::Schedule& schedule = streams->schedule();

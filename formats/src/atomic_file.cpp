@@ -75,6 +75,34 @@ void write_file_atomically(const std::string& path, const std::function<void(std
     });
 }
 
+PendingFile::PendingFile(const std::string& path) : m_path(path) {
+    static std::atomic<unsigned> counter{0};
+    const fs::path target(path);
+    const fs::path parent = target.parent_path();
+    if (!parent.empty() && !fs::is_directory(parent))
+        throw IoError(path, "", "the folder does not exist", "create " + parent.string() + " first");
+    const std::string name = "." + target.stem().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
+                             std::to_string(counter.fetch_add(1)) + target.extension().string();
+    m_temp_path = (parent / name).string();
+}
+
+PendingFile::~PendingFile() { discard(); }
+
+void PendingFile::commit() {
+    if (m_done) return;
+    m_done = true;
+    if (!fs::exists(m_temp_path))
+        throw IoError(m_path, "", "the writer produced no file", "report this as a flowvid bug");
+    publish(m_temp_path, m_path);
+}
+
+void PendingFile::discard() {
+    if (m_done) return;
+    m_done = true;
+    std::error_code ec;
+    fs::remove(m_temp_path, ec);
+}
+
 std::string read_text_file(const std::string& path) {
     std::error_code ec;
     if (!fs::exists(path, ec)) throw IoError(path, "", "no such file", "check the path");

@@ -10,6 +10,7 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <sstream>
@@ -71,6 +72,27 @@ bool CameraModel::has_distortion() const {
 }
 
 // ---- Capture paths ----------------------------------------------------------
+
+namespace {
+std::atomic<bool> g_outside_paths_allowed{false};  // set once from the command line
+}  // namespace
+
+void allow_capture_paths_outside_folder(bool allowed) { g_outside_paths_allowed = allowed; }
+bool capture_paths_outside_folder_allowed() { return g_outside_paths_allowed; }
+
+bool path_stays_inside_folder(const std::string& relative) {
+    const fs::path path(relative);
+    if (path.is_absolute() || path.has_root_name() || path.has_root_directory()) return false;
+    int depth = 0;
+    for (const fs::path& part : path.lexically_normal()) {
+        if (part == "..") {
+            if (--depth < 0) return false;
+        } else if (part != "." && !part.empty()) {
+            ++depth;
+        }
+    }
+    return true;
+}
 
 std::string Capture::resolve(const std::string& relative) const {
     const fs::path path(relative);
@@ -154,6 +176,10 @@ constexpr std::int64_t kMaxFrameCount = 10'000'000;
 constexpr std::int64_t kMaxFrameNumber = 1'000'000'000;
 constexpr std::int64_t kMaxImageSide = 100'000;
 constexpr int kMaxFramesToScan = 10'000;  // beyond this only the first and last frame files are checked
+constexpr double kMinCaptureFps = 1.0;
+constexpr double kMaxCaptureFps = 1000.0;
+constexpr double kMaxSwatchSideM = 10.0;
+constexpr double kMaxSwatchMassKg = 100.0;
 
 bool is_known_kind(const std::string& kind) {
     for (const char* known : kCaptureKinds)
@@ -276,12 +302,10 @@ public:
         const bool cloth = m_capture.is_cloth(), rigid = m_capture.is_rigid(), video = m_capture.is_video();
         const bool kind_known = !kind.empty();
 
-        if (std::optional<double> fps = root.number("fps", NumberRange::positive("frames/s"))) {
+        // Cameras film at 1 to 1000 frames per second; outside that a time step
+        // of 1/fps is either a unit mistake or would simulate for ever.
+        if (std::optional<double> fps = root.number("fps", NumberRange::closed(kMinCaptureFps, kMaxCaptureFps, "frames/s")))
             m_capture.fps = *fps;
-            if (*fps > 10000.0)
-                m_diag.warning("/fps", format_double(*fps) + " frames per second is implausibly high",
-                               "check the unit: frames per second");
-        }
         parse_frames(root);
         m_capture.background = root.string("background", false).value_or("");
         m_capture.masks = root.string("masks", false).value_or("");
@@ -323,6 +347,8 @@ public:
         if (root.has("source")) {
             if (root.object("source", false)) m_capture.source = root.json()["source"];
         }
+
+        check_paths_stay_inside();
 
         // Files are checked even when capture.json has other mistakes, using
         // whatever parsed, so that one run reports everything.
@@ -563,9 +589,12 @@ private:
         view.check_known_keys({"width_m", "height_m", "mass_kg", "initial", "pins"});
         SwatchSpec swatch;
         const std::size_t errors_before = count_errors(m_diag);
-        swatch.width_m = view.number("width_m", NumberRange::positive("m")).value_or(0.0);
-        swatch.height_m = view.number("height_m", NumberRange::positive("m")).value_or(0.0);
-        swatch.mass_kg = view.number("mass_kg", NumberRange::positive("kg")).value_or(0.0);
+        // A calibration swatch fits in a studio: bounded sizes keep a typo
+        // (1e308) from reaching the mesh builder as "triangle has no area".
+        const NumberRange side{0.0, kMaxSwatchSideM, true, "m"};
+        swatch.width_m = view.number("width_m", side).value_or(0.0);
+        swatch.height_m = view.number("height_m", side).value_or(0.0);
+        swatch.mass_kg = view.number("mass_kg", NumberRange{0.0, kMaxSwatchMassKg, true, "kg"}).value_or(0.0);
         if (std::optional<std::string> initial = view.string("initial")) {
             swatch.initial = *initial;
             if (*initial != "equilibrium")
@@ -673,6 +702,26 @@ private:
 
     std::string resolve(const std::string& relative) const { return m_capture.resolve(relative); }
 
+    // capture.md: every path resolves inside the capture folder, so that a
+    // capture from elsewhere cannot make a command open (and quote in its
+    // errors) files outside it.
+    void check_paths_stay_inside() {
+        if (capture_paths_outside_folder_allowed()) return;
+        auto check = [&](const char* field, const std::string& path) {
+            if (path.empty() || path_stays_inside_folder(path)) return;
+            m_diag.error(field, "\"" + path + "\" leads outside the capture folder",
+                         "copy the file into the capture folder and name it relative to it, or run "
+                         "flowvid --allow-outside-paths to trust this capture");
+        };
+        check("/background", m_capture.background);
+        check("/masks", m_capture.masks);
+        check("/frames/pattern", m_capture.frames.pattern);
+        check("/frames/video", m_capture.frames.video);
+        check("/flowlines", m_capture.flowlines);
+        if (m_capture.tracks) check("/tracks/file", m_capture.tracks->file);
+        check("/rigid/mesh", m_mesh);
+    }
+
     // Reports a missing or non-regular file; true when it is a readable file.
     bool check_file(const std::string& field, const std::string& what, const std::string& relative) {
         if (fs::path(relative).is_absolute())
@@ -738,8 +787,8 @@ private:
                                  std::to_string(expected_width) + " x " + std::to_string(expected_height),
                              "make every image the calibrated size, or correct the camera's width and height");
         } catch (const Error& error) {
-            m_diag.error(field, what + " \"" + relative + "\" cannot be read as an image: " + error.what(),
-                         "write a PNG, JPEG or EXR image");
+            m_diag.error(field, what + " \"" + relative + "\" cannot be read as an image: " + error.message(),
+                         error.fix().empty() ? "write a PNG, JPEG or EXR image" : error.fix());
         }
     }
 
@@ -808,7 +857,7 @@ private:
         try {
             info = read_video_info(resolve(frames.video));
         } catch (const Error& error) {
-            m_diag.error("/frames/video", "video \"" + frames.video + "\" cannot be decoded: " + error.what(),
+            m_diag.error("/frames/video", "video \"" + frames.video + "\" cannot be decoded: " + error.message(),
                          "re-encode the clip with a codec ffmpeg decodes (e.g. H.264 in .mp4)");
             return;
         }
@@ -838,7 +887,7 @@ private:
         try {
             mesh = parse_rigid_mesh_glb(read_text_file(path), mesh_diag);
         } catch (const Error& error) {
-            mesh_diag.error("", error.what(), error.fix());
+            mesh_diag.error(error.field(), error.message(), error.fix());
         }
         m_diag.merge(mesh_diag.problems());
         if (!mesh) {
@@ -925,7 +974,7 @@ std::vector<Problem> validate_capture_folder(const std::string& path, Strictness
     try {
         text = read_text_file(location.json_path);
     } catch (const IoError& error) {
-        diag.error("", error.what(), "a capture folder holds a capture.json (see the capture contract)");
+        diag.error("", error.message(), "a capture folder holds a capture.json (see the capture contract)");
         return diag.problems();
     }
     if (std::optional<nlohmann::json> document = parse_json_text(text, diag))
@@ -1100,7 +1149,11 @@ std::optional<VertexAnimation> read_capture_truth_positions(const Capture& captu
         Diagnostics diag(truth_json);
         if (std::optional<nlohmann::json> document = parse_json_text(read_text_file(truth_json), diag)) {
             JsonView root(*document, "", diag);
-            if (root.json().is_object() && root.has("rows") && root.has("cols")) {
+            if (!root.json().is_object()) {
+                diag.error("/", std::string("truth.json holds ") + root.json().type_name() + ", not a JSON object",
+                           "write {\"rows\": R, \"cols\": C, ...} as the capture rig does");
+            } else if (root.has("rows") || root.has("cols")) {
+                // Both or neither: one alone would leave the grid half-known.
                 const std::optional<std::int64_t> rows = root.integer("rows", 1, kMaxVertexAnimationVertices);
                 const std::optional<std::int64_t> cols = root.integer("cols", 1, kMaxVertexAnimationVertices);
                 if (rows && cols) {

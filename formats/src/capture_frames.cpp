@@ -4,6 +4,8 @@
 
 #include "flowvid/formats/capture.hpp"
 
+#include "flowvid/formats/atomic_file.hpp"
+
 #include <OpenImageIO/imageio.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -11,6 +13,8 @@
 #include <opencv2/videoio.hpp>
 
 #include <algorithm>
+#include <array>
+#include <cstdint>
 #include <cctype>
 #include <filesystem>
 #include <list>
@@ -97,6 +101,54 @@ Image mat_to_image(const cv::Mat& mat, int channels, const std::string& path) {
     return to_image(floats, channels, true, encoding, path);
 }
 
+std::uint32_t png_crc32(const unsigned char* data, std::size_t size) {
+    static const std::array<std::uint32_t, 256> table = [] {
+        std::array<std::uint32_t, 256> t{};
+        for (std::uint32_t n = 0; n < 256; ++n) {
+            std::uint32_t c = n;
+            for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+            t[n] = c;
+        }
+        return t;
+    }();
+    std::uint32_t c = 0xFFFFFFFFu;
+    for (std::size_t i = 0; i < size; ++i) c = table[(c ^ data[i]) & 0xFF] ^ (c >> 8);
+    return c ^ 0xFFFFFFFFu;
+}
+
+// The PNG chunk structure (lengths, CRCs, IHDR first, IEND last), checked
+// before libpng sees the bytes: libpng prints its own "libpng error: ..."
+// line to stderr on a damaged file, and a truncated or corrupted frame
+// deserves a message naming the file and saying what is wrong.
+void check_png_container(const std::string& bytes, const std::string& path) {
+    static const unsigned char signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+    const auto* data = reinterpret_cast<const unsigned char*>(bytes.data());
+    const std::string fix = "the file is damaged or was cut short: copy or render it again";
+    if (bytes.size() < 8 || !std::equal(signature, signature + 8, data))
+        throw IoError(path, "", "not a PNG file (no PNG signature)", "write a PNG, JPEG or EXR image");
+    std::size_t at = 8;
+    bool first = true;
+    while (true) {
+        if (bytes.size() - at < 12)
+            throw IoError(path, "", "the PNG ends at byte " + std::to_string(bytes.size()) + " before its IEND chunk", fix);
+        const std::uint32_t length = std::uint32_t(data[at]) << 24 | std::uint32_t(data[at + 1]) << 16 |
+                                     std::uint32_t(data[at + 2]) << 8 | std::uint32_t(data[at + 3]);
+        const std::string type = bytes.substr(at + 4, 4);
+        if (length > bytes.size() - at - 12)
+            throw IoError(path, "", "the PNG chunk " + type + " at byte " + std::to_string(at) + " runs past the end of the file",
+                          fix);
+        if (first && type != "IHDR") throw IoError(path, "", "the PNG does not start with an IHDR chunk", fix);
+        first = false;
+        const std::size_t crc_at = at + 8 + length;
+        const std::uint32_t stored = std::uint32_t(data[crc_at]) << 24 | std::uint32_t(data[crc_at + 1]) << 16 |
+                                     std::uint32_t(data[crc_at + 2]) << 8 | std::uint32_t(data[crc_at + 3]);
+        if (png_crc32(data + at + 4, length + 4) != stored)
+            throw IoError(path, "", "the PNG chunk " + type + " at byte " + std::to_string(at) + " fails its CRC check", fix);
+        at = crc_at + 4;
+        if (type == "IEND") return;
+    }
+}
+
 Image load_exr(const std::string& path, int channels) {
     auto input = OIIO::ImageInput::open(path);
     if (!input) throw IoError(path, "", "cannot open the EXR image: " + OIIO::geterror(), "check the file");
@@ -114,6 +166,8 @@ Image load_exr(const std::string& path, int channels) {
 
 ImageInfo read_image_info(const std::string& path) {
     require_regular_file(path);
+    // A PNG cut short still has a readable header; its chunks tell.
+    if (lower_extension(path) == ".png") check_png_container(read_text_file(path), path);
     auto input = OIIO::ImageInput::open(path);
     if (!input) throw IoError(path, "", "not a readable image: " + OIIO::geterror(), "write a PNG, JPEG or EXR image");
     const OIIO::ImageSpec& spec = input->spec();
@@ -125,7 +179,11 @@ Image load_image(const std::string& path, int channels) {
     if (lower_extension(path) == ".exr") return load_exr(path, channels);
     cv::Mat mat;
     try {
-        mat = cv::imread(path, cv::IMREAD_UNCHANGED);
+        // Decoded from bytes read once, after the PNG structure is checked.
+        const std::string bytes = read_text_file(path);
+        if (lower_extension(path) == ".png") check_png_container(bytes, path);
+        const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8U, const_cast<char*>(bytes.data()));
+        mat = cv::imdecode(encoded, cv::IMREAD_UNCHANGED);
     } catch (const cv::Exception& error) {
         throw IoError(path, "", std::string("cannot decode the image: ") + error.what(), "write the file again");
     }

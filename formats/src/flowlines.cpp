@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <string_view>
+#include <unordered_set>
 #include <ostream>
 #include <stdexcept>
 
@@ -76,6 +78,8 @@ const FlowLine* find_input_line(const FlowLineSet& set, const std::string& id) {
 
 namespace {
 
+constexpr double kMaxFlowLineCoordinatePixels = 1e6;
+
 std::string join_leaf(const std::string& a, const std::string& b) {
     if (a.empty()) return b;
     if (b.empty()) return a;
@@ -102,6 +106,20 @@ void check_polyline(const std::vector<Eigen::Vector2d>& points, const FlowLineSe
                    std::to_string(bad) + " point(s) are not finite (NaN or infinity), the first is point " +
                        std::to_string(first_bad),
                    "give every point finite pixel coordinates");
+        return;
+    }
+    // Finite but absurd coordinates (1e308) would overflow every length and
+    // area computed from them; no frame is a million pixels across.
+    std::size_t huge = 0, first_huge = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        if (points[i].cwiseAbs().maxCoeff() <= kMaxFlowLineCoordinatePixels) continue;
+        if (huge++ == 0) first_huge = i;
+    }
+    if (huge > 0) {
+        diag.error(where(join_leaf(leaf, std::to_string(first_huge))),
+                   std::to_string(huge) + " point(s) lie more than 1e6 pixels from the image origin, the first is point " +
+                       std::to_string(first_huge),
+                   "give pixel coordinates of the video frames (x right, y down)");
         return;
     }
     if (polyline_length(points) == 0.0) {
@@ -272,6 +290,10 @@ void check_flowline_set(const FlowLineSet& set, Diagnostics& diag, const FlowLin
             diag.error(name(false, i, "time_offset_frames"), "an input line has a time offset",
                        "remove \"time_offset_frames\": only output lines are shown at an offset in time");
     }
+    // Looked up by hash: drawings with many lines must validate in linear time.
+    std::unordered_set<std::string_view> input_ids, output_ids;
+    for (const FlowLine& line : set.inputs) input_ids.insert(line.id);
+    for (const FlowLine& line : set.outputs) output_ids.insert(line.id);
     for (std::size_t i = 0; i < set.outputs.size(); ++i) {
         const FlowLine& line = set.outputs[i];
         if (!is_valid_utf8(line.from)) {
@@ -280,9 +302,8 @@ void check_flowline_set(const FlowLineSet& set, Diagnostics& diag, const FlowLin
             diag.error(name(true, i, "from"), "the output line does not name its input line",
                        "set it to the id of the input line whose texture this line carries (one of: " +
                            list_ids(set.inputs) + ")");
-        } else if (!find_input_line(set, line.from)) {
-            const bool is_output = std::any_of(set.outputs.begin(), set.outputs.end(),
-                                               [&](const FlowLine& other) { return other.id == line.from; });
+        } else if (!input_ids.count(line.from)) {
+            const bool is_output = output_ids.count(line.from) > 0;
             diag.error(name(true, i, "from"),
                        "\"" + line.from + "\" is " + (is_output ? "an output line" : "not the id of any input line"),
                        "name one of the input lines: " + list_ids(set.inputs));

@@ -24,6 +24,9 @@ namespace {
 
 // ---- XML tokenizer ------------------------------------------------------------------
 
+// Most text that references to declared entities may produce in one file.
+constexpr std::size_t kMaxEntityExpansionBytes = std::size_t{8} << 20;
+
 struct XmlAttribute {
     std::string name;
     std::string value;
@@ -264,7 +267,16 @@ private:
             } else if (entity == "apos") {
                 out += '\'';
             } else if (auto it = m_entities.find(entity); it != m_entities.end()) {
-                out += it->second;  // not expanded again: no entity bombs
+                // Not expanded again, so no nested bombs; the total is bounded
+                // too, or one large entity used many times fills the memory.
+                m_entity_bytes += it->second.size();
+                if (m_entity_bytes > kMaxEntityExpansionBytes) {
+                    report(i, "entity references expand to more than " +
+                                  std::to_string(kMaxEntityExpansionBytes >> 20) + " MiB in all",
+                           "flow-line SVGs need no entities: write the text out (save the drawing again)");
+                    return std::nullopt;
+                }
+                out += it->second;
             } else {
                 report(i, "unknown entity &" + entity + ";", "write & as &amp;, or declare the entity in the DOCTYPE");
                 return std::nullopt;
@@ -398,6 +410,7 @@ private:
         event.name = name();
         if (event.name.empty()) return fail(m_pos, "expected an element name after '<'", "write a literal < as &lt;");
         bool self_closing = false;
+        std::set<std::string, std::less<>> seen_names;  // a set: a tag with many attributes stays linear
         while (true) {
             skip_space();
             if (m_pos >= m_text.size())
@@ -434,7 +447,7 @@ private:
             std::optional<std::string> value = decode(m_pos + 1, end);
             if (!value) return failed();
             m_pos = end + 1;
-            if (event.attribute(attribute.name))
+            if (!seen_names.insert(attribute.name).second)
                 return fail(attribute_pos, "attribute " + attribute.name + " appears twice in <" + event.name + ">",
                             "keep one");
             attribute.value = std::move(*value);
@@ -453,6 +466,7 @@ private:
     std::size_t m_pos = 0;
     std::vector<std::pair<std::string, std::size_t>> m_open;  // element name, line
     std::map<std::string, std::string> m_entities;
+    std::size_t m_entity_bytes = 0;  // characters produced by declared entities so far
     bool m_pending_end = false;
     bool m_root_seen = false;
     bool m_root_done = false;

@@ -2,6 +2,8 @@
 
 #include "flowvid/formats/atomic_file.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <sstream>
 
@@ -32,6 +34,16 @@ std::string describe_range(const NumberRange& range) {
     else
         text = "finite";
     if (!range.unit.empty()) text += " " + range.unit;
+    return text;
+}
+
+// A few characters of a value for a message, without dumping a whole
+// (possibly huge) document.
+std::string describe_value_briefly(const nlohmann::json& value) {
+    if (value.is_array()) return "an array of " + std::to_string(value.size()) + " elements";
+    if (value.is_object()) return "an object";
+    std::string text = value.dump();
+    if (text.size() > 20) text = text.substr(0, 20) + "...";
     return text;
 }
 
@@ -235,7 +247,7 @@ std::optional<FormatVersion> check_format_header(const JsonView& root, const std
     const std::string format_field = json_pointer_child(root.pointer(), "format");
     const std::string version_field = json_pointer_child(root.pointer(), "version");
     if (!root.json().is_object()) {
-        diag.error(root.pointer().empty() ? "/" : root.pointer(), "the value is " + root.json().dump().substr(0, 20) + ", not a JSON object",
+        diag.error(root.pointer().empty() ? "/" : root.pointer(), "the value is " + describe_value_briefly(root.json()) + ", not a JSON object",
                    "a " + format_name + " file is a JSON object with \"format\": \"" + format_name + "\"");
         return std::nullopt;
     }
@@ -267,22 +279,99 @@ std::optional<FormatVersion> check_format_header(const JsonView& root, const std
     return version;
 }
 
+namespace {
+struct TextPosition {
+    std::size_t line = 1;
+    std::size_t column = 1;
+    std::string describe() const { return "line " + std::to_string(line) + ", column " + std::to_string(column); }
+};
+
+TextPosition position_of(const std::string& text, std::size_t offset) {
+    TextPosition position;
+    const std::size_t end = std::min(offset, text.size());
+    for (std::size_t i = 0; i < end; ++i) {
+        if (text[i] == '\n') { ++position.line; position.column = 1; }
+        else ++position.column;
+    }
+    return position;
+}
+
+// The offset of the first array or object nested deeper than kMaxJsonNesting,
+// or npos. Checked before parsing because a recursive parser (and any
+// recursive walk of the result) would overflow the stack on hostile input.
+std::size_t first_too_deep(const std::string& text) {
+    std::size_t depth = 0;
+    bool in_string = false;
+    for (std::size_t i = 0; i < text.size(); ++i) {
+        const char c = text[i];
+        if (in_string) {
+            if (c == '\\') ++i;  // skip the escaped character
+            else if (c == '"') in_string = false;
+        } else if (c == '"') {
+            in_string = true;
+        } else if (c == '[' || c == '{') {
+            if (++depth > kMaxJsonNesting) return i;
+        } else if ((c == ']' || c == '}') && depth > 0) {
+            --depth;
+        }
+    }
+    return std::string::npos;
+}
+
+// JSON has no NaN or Infinity, though many writers (Python's json among them)
+// emit them; say so instead of "invalid literal".
+bool is_non_finite_literal_at(const std::string& text, std::size_t offset) {
+    std::size_t start = std::min(offset, text.size());
+    while (start > 0 && (std::isalpha(static_cast<unsigned char>(text[start - 1])) || text[start - 1] == '-')) --start;
+    std::size_t end = start;
+    while (end < text.size() && (std::isalpha(static_cast<unsigned char>(text[end])) || text[end] == '-')) ++end;
+    std::string word = text.substr(start, end - start);
+    if (!word.empty() && word[0] == '-') word.erase(0, 1);
+    for (char& c : word) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return word == "nan" || word == "infinity" || word == "inf";
+}
+}  // namespace
+
 std::optional<nlohmann::json> parse_json_text(const std::string& text, Diagnostics& diagnostics) {
+    if (const std::size_t too_deep = first_too_deep(text); too_deep != std::string::npos) {
+        diagnostics.error(position_of(text, too_deep).describe(),
+                          "arrays and objects nest deeper than " + std::to_string(kMaxJsonNesting) + " levels",
+                          "this is not a flowvid file (they nest a few levels); check what wrote it");
+        return std::nullopt;
+    }
     try {
         return nlohmann::json::parse(text);
     } catch (const nlohmann::json::parse_error& error) {
         // Turn the byte offset into line:column, which editors understand.
-        std::size_t line = 1, column = 1;
-        const std::size_t end = std::min<std::size_t>(error.byte == 0 ? 0 : error.byte - 1, text.size());
-        for (std::size_t i = 0; i < end; ++i) {
-            if (text[i] == '\n') { ++line; column = 1; }
-            else ++column;
+        const std::size_t offset = error.byte == 0 ? 0 : error.byte - 1;
+        if (is_non_finite_literal_at(text, offset)) {
+            diagnostics.error(position_of(text, offset).describe(), "JSON has no NaN or Infinity",
+                              "write a finite number there (flowvid's writers never write NaN or Infinity)");
+            return std::nullopt;
         }
         std::string reason = error.what();
         const std::size_t colon = reason.rfind(": ");
         if (colon != std::string::npos) reason = reason.substr(colon + 2);
-        diagnostics.error("line " + std::to_string(line) + ", column " + std::to_string(column),
-                          "malformed JSON: " + reason, "fix the JSON syntax there (a JSON linter helps)");
+        diagnostics.error(position_of(text, offset).describe(), "malformed JSON: " + reason,
+                          "fix the JSON syntax there (a JSON linter helps)");
+        return std::nullopt;
+    } catch (const nlohmann::json::out_of_range& error) {
+        // nlohmann reports a number beyond double range (1e999) without its
+        // position; its message quotes the token, so find that.
+        std::string token;
+        const std::string what = error.what();
+        if (const std::size_t open = what.find('\''); open != std::string::npos)
+            if (const std::size_t close = what.find('\'', open + 1); close != std::string::npos)
+                token = what.substr(open + 1, close - open - 1);
+        const std::size_t at = token.empty() ? std::string::npos : text.find(token);
+        diagnostics.error(at == std::string::npos ? std::string("the document") : position_of(text, at).describe(),
+                          "the number " + (token.empty() ? std::string() : token + " ") +
+                              "is beyond the range of a double (about 1.8e308)",
+                          "write a finite number in SI units there");
+        return std::nullopt;
+    } catch (const nlohmann::json::exception& error) {
+        diagnostics.error("the document", std::string("unreadable JSON: ") + error.what(),
+                          "rewrite the file with a JSON writer");
         return std::nullopt;
     }
 }
@@ -293,7 +382,7 @@ std::optional<std::string> read_text_reporting(const std::string& path, Diagnost
     try {
         return read_text_file(path);
     } catch (const IoError& error) {
-        diagnostics.error("", error.what(), error.fix());
+        diagnostics.error(error.field(), error.message(), error.fix());
         return std::nullopt;
     }
 }

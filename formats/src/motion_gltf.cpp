@@ -1,5 +1,7 @@
 #include "flowvid/formats/motion_gltf.hpp"
 
+#include "gltf_json.hpp"
+
 #include "flowvid/formats/atomic_file.hpp"
 
 #include <tiny_gltf.h>
@@ -368,17 +370,8 @@ public:
         // Look at the JSON first: a clear message for malformed JSON (line and
         // column) and for external files, which are never opened.
         const std::uint32_t json_length = read_u32(bytes, 12);
-        Diagnostics json_diag(m_diag.file());
-        std::optional<nlohmann::json> document = parse_json_text(bytes.substr(20, json_length), json_diag);
-        for (Problem problem : json_diag.problems()) {
-            problem.field = "GLB chunk 0 (JSON), " + problem.field;
-            m_diag.merge({problem});
-        }
+        std::optional<nlohmann::json> document = detail::read_glb_json_chunk(bytes.substr(20, json_length), m_diag);
         if (!document) return std::nullopt;
-        if (!document->is_object()) {
-            m_diag.error("GLB chunk 0 (JSON)", "the glTF JSON is not an object", "the file is damaged; write it again");
-            return std::nullopt;
-        }
         bool external = false;
         for (const char* collection : {"buffers", "images"}) {
             const auto found = document->find(collection);
@@ -789,7 +782,7 @@ std::vector<Problem> validate_motion_gltf_file(const std::string& path, Strictne
     try {
         bytes = read_glb_bytes(path);
     } catch (const IoError& error) {
-        diagnostics.error("", error.what(), error.fix());
+        diagnostics.error(error.field(), error.message(), error.fix());
         return diagnostics.problems();
     }
     MotionReader(diagnostics, strictness).read(bytes);

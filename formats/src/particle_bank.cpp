@@ -820,7 +820,7 @@ std::vector<Problem> validate_particle_bank_file(const std::string& path, Strict
         const std::uintmax_t size = require_readable_file(path);
         BankReader(path, size, diagnostics, strictness).read();
     } catch (const IoError& error) {
-        diagnostics.error("", error.what(), error.fix());
+        diagnostics.error(error.field(), error.message(), error.fix());
     }
     return diagnostics.problems();
 }

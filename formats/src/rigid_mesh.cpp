@@ -1,5 +1,7 @@
 #include "flowvid/formats/rigid_mesh.hpp"
 
+#include "gltf_json.hpp"
+
 #include "flowvid/formats/atomic_file.hpp"
 
 #include <Eigen/Geometry>
@@ -363,6 +365,8 @@ std::optional<TriangleMesh> parse_rigid_mesh_glb(const std::string& bytes, Diagn
         diag.error("GLB header", "files over 4 GiB are not supported", "simplify the mesh");
         return std::nullopt;
     }
+    // flowvid reads the JSON first (nesting limit, indices that fit tinygltf's ints).
+    if (!detail::read_glb_json_chunk(bytes.substr(20, read_u32(bytes, 12)), diag)) return std::nullopt;
 
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(&skip_images, nullptr);
@@ -475,7 +479,7 @@ std::vector<Problem> validate_rigid_mesh_file(const std::string& path, Strictnes
     try {
         bytes = read_text_file(path);
     } catch (const IoError& error) {
-        diag.error("", error.what(), error.fix());
+        diag.error(error.field(), error.message(), error.fix());
         return diag.problems();
     }
     parse_rigid_mesh_glb(bytes, diag);

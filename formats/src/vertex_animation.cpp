@@ -530,7 +530,7 @@ std::vector<Problem> validate_vertex_animation_file(const std::string& path, Str
     try {
         parse_file(path, diag, strictness, missing);
     } catch (const Error& error) {
-        diag.error(error.field(), error.what(), error.fix());
+        diag.error(error.field(), error.message(), error.fix());
     }
     return diag.problems();
 }

@@ -4,6 +4,18 @@
 
 namespace flowvid::python {
 
+pybind11::str text_to_python(const std::string& text) {
+    PyObject* decoded = PyUnicode_DecodeUTF8(text.data(), static_cast<Py_ssize_t>(text.size()), "replace");
+    if (!decoded) throw pybind11::error_already_set();
+    return pybind11::reinterpret_steal<pybind11::str>(decoded);
+}
+
+namespace {
+void set_python_error(PyObject* type, const char* what) {
+    PyErr_SetObject(type, text_to_python(what).ptr());
+}
+}  // namespace
+
 // Library errors become Python exceptions with the same message, so that the
 // add-on can show them in Blender's UI.
 void bind_errors(pybind11::module_& module) {
@@ -14,11 +26,11 @@ void bind_errors(pybind11::module_& module) {
         try {
             if (pointer) std::rethrow_exception(pointer);
         } catch (const flowvid::ValidationError& e) {
-            PyErr_SetString(validation_error.ptr(), e.what());
+            set_python_error(validation_error.ptr(), e.what());
         } catch (const flowvid::IoError& e) {
-            PyErr_SetString(io_error.ptr(), e.what());
+            set_python_error(io_error.ptr(), e.what());
         } catch (const flowvid::Error& e) {
-            PyErr_SetString(error.ptr(), e.what());
+            set_python_error(error.ptr(), e.what());
         }
     });
 }

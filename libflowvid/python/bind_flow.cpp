@@ -31,9 +31,9 @@ void bind_flow(py::module_& module) {
     flow.def(
         "validate_flowline_set",
         [](const std::string& path) {
-            std::vector<std::string> messages;
+            pybind11::list messages;
             for (const Problem& problem : formats::validate_flowline_set_file(path, formats::Strictness::strict))
-                messages.push_back(problem.to_string());
+                messages.append(text_to_python(problem.to_string()));
             return messages;
         },
         py::arg("path"), "Every problem of a flow-line file, as messages (empty when valid).");

@@ -29,9 +29,9 @@ void bind_formats(py::module_& module) {
     formats.def(
         "validate_fabric_preset",
         [](const std::string& path) {
-            std::vector<std::string> messages;
+            pybind11::list messages;
             for (const Problem& problem : formats::validate_fabric_preset_file(path, formats::Strictness::strict))
-                messages.push_back(problem.to_string());
+                messages.append(text_to_python(problem.to_string()));
             return messages;
         },
         py::arg("path"), "Every problem of a preset file, as messages (empty when valid).");

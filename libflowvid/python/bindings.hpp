@@ -1,5 +1,6 @@
 #pragma once
 #include <nlohmann/json.hpp>
+#include <string>
 #include <pybind11/pybind11.h>
 
 namespace flowvid::python {
@@ -7,6 +8,11 @@ namespace flowvid::python {
 // add-on receives plain dicts without a C++ JSON binding (json_bridge.cpp).
 pybind11::object json_to_python(const nlohmann::json& value);
 nlohmann::json python_to_json(const pybind11::object& value);
+
+// Messages quote bytes from the files they describe, which need not be
+// UTF-8: they cross as str with undecodable bytes replaced, never as an
+// exception of their own (UnicodeDecodeError would hide the real problem).
+pybind11::str text_to_python(const std::string& text);
 
 void bind_errors(pybind11::module_& module);
 void bind_formats(pybind11::module_& module);

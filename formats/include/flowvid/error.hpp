@@ -30,6 +30,9 @@ public:
     const std::string& file() const { return m_file; }
     const std::string& field() const { return m_field; }
     const std::string& fix() const { return m_fix; }
+    // The message alone, without file, field and fix (what() has them all):
+    // for turning an Error into a Problem without repeating them.
+    const std::string& message() const { return m_message; }
 
 protected:
     struct PreformattedTag {};
@@ -38,6 +41,7 @@ protected:
 private:
     std::string m_file;
     std::string m_field;
+    std::string m_message;
     std::string m_fix;
 };
 
@@ -76,9 +80,15 @@ public:
     // Throws ValidationError carrying every problem when any is an error.
     void throw_if_errors() const;
 
+    // Problems kept in full; beyond them one error counts the rest.
+    static constexpr std::size_t kMaxProblemsListed = 100;
+
 private:
+    void add(Problem problem);
+
     std::string m_file;
     std::vector<Problem> m_problems;
+    std::size_t m_problems_not_listed = 0;
 };
 
 }  // namespace flowvid

@@ -81,6 +81,11 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
                        use_exact ? JacobianMode::exact : JacobianMode::definite);
         const Residual r = residual(model, fixed, f);
         report.iterations = it;
+        if (options.cancel && options.cancel->load(std::memory_order_relaxed)) {
+            report.cancelled = true;
+            report.reason = "cancelled (iteration " + std::to_string(it) + ")";
+            return report;
+        }
         report.max_residual_force_N = r.max_force;
         report.max_residual_over_weight = r.max_over_weight;
         report.potential_energy_J = energy;

@@ -252,6 +252,11 @@ SimulationReport ClothSimulator::advance_explicit(double end_time_s) {
     }
 
     while (m_time < end_time_s) {
+        if (m_settings.cancel && m_settings.cancel->load(std::memory_order_relaxed)) {
+            report.status = SimulationReport::Status::cancelled;
+            report.reason = "cancelled at t = " + std::to_string(m_time) + " s";
+            return report;
+        }
         double h = std::min(m_step, m_settings.max_step_s);
         const double remaining = end_time_s - m_time;
         bool last_in_interval = false;
@@ -403,6 +408,11 @@ SimulationReport ClothSimulator::advance_implicit(double end_time_s) {
         layer = std::min(layer, env.self_contact.thickness_m);
 
     while (m_time < end_time_s) {
+        if (m_settings.cancel && m_settings.cancel->load(std::memory_order_relaxed)) {
+            report.status = SimulationReport::Status::cancelled;
+            report.reason = "cancelled at t = " + std::to_string(m_time) + " s";
+            return report;
+        }
         const double remaining = end_time_s - m_time;
         double h_limit = h_nominal;
         if (std::isfinite(layer)) {

@@ -246,6 +246,13 @@ SwatchRun simulate_swatch(const SwatchExperiment& experiment, const ClothMateria
                             : hanging_start(run.swatch, experiment, options.initial_bow);
     for (const PinnedVertex& p : run.swatch.pins) x.segment<3>(3 * p.vertex) = p.path.position(0.0);
     run.equilibrium = solve_static_equilibrium(model, run.swatch.pinned, x, options.equilibrium);
+    if (run.equilibrium.cancelled) {
+        run.simulation.report.status = SimulationReport::Status::cancelled;
+        run.simulation.report.frame = 0;
+        run.simulation.report.reason = "cancelled while solving the static equilibrium";
+        run.simulation.frames.push_back(x);
+        return run;
+    }
     if (!run.equilibrium.converged) {
         run.simulation.report.status = SimulationReport::Status::blew_up;
         run.simulation.report.frame = 1;

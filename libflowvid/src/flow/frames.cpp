@@ -12,6 +12,7 @@
 #include <array>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <stdexcept>
 
 namespace fs = std::filesystem;
@@ -537,6 +538,7 @@ struct FrameWriter::Impl {
     int height = 0;
     double fps = 25.0;
     bool video = false;
+    std::optional<formats::PendingFile> video_file;  // published by close(), so no half video ever has the name
     cv::VideoWriter writer;
 };
 
@@ -596,7 +598,9 @@ FrameWriter::FrameWriter(const std::string& target, int width, int height, doubl
             throw IoError(target, "", "the folder " + parent.string() + " does not exist", "create it first");
         const int fourcc = lower_extension(target) == ".avi" ? cv::VideoWriter::fourcc('M', 'J', 'P', 'G')
                                                               : cv::VideoWriter::fourcc('m', 'p', '4', 'v');
-        m_impl->writer.open(target, cv::CAP_FFMPEG, fourcc, m_impl->fps, cv::Size(width, height), true);
+        m_impl->video_file.emplace(target);
+        m_impl->writer.open(m_impl->video_file->temp_path(), cv::CAP_FFMPEG, fourcc, m_impl->fps,
+                            cv::Size(width, height), true);
         if (!m_impl->writer.isOpened())
             throw IoError(target, "", "cannot open the video for writing", "use .mp4 or .avi, or write an image sequence");
         return;
@@ -612,12 +616,7 @@ FrameWriter::FrameWriter(const std::string& target, int width, int height, doubl
         throw IoError(target, "", "the folder " + parent.string() + " does not exist", "create it first");
 }
 
-FrameWriter::~FrameWriter() {
-    try {
-        close();
-    } catch (...) {
-    }
-}
+FrameWriter::~FrameWriter() { discard(); }
 
 bool FrameWriter::is_video() const { return m_impl->video; }
 
@@ -645,7 +644,15 @@ void FrameWriter::write(int frame, const RgbImage& linear) {
 }
 
 void FrameWriter::close() {
-    if (m_impl && m_impl->video && m_impl->writer.isOpened()) m_impl->writer.release();
+    if (!m_impl || !m_impl->video) return;
+    if (m_impl->writer.isOpened()) m_impl->writer.release();
+    if (m_impl->video_file) m_impl->video_file->commit();
+}
+
+void FrameWriter::discard() {
+    if (!m_impl || !m_impl->video) return;
+    if (m_impl->writer.isOpened()) m_impl->writer.release();
+    if (m_impl->video_file) m_impl->video_file->discard();
 }
 
 void write_image(const std::string& path, const RgbImage& linear) { write_image_file(path, linear); }

@@ -73,9 +73,18 @@ TEST(FlowFrames, PatternsFoldersAndVideos) {
 
     // A video file round trip (lossy codec: loose threshold).
     {
+        // A writer dropped before close() (an error, Ctrl-C) publishes nothing.
+        FrameWriter dropped(dir + "/clip.avi", 32, 24, 25.0);
+        dropped.write(1, to_linear(gradient(32, 24, 0.0f)));
+    }
+    EXPECT_FALSE(fs::exists(dir + "/clip.avi"));
+    for (const fs::directory_entry& entry : fs::directory_iterator(dir))
+        EXPECT_NE(entry.path().filename().string().rfind(".clip", 0), 0u) << "temporary file left: " << entry.path();
+    {
         FrameWriter writer(dir + "/clip.avi", 32, 24, 25.0);
         EXPECT_TRUE(writer.is_video());
         for (int f = 1; f <= 5; ++f) writer.write(f, to_linear(gradient(32, 24, 0.0f)));
+        writer.close();  // publishes the video under its name
     }
     const formats::Capture video = open_clip(dir + "/clip.avi");
     EXPECT_EQ(video.frames.count, 5);

@@ -828,3 +828,28 @@ TEST(CaptureShared, TruthProjectsOntoTheMasks) {
     // Rigid captures have no vertex truth.
     EXPECT_FALSE(read_capture_truth_positions(read_capture(shared_path("captures/rigid-toss-major"))));
 }
+
+TEST(CaptureTruth, ATruthJsonThatIsNotAnObjectOrHalfAGridIsRefusedNotIgnored) {
+    const std::string dir = edited_copy("tiny-cloth", "truth_shape", [](nlohmann::json&) {});
+    const Capture capture = read_capture(dir);
+    VertexAnimation truth;
+    truth.frame_count = capture.frames.count;
+    truth.vertex_count = 4;
+    truth.positions_m.assign(static_cast<std::size_t>(truth.frame_count * truth.vertex_count), Eigen::Vector3f::Zero());
+    fs::create_directories(dir + "/truth");
+    write_vertex_animation(dir + "/truth/positions.exr", truth);
+
+    write_text(dir + "/truth/truth.json", R"({"rows": 2, "cols": 2})");
+    const std::optional<VertexAnimation> good = read_capture_truth_positions(capture);
+    ASSERT_TRUE(good.has_value());
+    EXPECT_EQ(good->grid_rows.value_or(0), 2);
+
+    write_text(dir + "/truth/truth.json", "[1, 2]");
+    const std::string array = validation_messages([&] { read_capture_truth_positions(capture); });
+    EXPECT_TRUE(mentions(array, "truth.json")) << array;
+    EXPECT_TRUE(mentions(array, "not a JSON object")) << array;
+
+    write_text(dir + "/truth/truth.json", R"({"rows": 2})");
+    const std::string half = validation_messages([&] { read_capture_truth_positions(capture); });
+    EXPECT_TRUE(mentions(half, "/cols")) << half;
+}

@@ -19,6 +19,28 @@ void write_file_atomically(const std::string& path, const std::function<void(std
 // tinygltf): write_to writes the whole file at the temporary path it is given.
 void write_path_atomically(const std::string& path, const std::function<void(const std::string& temp_path)>& write_to);
 
+// For writers that stream into a file over a long time (a video encoder):
+// write to temp_path(), then commit() renames it over the target. Destroyed
+// without commit() (an error, Ctrl-C), it removes the temporary file and
+// leaves the target as it was. The temporary name keeps the target's
+// extension, since encoders pick the container from it.
+class PendingFile {
+public:
+    explicit PendingFile(const std::string& path);
+    ~PendingFile();
+    PendingFile(const PendingFile&) = delete;
+    PendingFile& operator=(const PendingFile&) = delete;
+    const std::string& temp_path() const { return m_temp_path; }
+    const std::string& path() const { return m_path; }
+    void commit();   // throws IoError naming the target when the rename fails
+    void discard();  // removes the temporary file now
+
+private:
+    std::string m_path;
+    std::string m_temp_path;
+    bool m_done = false;
+};
+
 // Reads a whole file; throws flowvid::IoError naming the file when it cannot.
 std::string read_text_file(const std::string& path);
 

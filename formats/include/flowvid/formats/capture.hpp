@@ -180,6 +180,14 @@ std::optional<Capture> parse_capture(const nlohmann::json& document, const std::
 // the same capture. No writer is provided: captures are made by capture rigs.
 nlohmann::json capture_to_json(const Capture& capture);
 
+// Paths in capture.json must stay inside the capture folder (capture.md); a
+// reader refuses "../x" and absolute paths unless the process allows them
+// (`flowvid --allow-outside-paths`, for captures the user trusts). Frame
+// patterns are checked as written ("frames/%06d.png").
+void allow_capture_paths_outside_folder(bool allowed);
+bool capture_paths_outside_folder_allowed();
+bool path_stays_inside_folder(const std::string& relative);
+
 // `path` is the capture folder or its capture.json. Checks everything
 // (CaptureFileChecks::content) and throws ValidationError listing every problem,
 // or IoError when capture.json cannot be read. Warnings go to `warnings`.

@@ -97,6 +97,11 @@ std::optional<FormatVersion> check_format_header(const JsonView& root, const std
 
 // Parses JSON text; a syntax error is recorded with line and column and
 // nullopt is returned.
+// Deepest nesting of arrays and objects parse_json_text accepts: flowvid's
+// files nest a few levels, and refusing deeper input before parsing keeps
+// hostile files from overflowing the stack.
+inline constexpr std::size_t kMaxJsonNesting = 200;
+
 std::optional<nlohmann::json> parse_json_text(const std::string& text, Diagnostics& diagnostics);
 
 // Pretty JSON (2-space indent, shortest round-trip numbers) followed by a newline.

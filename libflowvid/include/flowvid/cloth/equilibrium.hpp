@@ -11,6 +11,7 @@
 
 #include <Eigen/Core>
 
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,9 @@ struct EquilibriumOptions {
     // with a sparse LDL^T factorisation give quadratic convergence.
     double inexact_newton_tolerance = 1e-3;
     int cg_max_iterations = 500;
+    // When set and true, the solve stops at the next iteration, not converged,
+    // with EquilibriumReport::cancelled.
+    const std::atomic<bool>* cancel = nullptr;
 };
 
 struct EquilibriumReport {
@@ -37,6 +41,7 @@ struct EquilibriumReport {
     double max_residual_over_weight = 0.0;   // max |f_i| / (m_i |g|)
     double potential_energy_J = 0.0;
     std::string reason;                      // why it stopped when not converged
+    bool cancelled = false;                  // stopped by EquilibriumOptions::cancel
 };
 
 // `x` (3*#V) is the start and receives the result; vertices with fixed[i]

@@ -20,6 +20,7 @@
 
 #include <Eigen/Core>
 
+#include <atomic>
 #include <functional>
 #include <string>
 #include <vector>
@@ -64,6 +65,10 @@ struct SimulationSettings {
     // Worker threads for the element loops and the CG products (1 = none).
     // Results do not depend on this number: fixed chunks, summed in order.
     int threads = 1;
+    // When set, the run ends as cancelled soon after *cancel becomes true
+    // (checked every step, not only between frames: a frame can take
+    // seconds at fine meshes). A flag, not a callback: it is read per step.
+    const std::atomic<bool>* cancel = nullptr;
 };
 
 struct SimulationReport {

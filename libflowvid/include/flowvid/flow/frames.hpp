@@ -251,7 +251,12 @@ public:
     std::string path_of(int frame) const;
     // `linear` must have the writer's size. Throws IoError naming the file.
     void write(int frame, const RgbImage& linear);
+    // A video is written under a temporary name: close() publishes it under
+    // the target name; discard() (and destruction without close()) removes
+    // it, leaving any earlier file of that name intact. Image sequences are
+    // written frame by frame, each frame atomically.
     void close();
+    void discard();
 
 private:
     struct Impl;
