@@ -63,7 +63,29 @@ std::int64_t channel_bytes(const std::string& value) {
         total += type == 1 ? 2 : 4;  // HALF = 1; UINT = 0 and FLOAT = 2 take 4 bytes
         at = end + 17;
     }
+    // OpenEXR reads up to the terminating NUL whatever the declared size, so
+    // the list must end exactly at the attribute's end or the rest of the
+    // header is read out of step.
+    if (at + 1 != value.size()) return -1;
     return total;
+}
+
+// OpenEXR reads the value of a known fixed-size type by its type, not by the
+// declared size: a box2i declared as 0 bytes would put every later read out
+// of step (and size an allocation from stray bytes). 0 for variable sizes and
+// types flowvid does not know (OpenEXR reads those as opaque bytes of the
+// declared size).
+std::uint32_t fixed_attribute_size(const std::string& type) {
+    static const std::pair<const char*, std::uint32_t> sizes[] = {
+        {"int", 4},          {"float", 4},           {"double", 8},   {"compression", 1}, {"lineOrder", 1},
+        {"envmap", 1},       {"deepImageState", 1},  {"box2i", 16},   {"box2f", 16},      {"v2i", 8},
+        {"v2f", 8},          {"v2d", 16},            {"v3i", 12},     {"v3f", 12},        {"v3d", 24},
+        {"m33f", 36},        {"m33d", 72},           {"m44f", 64},    {"m44d", 128},      {"tiledesc", 9},
+        {"chromaticities", 32}, {"keycode", 28},     {"timecode", 8}, {"rational", 8},
+    };
+    for (const auto& [name, size] : sizes)
+        if (type == name) return size;
+    return 0;
 }
 
 // Names a part's data window the way flowvid's EXR messages do.
@@ -121,12 +143,32 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
             if (size > cursor.remaining())
                 return fail("attribute '" + name + "' declares " + std::to_string(size) + " bytes, more than the header holds",
                             truncated_fix);
+            if (const std::uint32_t expected = fixed_attribute_size(type); expected != 0 && size != expected)
+                return fail("attribute '" + name + "' of type " + type + " declares " + std::to_string(size) +
+                                " bytes; a " + type + " has " + std::to_string(expected),
+                            truncated_fix);
             const std::string value = head.substr(cursor.position(), size);
             const auto* v = reinterpret_cast<const unsigned char*>(value.data());
             auto i32 = [&](std::size_t at) {
                 return static_cast<std::int32_t>(std::uint32_t(v[at]) | (std::uint32_t(v[at + 1]) << 8) |
                                                  (std::uint32_t(v[at + 2]) << 16) | (std::uint32_t(v[at + 3]) << 24));
             };
+            // Variable-size types whose inner lengths OpenEXR trusts.
+            bool inner_ok = true;
+            if (type == "stringvector") {
+                std::size_t at = 0;
+                while (inner_ok && at < size) {
+                    inner_ok = size - at >= 4 && static_cast<std::uint32_t>(i32(at)) <= size - at - 4;
+                    if (inner_ok) at += 4 + static_cast<std::uint32_t>(i32(at));
+                }
+            } else if (type == "preview") {
+                inner_ok = size >= 8 && std::uint64_t(static_cast<std::uint32_t>(i32(0))) *
+                                                static_cast<std::uint32_t>(i32(4)) * 4 == size - 8;
+            } else if (type == "floatvector") {
+                inner_ok = size % 4 == 0;
+            }
+            if (!inner_ok)
+                return fail("attribute '" + name + "' (" + type + ") is malformed", truncated_fix);
             if (name == "dataWindow" && type == "box2i" && size == 16) {
                 part.width = std::int64_t(i32(8)) - i32(0) + 1;
                 part.height = std::int64_t(i32(12)) - i32(4) + 1;
