@@ -166,6 +166,8 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
                                                 static_cast<std::uint32_t>(i32(4)) * 4 == size - 8;
             } else if (type == "floatvector") {
                 inner_ok = size % 4 == 0;
+            } else if (type == "chlist") {
+                inner_ok = channel_bytes(value) >= 0;  // any chlist, not only "channels": OpenEXR reads each to its NUL
             }
             if (!inner_ok)
                 return fail("attribute '" + name + "' (" + type + ") is malformed", truncated_fix);
