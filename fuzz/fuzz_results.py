@@ -175,8 +175,10 @@ def write_markdown(path, data, readers):
         "readers (`flowvid_formats`) instrumented too, `-O1`; limits `-rss_limit_mb=1024 -malloc_limit_mb=1024",
         "-timeout=10 -max_len=65536`; libFuzzer's mutations mixed with the structure-aware ones of",
         "`fuzz/structure_mutator.cpp`. *cov* and *ft* are libFuzzer's edge-coverage and feature counts at the start",
-        "(the corpus) and the end of the run; *new units* are the inputs it added for new coverage. The",
-        "regressions are `fuzz/regressions/<target>/*` and, in full runs, the generated issue #34 reproducers.",
+        "(the corpus) and the end of the run; *new units* are the inputs it added for new coverage (a",
+        "`--keep-going` run uses libFuzzer's `-fork` mode, which counts both differently: compare runs of one",
+        "mode). The regressions are `fuzz/regressions/<target>/*` and, in full runs, the generated issue #34",
+        "reproducers.",
         "",
         "| target | reads | date (UTC) | commit | mode | seconds | executions | exec/s | cov | ft | new units "
         "| regressions | crashes | leaks | timeouts | OOMs | clean ≥ 10 min |",
@@ -244,7 +246,9 @@ def main():
                 readers[name] = reader
 
     commit = git("rev-parse", "--short", "HEAD") or "?"
-    if git("status", "--porcelain", "--", "formats", "fuzz", "libflowvid/python"):
+    # The code under test changed since the commit (the corpus and these results do not count).
+    if git("status", "--porcelain", "--", "formats", "fuzz", "tests/fuzz", "libflowvid/python", ":!fuzz/RESULTS.md",
+           ":!fuzz/results.json", ":!fuzz/corpus", ":!fuzz/fuzz_results.py"):
         commit += " + uncommitted changes"
     date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M")
     mode = args.mode + (" keep-going" if args.keep_going else "")
