@@ -16,11 +16,14 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string temporary_sibling(const std::string& path) {
+// ".name.tmp-PID-N" beside `path`; with `keep_extension`, ".stem.tmp-PID-N.ext"
+// (encoders pick the container from the extension).
+std::string temporary_sibling(const std::string& path, bool keep_extension = false) {
     static std::atomic<unsigned> counter{0};
-    fs::path target(path);
-    std::string name = "." + target.filename().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
-                       std::to_string(counter.fetch_add(1));
+    const fs::path target(path);
+    const std::string unique = ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter.fetch_add(1));
+    const std::string name = keep_extension ? "." + target.stem().string() + unique + target.extension().string()
+                                            : "." + target.filename().string() + unique;
     return (target.parent_path() / name).string();
 }
 
@@ -76,14 +79,10 @@ void write_file_atomically(const std::string& path, const std::function<void(std
 }
 
 PendingFile::PendingFile(const std::string& path) : m_path(path) {
-    static std::atomic<unsigned> counter{0};
-    const fs::path target(path);
-    const fs::path parent = target.parent_path();
+    const fs::path parent = fs::path(path).parent_path();
     if (!parent.empty() && !fs::is_directory(parent))
         throw IoError(path, "", "the folder does not exist", "create " + parent.string() + " first");
-    const std::string name = "." + target.stem().string() + ".tmp-" + std::to_string(::getpid()) + "-" +
-                             std::to_string(counter.fetch_add(1)) + target.extension().string();
-    m_temp_path = (parent / name).string();
+    m_temp_path = temporary_sibling(path, /*keep_extension=*/true);
 }
 
 PendingFile::~PendingFile() { discard(); }

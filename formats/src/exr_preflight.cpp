@@ -155,6 +155,7 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
             };
             // Variable-size types whose inner lengths OpenEXR trusts.
             bool inner_ok = true;
+            const std::int64_t chlist_bytes = type == "chlist" ? channel_bytes(value) : 0;
             if (type == "stringvector") {
                 std::size_t at = 0;
                 while (inner_ok && at < size) {
@@ -167,7 +168,7 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
             } else if (type == "floatvector") {
                 inner_ok = size % 4 == 0;
             } else if (type == "chlist") {
-                inner_ok = channel_bytes(value) >= 0;  // any chlist, not only "channels": OpenEXR reads each to its NUL
+                inner_ok = chlist_bytes >= 0;  // any chlist, not only "channels": OpenEXR reads each to its NUL
             }
             if (!inner_ok)
                 return fail("attribute '" + name + "' (" + type + ") is malformed", truncated_fix);
@@ -181,8 +182,7 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
             } else if (name == "compression" && size == 1) {
                 compression = v[0];
             } else if (name == "channels" && type == "chlist") {
-                part.bytes_per_pixel = channel_bytes(value);
-                if (part.bytes_per_pixel < 0) return fail("the channel list is malformed", truncated_fix);
+                part.bytes_per_pixel = chlist_bytes;  // >= 0: checked above with every chlist
             } else if (name == "name" && type == "string") {
                 part.name = value;
             } else if (name == "type" && type == "string") {

@@ -8,13 +8,11 @@
 
 namespace flowvid::testing {
 
-namespace {
 std::string shell_quote(const std::string& text) {
     std::string quoted = "'";
     for (char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
     return quoted + "'";
 }
-}  // namespace
 
 CliResult run_flowvid(const std::vector<std::string>& arguments, const std::string& working_dir) {
     static int counter = 0;

@@ -14,6 +14,9 @@ struct CliResult {
 
 // Arguments are quoted for the shell; stdout and stderr are captured
 // separately. `working_dir`: where it runs (empty: the test's own).
+// `text` as one shell word.
+std::string shell_quote(const std::string& text);
+
 CliResult run_flowvid(const std::vector<std::string>& arguments, const std::string& working_dir = {});
 
 }  // namespace flowvid::testing

@@ -198,10 +198,6 @@ TEST(CliFarm, MergeRefusesMissingDuplicateAndForeignShardsNamingFileAndField) {
     EXPECT_EQ(both.exit_code, 2);
 }
 
-namespace {
-
-
-}  // namespace
 
 TEST(CliFarm, SynthChunksJoinAWholeRenderBitForBit) {
     const std::string dir = own_dir("cli_farm_synth");

@@ -35,12 +35,6 @@ constexpr long kLimitKilobytes = 1L << 20;  // 1 GiB of address space
 bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 std::string own_dir(const std::string& name) { return scratch_dir(name + "_" + std::to_string(::getpid())); }
 
-std::string shell_quote(const std::string& text) {
-    std::string quoted = "'";
-    for (char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return quoted + "'";
-}
-
 struct LimitedRun {
     int exit_code = -1;
     std::string err;
