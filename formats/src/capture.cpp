@@ -746,6 +746,9 @@ private:
     // when there are not too many; one problem lists the missing ones.
     bool check_sequence(const std::string& field, const std::string& what, const std::string& pattern) {
         const FramesSpec& frames = m_capture.frames;
+        // A pattern that names no file (its own error is reported where it is
+        // read) has no sequence to look for.
+        if (!format_frame_pattern(pattern, frames.first) || !format_frame_pattern(pattern, frames.last())) return false;
         auto exists = [&](int number) {
             std::error_code ec;
             return fs::is_regular_file(resolve(*format_frame_pattern(pattern, number)), ec);

@@ -1,0 +1,100 @@
+#pragma once
+// Camera drift (issue #30): a clip filmed from a camera that drifts by a few
+// pixels smears the still median plate and makes particles' patches slide
+// under them. The clip is brought into the view of its first frame (where the
+// flow lines are drawn), tracked and synthesized there; the output is a still
+// camera, since an infinite sequence cannot replay a finite drift without a
+// jump. A clip whose camera holds still is left exactly as it is.
+//
+// The drift is estimated on the background only (pixels far from every input
+// line: water and flames move on their own) by enhanced correlation
+// (OpenCV's ECC), which ignores a global change of gain and offset.
+
+#include "flowvid/flow/frames.hpp"
+#include "flowvid/formats/flowlines.hpp"
+
+#include <Eigen/Core>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace flowvid::flow {
+
+struct CameraMotionSettings {
+    // Pixels within this distance of an input line are left out of the estimate.
+    double exclude_around_lines_px = 80.0;
+    // A camera whose frames all stay within this distance of the first frame
+    // (at every corner) is taken as still and the clip left unchanged: flames
+    // and sunlight that change the light move ECC's estimate by about a pixel.
+    double still_below_px = 2.0;
+    // A frame that matches the first frame's background worse than this
+    // (ECC's correlation coefficient) makes the whole estimate untrusted and
+    // the clip is left as it is: fire lights its surroundings unevenly, and
+    // a shift found under such light is not the camera's.
+    double min_correlation = 0.8;
+    // Frames wider than this are estimated at a reduced size (speed); the
+    // offsets are scaled back.
+    int estimate_width_px = 640;
+};
+
+// Where the camera of each frame looked, relative to the first frame.
+struct CameraMotion {
+    enum class Model { still, translation, affine };
+    Model model = Model::still;
+    // Per frame: maps a pixel of the first frame's view to the same scene
+    // point in that frame (x' = A x + t), pixels. Identity when still.
+    std::vector<Eigen::Matrix<double, 2, 3>> first_to_frame;
+    double largest_offset_px = 0.0;  // the largest corner displacement over all frames
+    double worst_correlation = 1.0;  // ECC's lowest correlation coefficient over the frames
+    bool untrusted = false;          // still because the background matched too poorly to tell
+    bool still() const { return model == Model::still; }
+};
+const char* to_string(CameraMotion::Model model);
+
+// Reads every frame once. `input_lines` are the drawn (or densified) input
+// lines, pixels; `progress` gets the fraction done and may return false to
+// stop (the motion then says still).
+CameraMotion estimate_camera_motion(FrameSequence& frames, const std::vector<std::vector<Eigen::Vector2d>>& input_lines,
+                                    const CameraMotionSettings& settings = {},
+                                    const std::function<bool(double)>& progress = {});
+
+// The frames of `source` seen from the first frame's camera: each frame is
+// resampled (Lanczos, 8 x 8 taps: bilinear would halve the fine detail of
+// water) where the first frame's pixels lie in it; pixels the frame did not
+// see repeat its border. Frames of a still camera are passed through
+// unchanged. `source` must outlive this.
+class StabilisedFrames : public FrameSequence {
+public:
+    StabilisedFrames(FrameSequence& source, CameraMotion motion);
+    int width() const override { return m_source.width(); }
+    int height() const override { return m_source.height(); }
+    int count() const override { return m_source.count(); }
+    double fps() const override { return m_source.fps(); }
+    RgbImage frame(int index) override;
+    std::string source() const override { return m_source.source(); }
+    const CameraMotion& motion() const { return m_motion; }
+
+private:
+    FrameSequence& m_source;
+    CameraMotion m_motion;
+};
+
+// The drawing's input lines as polylines: what the drift estimate leaves out.
+// track, synth, edit and quality all estimate from the drawn lines (not the
+// densified ones), so that they find the same drift for the same drawing.
+std::vector<std::vector<Eigen::Vector2d>> drawn_input_polylines(const formats::FlowLineSet& drawing);
+
+// The whole clip in memory as seen from its first frame's camera: read once,
+// the drift estimated around the drawing's input lines, then resampled
+// (unchanged when the camera is still). `motion` receives the estimate;
+// `as_filmed`, when given, the frames as they were read (measures that compare
+// with the footage use these: resampling softens the finest detail).
+ClipFrames read_clip_stabilised(FrameSequence& frames, const formats::FlowLineSet& drawing, CameraMotion& motion,
+                                const std::function<bool(double)>& progress = {}, ClipFrames* as_filmed = nullptr);
+
+// A one-line account for logs: "camera still" or "camera drifts up to 10.4 px
+// (translation): tracked and rendered in the first frame's view".
+std::string describe(const CameraMotion& motion);
+
+}  // namespace flowvid::flow

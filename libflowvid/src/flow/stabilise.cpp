@@ -1,0 +1,211 @@
+// Camera drift estimated by ECC on the background and removed by resampling
+// each frame into the first frame's view (stabilise.hpp).
+#include "flowvid/flow/stabilise.hpp"
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <utility>
+
+namespace flowvid::flow {
+namespace {
+
+// The background: pixels farther than the margin from every input line. A
+// margin that leaves less than a tenth of the frame is halved (lines drawn all
+// over the frame), down to 20 px.
+cv::Mat background_mask(int width, int height, double scale, const std::vector<std::vector<Eigen::Vector2d>>& lines,
+                        double margin_px) {
+    cv::Mat drawn(height, width, CV_8U, cv::Scalar(255));
+    for (const auto& line : lines) {
+        std::vector<cv::Point> points;
+        for (const Eigen::Vector2d& p : line)
+            points.emplace_back(static_cast<int>(std::lround(p.x() * scale)), static_cast<int>(std::lround(p.y() * scale)));
+        if (points.size() >= 2) cv::polylines(drawn, points, false, cv::Scalar(0), 1);
+    }
+    cv::Mat distance;
+    cv::distanceTransform(drawn, distance, cv::DIST_L2, 3);
+    cv::Mat mask;
+    for (double margin = margin_px * scale;; margin *= 0.5) {
+        mask = distance > margin;
+        if (cv::countNonZero(mask) >= width * height / 10 || margin <= 20.0 * scale) break;
+    }
+    return mask;
+}
+
+cv::Mat gray_for_estimate(const RgbImage& display, double scale) {
+    const std::vector<float> y = luma(display);
+    cv::Mat gray(display.height, display.width, CV_32F, const_cast<float*>(y.data()));
+    cv::Mat out;
+    if (scale < 1.0) cv::resize(gray, out, cv::Size(), scale, scale, cv::INTER_AREA);
+    else out = gray.clone();
+    return out;
+}
+
+double largest_corner_offset(const Eigen::Matrix<double, 2, 3>& m, int width, int height) {
+    double largest = 0.0;
+    for (const Eigen::Vector2d& corner : {Eigen::Vector2d(0, 0), Eigen::Vector2d(width - 1, 0),
+                                         Eigen::Vector2d(0, height - 1), Eigen::Vector2d(width - 1, height - 1)}) {
+        const Eigen::Vector2d moved = m.leftCols<2>() * corner + m.col(2);
+        largest = std::max(largest, (moved - corner).norm());
+    }
+    return largest;
+}
+
+// One ECC pass over the frames with a motion model, each frame against the
+// first, started from the previous frame's answer (drift is gradual). Returns
+// the maps at full resolution and the lowest correlation.
+std::pair<std::vector<Eigen::Matrix<double, 2, 3>>, double> estimate_with(const std::vector<cv::Mat>& gray, const cv::Mat& mask,
+                                                                        int motion_type, double scale,
+                                                                        const std::vector<Eigen::Matrix<double, 2, 3>>* start) {
+    std::vector<Eigen::Matrix<double, 2, 3>> maps;
+    double worst = 1.0;
+    cv::Mat warp = cv::Mat::eye(2, 3, CV_32F);
+    const cv::TermCriteria stop(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 100, 1e-5);
+    for (std::size_t i = 0; i < gray.size(); ++i) {
+        if (start) {  // the translation pass's answer, at the reduced size
+            const Eigen::Matrix<double, 2, 3>& s = (*start)[i];
+            for (int r = 0; r < 2; ++r)
+                for (int c = 0; c < 3; ++c) warp.at<float>(r, c) = static_cast<float>(c == 2 ? s(r, c) * scale : s(r, c));
+        }
+        double correlation = 1.0;
+        if (i > 0) {
+            try {
+                correlation = cv::findTransformECC(gray[0], gray[i], warp, motion_type, stop, mask, 5);
+            } catch (const cv::Exception&) {
+                correlation = 0.0;  // did not converge: the previous answer stays
+            }
+        }
+        worst = std::min(worst, correlation);
+        Eigen::Matrix<double, 2, 3> m;
+        for (int r = 0; r < 2; ++r)
+            for (int c = 0; c < 3; ++c) m(r, c) = c == 2 ? warp.at<float>(r, c) / scale : warp.at<float>(r, c);
+        maps.push_back(m);
+    }
+    return {maps, worst};
+}
+
+}  // namespace
+
+const char* to_string(CameraMotion::Model model) {
+    switch (model) {
+        case CameraMotion::Model::still: return "still";
+        case CameraMotion::Model::translation: return "translation";
+        case CameraMotion::Model::affine: return "affine";
+    }
+    return "?";
+}
+
+CameraMotion estimate_camera_motion(FrameSequence& frames, const std::vector<std::vector<Eigen::Vector2d>>& input_lines,
+                                    const CameraMotionSettings& settings, const std::function<bool(double)>& progress) {
+    CameraMotion still;
+    still.first_to_frame.assign(static_cast<std::size_t>(std::max(0, frames.count())), Eigen::Matrix<double, 2, 3>::Identity());
+    if (frames.count() < 2) return still;
+    const int width = frames.width(), height = frames.height();
+    const double scale = width > settings.estimate_width_px ? static_cast<double>(settings.estimate_width_px) / width : 1.0;
+    std::vector<cv::Mat> gray;
+    gray.reserve(static_cast<std::size_t>(frames.count()));
+    for (int i = 0; i < frames.count(); ++i) {
+        gray.push_back(gray_for_estimate(frames.frame(i), scale));
+        if (progress && !progress(0.5 * (i + 1) / frames.count())) return still;
+    }
+    const cv::Mat mask = background_mask(gray[0].cols, gray[0].rows, scale, input_lines, settings.exclude_around_lines_px);
+    if (cv::countNonZero(mask) < mask.rows * mask.cols / 20) return still;  // no background to see the camera by
+
+    // Translation first: robust, and what tells a still camera from a moving one.
+    auto [shifts, shift_correlation] = estimate_with(gray, mask, cv::MOTION_TRANSLATION, scale, nullptr);
+    if (progress && !progress(0.75)) return still;
+    double largest = 0.0;
+    for (const auto& m : shifts) largest = std::max(largest, largest_corner_offset(m, width, height));
+    if (largest < settings.still_below_px || shift_correlation < settings.min_correlation) {
+        still.largest_offset_px = largest;
+        still.worst_correlation = shift_correlation;
+        still.untrusted = largest >= settings.still_below_px;
+        return still;
+    }
+    CameraMotion motion;
+    motion.model = CameraMotion::Model::translation;
+    motion.first_to_frame = shifts;
+    motion.worst_correlation = shift_correlation;
+    // An affine map follows a slight turn or zoom too. Kept only where it
+    // stays near a shift and matches at least as well: on flickering light it
+    // can wander off where a shift holds.
+    auto [affine, affine_correlation] = estimate_with(gray, mask, cv::MOTION_AFFINE, scale, &shifts);
+    bool near_shift = affine_correlation >= shift_correlation - 0.01;
+    for (const auto& m : affine) near_shift = near_shift && (m.leftCols<2>() - Eigen::Matrix2d::Identity()).cwiseAbs().maxCoeff() < 0.03;
+    if (near_shift) {
+        motion.model = CameraMotion::Model::affine;
+        motion.first_to_frame = affine;
+        motion.worst_correlation = affine_correlation;
+    }
+    for (const auto& m : motion.first_to_frame) motion.largest_offset_px = std::max(motion.largest_offset_px, largest_corner_offset(m, width, height));
+    if (progress) progress(1.0);
+    return motion;
+}
+
+StabilisedFrames::StabilisedFrames(FrameSequence& source, CameraMotion motion) : m_source(source), m_motion(std::move(motion)) {
+    if (!m_motion.still() && static_cast<int>(m_motion.first_to_frame.size()) != source.count())
+        throw std::invalid_argument("StabilisedFrames: one camera map per frame is needed");
+}
+
+RgbImage StabilisedFrames::frame(int index) {
+    RgbImage seen = m_source.frame(index);
+    if (m_motion.still()) return seen;
+    const Eigen::Matrix<double, 2, 3>& m = m_motion.first_to_frame[static_cast<std::size_t>(index)];
+    cv::Mat map(2, 3, CV_64F);
+    for (int r = 0; r < 2; ++r)
+        for (int c = 0; c < 3; ++c) map.at<double>(r, c) = m(r, c);
+    const cv::Mat in(seen.height, seen.width, CV_32FC3, seen.rgb.data());
+    RgbImage out(seen.width, seen.height);
+    cv::Mat warped(out.height, out.width, CV_32FC3, out.rgb.data());
+    // WARP_INVERSE_MAP: out(x) = in(A x + t), the first frame's pixel x as this frame saw it.
+    cv::warpAffine(in, warped, map, warped.size(), cv::INTER_LANCZOS4 | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
+    for (float& v : out.rgb) v = std::clamp(v, 0.0f, 1.0f);  // Lanczos rings a little past the range
+    return out;
+}
+
+std::vector<std::vector<Eigen::Vector2d>> drawn_input_polylines(const formats::FlowLineSet& drawing) {
+    std::vector<std::vector<Eigen::Vector2d>> lines;
+    for (const formats::FlowLine& line : drawing.inputs) lines.push_back(line.points);
+    return lines;
+}
+
+ClipFrames read_clip_stabilised(FrameSequence& frames, const formats::FlowLineSet& drawing, CameraMotion& motion,
+                                const std::function<bool(double)>& progress, ClipFrames* as_filmed) {
+    const auto part = [&](double from, double to) {
+        return [&progress, from, to](double f) { return !progress || progress(from + (to - from) * f); };
+    };
+    ClipFrames seen = ClipFrames::read_all(frames, 0, part(0.0, 0.5));
+    motion = estimate_camera_motion(seen, drawn_input_polylines(drawing), {}, part(0.5, 0.8));
+    if (motion.still()) {
+        if (as_filmed) *as_filmed = seen;
+        return seen;
+    }
+    StabilisedFrames stabilised(seen, motion);
+    ClipFrames out = ClipFrames::read_all(stabilised, 0, part(0.8, 1.0));
+    if (as_filmed) *as_filmed = std::move(seen);
+    return out;
+}
+
+std::string describe(const CameraMotion& motion) {
+    char text[200];
+    if (motion.untrusted)
+        std::snprintf(text, sizeof text,
+                      "camera drift unclear (the background's lowest correlation with the first frame is %.2f, light "
+                      "changes too much): frames used as they are",
+                      motion.worst_correlation);
+    else if (motion.still())
+        std::snprintf(text, sizeof text, "camera still (largest drift %.1f px): frames used as they are", motion.largest_offset_px);
+    else
+        std::snprintf(text, sizeof text,
+                      "camera drifts up to %.1f px (%s, lowest correlation %.2f): tracked and rendered in the first "
+                      "frame's view, a still camera",
+                      motion.largest_offset_px, to_string(motion.model), motion.worst_correlation);
+    return text;
+}
+
+}  // namespace flowvid::flow

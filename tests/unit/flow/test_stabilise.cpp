@@ -1,0 +1,113 @@
+// Camera drift (issue #30): a clip whose camera drifts by known sub-pixel
+// amounts while "water" churns along a line. The estimate must find the
+// drift (not the water's motion), the stabilised frames must show the first
+// frame's view, and a still camera must leave the frames bit for bit as they
+// were, even with flickering light in the flow.
+
+#include "flowvid/flow/stabilise.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+using namespace flowvid;
+using namespace flowvid::flow;
+
+namespace {
+
+constexpr int kWidth = 160, kHeight = 120;
+
+// A smooth, richly textured scene (sums of sinusoids) seen with the camera
+// moved by `shift` (the scene point x appears at x + shift), with noise that
+// changes every frame in a band around x = 80 (the flow) whose brightness
+// flickers by `flicker`.
+RgbImage scene_frame(Eigen::Vector2d shift, int frame, double flicker) {
+    RgbImage image(kWidth, kHeight);
+    std::mt19937 noise(static_cast<unsigned>(frame) + 1);
+    std::uniform_real_distribution<float> uniform(0.0f, 1.0f);
+    const double gain = 1.0 + flicker * std::sin(0.9 * frame);
+    for (int y = 0; y < kHeight; ++y)
+        for (int x = 0; x < kWidth; ++x) {
+            const double sx = x - shift.x(), sy = y - shift.y();
+            double value = 0.5 + 0.12 * std::sin(0.21 * sx + 0.7) * std::cos(0.17 * sy) + 0.08 * std::sin(0.05 * sx * 1.3 + 0.11 * sy) +
+                           0.06 * std::cos(0.33 * sy + 0.13 * sx);
+            if (std::abs(x - 80) < 14) value = 0.3 + 0.4 * uniform(noise) * gain;  // the flow: new every frame
+            for (int c = 0; c < 3; ++c) image.pixel(x, y)[c] = static_cast<float>(std::clamp(value, 0.0, 1.0));
+        }
+    return image;
+}
+
+const std::vector<std::vector<Eigen::Vector2d>> kLine = {{Eigen::Vector2d(80, 0), Eigen::Vector2d(80, kHeight - 1)}};
+
+CameraMotionSettings small_frame_settings() {
+    CameraMotionSettings settings;
+    settings.exclude_around_lines_px = 24.0;  // the flow band is 14 px either side of the line
+    return settings;
+}
+
+}  // namespace
+
+TEST(CameraDrift, FindsASubPixelDriftAroundTheFlowAndUndoesIt) {
+    std::vector<Eigen::Vector2d> shifts;
+    std::vector<RgbImage> frames;
+    for (int i = 0; i < 12; ++i) {
+        shifts.emplace_back(0.45 * i, -0.2 * i + 0.03 * i * i);  // up to 5 px sideways
+        frames.push_back(scene_frame(shifts.back(), i, 0.0));
+    }
+    MemoryFrames clip(frames, 25.0);
+    const CameraMotion motion = estimate_camera_motion(clip, kLine, small_frame_settings());
+    ASSERT_FALSE(motion.still());
+    ASSERT_EQ(motion.first_to_frame.size(), frames.size());
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        // The first frame's pixel x is where the frame shows x + shift, at
+        // every corner and the centre, within about a tenth of a pixel.
+        for (const Eigen::Vector2d& x : {Eigen::Vector2d(0, 0), Eigen::Vector2d(kWidth - 1, kHeight - 1),
+                                         Eigen::Vector2d(kWidth / 2, kHeight / 2), Eigen::Vector2d(0, kHeight - 1)}) {
+            const Eigen::Vector2d seen = motion.first_to_frame[i].leftCols<2>() * x + motion.first_to_frame[i].col(2);
+            EXPECT_NEAR((seen - x - shifts[i]).norm(), 0.0, 0.12) << "frame " << i << " at " << x.transpose() << ", "
+                                                                   << to_string(motion.model);
+        }
+    }
+    EXPECT_NEAR(motion.largest_offset_px, shifts.back().norm(), 0.1);
+
+    // Stabilised, the last frame shows the first frame's scene away from the
+    // flow and the borders (what the camera did not see repeats its border).
+    StabilisedFrames stabilised(clip, motion);
+    const RgbImage first = frames.front(), last = stabilised.frame(11);
+    double sum = 0.0, drifting = 0.0;
+    int n = 0;
+    for (int y = 8; y < kHeight - 8; ++y)
+        for (int x = 8; x < kWidth - 8; ++x) {
+            if (std::abs(x - 80) < 22) continue;  // the flow band, wherever the camera put it
+            sum += std::pow(last.pixel(x, y)[0] - first.pixel(x, y)[0], 2.0);
+            drifting += std::pow(frames.back().pixel(x, y)[0] - first.pixel(x, y)[0], 2.0);
+            ++n;
+        }
+    EXPECT_LT(std::sqrt(sum / n), 0.004);      // about 1/250 of the range: resampling only
+    EXPECT_GT(std::sqrt(drifting / n), 0.05);  // and the drift was plain to see
+}
+
+TEST(CameraDrift, AStillCameraWithFlickeringFlowLeavesTheFramesUnchanged) {
+    std::vector<RgbImage> frames;
+    for (int i = 0; i < 10; ++i) frames.push_back(scene_frame(Eigen::Vector2d::Zero(), i, 0.5));
+    MemoryFrames clip(frames, 25.0);
+    const CameraMotion motion = estimate_camera_motion(clip, kLine, small_frame_settings());
+    EXPECT_TRUE(motion.still()) << describe(motion);
+    EXPECT_LT(motion.largest_offset_px, 0.05);
+    StabilisedFrames stabilised(clip, motion);
+    for (int i = 0; i < 10; ++i) EXPECT_EQ(stabilised.frame(i).rgb, frames[static_cast<std::size_t>(i)].rgb);
+
+    // The same through the in-memory reader synth and quality use.
+    formats::FlowLineSet drawing;
+    drawing.width = kWidth;
+    drawing.height = kHeight;
+    formats::FlowLine line;
+    line.id = "in-1";
+    line.points = kLine.front();
+    drawing.inputs.push_back(line);
+    CameraMotion read_motion;
+    const ClipFrames read = read_clip_stabilised(clip, drawing, read_motion);
+    EXPECT_TRUE(read_motion.still());
+    EXPECT_EQ(read.count(), 10);
+}
