@@ -8,6 +8,7 @@
 
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/quality.hpp"
+#include "flowvid/flow/stabilise.hpp"
 #include "flowvid/flow/synthesis.hpp"
 #include "flowvid/formats/any_file.hpp"
 #include "flowvid/formats/atomic_file.hpp"
@@ -125,11 +126,13 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                     std::to_string(bank->clip_width_px) + " x " + std::to_string(bank->clip_height_px));
         return kExitInvalidInput;
     }
-    const auto clip_frames = std::make_shared<const flow::ClipFrames>(flow::ClipFrames::read_all(frames, 0, [&](double f) {
+    flow::CameraMotion camera;
+    const auto clip_frames = std::make_shared<const flow::ClipFrames>(flow::read_clip_stabilised(frames, drawing, camera, [&](double f) {
         reading.update(f);
         return true;
     }));
     reading.done();
+    log_message(flow::describe(camera));
     const flow::ClipFrames& clip = *clip_frames;
     const flow::RgbImage plate = flow::median_plate(clip);  // also the flow map's background
     // As synth renders it: the moving layer over the dark plate it was taken

@@ -9,6 +9,8 @@
 
 #include "flowvid/flow/editing.hpp"
 #include "flowvid/flow/frames.hpp"
+#include "flowvid/flow/quality.hpp"
+#include "flowvid/flow/stabilise.hpp"
 #include "flowvid/flow/synthesis.hpp"
 #include "flowvid/formats/any_file.hpp"
 #include "flowvid/formats/flowlines.hpp"
@@ -29,7 +31,7 @@ struct RenderOptions {
     std::string flowlines;
     std::string frames = "100";
     std::string out;
-    std::string background = "median";
+    std::string background = "auto";
     std::string texture = "whole";
     SynthesisOptions synthesis;
     bool loop = false;
@@ -84,7 +86,10 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     // The clip: for the background and, by default, the flow lines.
     std::string why_no_clip;
     const std::optional<formats::Capture> capture = open_bank_clip(options.capture, options.bank, *bank, why_no_clip);
-    const flow::BackgroundMode mode = flow::background_mode_from_string(options.background);
+    // auto: chosen below, once the particles and the clip are there.
+    const bool auto_background = options.background == "auto";
+    flow::BackgroundMode mode = auto_background ? flow::BackgroundMode::median : flow::background_mode_from_string(options.background);
+    std::string background_name = auto_background ? "median" : options.background;
     const flow::TextureLayer layer = flow::texture_layer_from_string(options.texture);
     const bool moving = layer == flow::TextureLayer::moving;
     if (moving_layer_refused(layer, mode, options.background, true)) return kExitUsage;
@@ -113,6 +118,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     }
 
     std::shared_ptr<flow::ClipFrames> clip;
+    flow::ClipFrames footage;  // as filmed, for --background auto
     if (mode != flow::BackgroundMode::none || moving) {
         Progress reading(global, "read clip");
         flow::CaptureFrames frames(*capture);
@@ -122,11 +128,16 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
                         std::to_string(bank->clip_width_px) + " x " + std::to_string(bank->clip_height_px));
             return kExitInvalidInput;
         }
-        clip = std::make_shared<flow::ClipFrames>(flow::ClipFrames::read_all(frames, 0, [&](double f) {
-            reading.update(f);
-            return true;
-        }));
+        flow::CameraMotion camera;
+        clip = std::make_shared<flow::ClipFrames>(flow::read_clip_stabilised(
+            frames, drawing, camera,
+            [&](double f) {
+                reading.update(f);
+                return true;
+            },
+            auto_background ? &footage : nullptr));
         reading.done();
+        log_message(flow::describe(camera));
     }
     const std::vector<std::vector<Eigen::Vector2d>> input_points =
         flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path);
@@ -141,6 +152,22 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     settings.texture_layer = layer;
     auto streams = std::make_shared<flow::ParticleStreams>(bank, input_points, settings, &drawing);
     report_schedule(streams->schedule());
+    // Plain synthesis over a plate that blurs what the particles leave
+    // uncovered replays the clip instead (flow::choose_background). Edits and
+    // the moving layer keep the plate: their background is a scene to draw on.
+    if (auto_background && !edit && !moving) {
+        const flow::BackgroundChoice choice =
+            flow::choose_background(streams, clip, footage, settings, flow::drawn_input_polylines(drawing));
+        mode = choice.mode;
+        background_name = flow::to_string(mode);
+        char text[240];
+        std::snprintf(text, sizeof text,
+                      "background: %s (over the median plate the output keeps %.0f %% of the clip's detail within 20 px "
+                      "of the lines%s; --background to choose)",
+                      background_name.c_str(), 100.0 * choice.median_detail,
+                      mode == flow::BackgroundMode::replay ? ", below 80 %: the clip is replayed in step with the particles" : "");
+        log_message(text);
+    }
     flow::Background background = moving && mode == flow::BackgroundMode::median
                                       ? flow::Background::plate(*still_plate)
                                       : flow::make_background(mode, clip, streams->schedule(), streams->patch_size());
@@ -216,7 +243,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     summary["first_start_frame"] = schedule.first_start_frame;
     summary.update(window_summary(schedule));
     summary["lines"] = schedule.lines.size();
-    summary["background"] = options.background;
+    summary["background"] = background_name;
     summary["texture"] = options.texture;
     if (edit) summary["mapping"] = options.mapping;
     if (options.json) std::cout << summary.dump(2) << '\n';
@@ -238,10 +265,11 @@ void add_common(CLI::App& app, RenderOptions& o) {
         ->required();
     app.add_option("--capture,--clip", o.capture, "the source clip (default: the one recorded in the bank)");
     app.add_option("--background", o.background,
-                   "where no line reaches: median (static plate), loop (the clip), replay (the clip in step with the "
-                   "particles: the input frame they show), relit (the plate darkened where that frame is: the light of "
+                   "where no line reaches: auto (synth: median, or replay when over the median the output keeps "
+                   "under 80 % of the clip's detail around the lines; edit: median), median (static plate), loop "
+                   "(the clip), replay (the clip in step with the particles: the input frame they show), relit (the plate darkened where that frame is: the light of "
                    "flames comes and goes on the scene, and patch ends meet it), none")
-        ->check(CLI::IsMember({"median", "loop", "replay", "relit", "none"}))
+        ->check(CLI::IsMember({"auto", "median", "loop", "replay", "relit", "none"}))
         ->capture_default_str();
     app.add_option("--texture", o.texture,
                    "what a patch carries: whole (everything in it: water and the rock it passes), or moving (only the "
@@ -267,7 +295,11 @@ const RegisterCommand synth_registration{Command{
             "no line reaches. Frame A of the infinite sequence is the same whichever range it is rendered\n"
             "in (image files are named by frame number), and the sequence repeats every K*step frames.\n"
             "The flow lines default to the capture's flowlines.svg; give the drawing the bank was tracked\n"
-            "with (synth rebuilds segments and interpolated lines from it).\n\n"
+            "with (synth rebuilds segments and interpolated lines from it).\n"
+            "The background (--background auto) is the clip's median plate, or the clip replayed in step\n"
+            "with the particles when over the plate the output would keep under 80 % of the clip's detail\n"
+            "around the lines (mist and spray the particles do not cover); the log says which and why.\n"
+            "A drifting camera is rendered still, in the clip's first-frame view (flowvid help track).\n\n"
             "Examples:\n"
             "  flowvid synth --bank waterfall.bank.exr --frames 250 --out out/%06d.png\n"
             "  flowvid synth --bank waterfall.bank.exr --frames 251:500 --out out/%06d.png   # continues the above\n"

@@ -6,6 +6,7 @@
 
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/geometry.hpp"
+#include "flowvid/flow/stabilise.hpp"
 #include "flowvid/flow/tracking.hpp"
 #include "flowvid/formats/any_file.hpp"
 #include "flowvid/formats/flowlines.hpp"
@@ -97,12 +98,28 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
         }
     }
 
-    Progress progress(global, "track");
     std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs
     interrupt.emplace();
+    // A drifting camera is tracked in the first frame's view (stabilise.hpp).
+    flow::CameraMotion camera;
+    {
+        Progress measuring(global, "camera drift");
+        camera = flow::estimate_camera_motion(frames, flow::drawn_input_polylines(drawing), {}, [&](double f) {
+            measuring.update(f);
+            return !interrupt->requested();
+        });
+        measuring.done();
+    }
+    if (interrupt->requested()) {
+        log_message("interrupted: no bank written");
+        return kExitInterrupted;
+    }
+    log_message(flow::describe(camera));
+    flow::StabilisedFrames stabilised(frames, camera);
+    Progress progress(global, "track");
     flow::TrackingResult result;
     try {
-        result = flow::track_particles(frames, lines, settings, [&](const flow::TrackingProgress& p) {
+        result = flow::track_particles(stabilised, lines, settings, [&](const flow::TrackingProgress& p) {
             progress.update(static_cast<double>(p.frame) / std::max(1, p.frame_count),
                             "frame " + std::to_string(p.frame) + "/" + std::to_string(p.frame_count));
             return !interrupt->requested();
@@ -133,6 +150,7 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
                           {"travel_frames", p.travel_frames},
                           {"segments", p.segments},
                           {"untracked_segments", p.untracked}});
+    summary["camera"] = {{"model", flow::to_string(camera.model)}, {"largest_drift_px", camera.largest_offset_px}};
     summary["drawn_lines"] = probes;
     nlohmann::json tracked = nlohmann::json::array();
     for (const flow::LineTrackingStats& s : result.report.lines)
@@ -211,7 +229,11 @@ const RegisterCommand registration{Command{
             "that complete their path are kept. --densify adds lines between neighbouring drawn lines\n"
             "(ids like in-1~in-2@0.500); synth and edit rebuild all of these from the same drawing.\n"
             "Synthesis covers about a patch around each line: track warns when neighbouring lines are more\n"
-            "than 2 patches apart (water: --densify 12 with 24 px patches; flames: --patch 48 --densify 24).\n\n"
+            "than 2 patches apart (water: --densify 12 with 24 px patches; flames: --patch 48 --densify 24).\n"
+            "A camera that drifts is measured first (on the background, away from the lines) and the clip\n"
+            "is tracked in its first frame's view, where the lines are drawn; synth, edit and quality do the\n"
+            "same, so the output is a still camera. A still camera, or one whose background changes too much\n"
+            "to tell (firelight), leaves the frames as they are; the log says which.\n\n"
             "CLIP is a video.flow capture folder (its flowlines.svg is used unless --flowlines is given),\n"
             "a video file, or an image pattern such as frames/%06d.png.\n\n"
             "Exit codes: 0 bank written, 1 no particle completed its path, 2 usage, 3 invalid input,\n"

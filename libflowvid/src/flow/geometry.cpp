@@ -345,20 +345,31 @@ bool parse_segment_id(const std::string& id, std::string& base, double& from_px,
     return true;
 }
 
-std::vector<Eigen::Vector2d> input_line_points(const formats::FlowLineSet& drawing, const std::string& id,
+InputLineIndex::InputLineIndex(const formats::FlowLineSet& drawing) {
+    m_by_id.reserve(drawing.inputs.size());
+    // The first of equal ids wins, as formats::find_input_line's scan does.
+    for (const formats::FlowLine& line : drawing.inputs) m_by_id.emplace(line.id, &line);
+}
+
+const formats::FlowLine* InputLineIndex::find(const std::string& id) const {
+    const auto found = m_by_id.find(id);
+    return found == m_by_id.end() ? nullptr : found->second;
+}
+
+std::vector<Eigen::Vector2d> input_line_points(const InputLineIndex& inputs, const std::string& id,
                                                const std::string& file) {
-    if (const formats::FlowLine* line = formats::find_input_line(drawing, id)) return line->points;
+    if (const formats::FlowLine* line = inputs.find(id)) return line->points;
     std::string base;
     double from_px = 0.0, to_px = 0.0;
     if (parse_segment_id(id, base, from_px, to_px)) {
-        const std::vector<Eigen::Vector2d> whole = input_line_points(drawing, base, file);
+        const std::vector<Eigen::Vector2d> whole = input_line_points(inputs, base, file);
         return sub_polyline(whole, from_px, to_px);
     }
     std::string a, b;
     double w = 0.0;
     if (parse_interpolated_line_id(id, a, b, w)) {
-        const formats::FlowLine* la = formats::find_input_line(drawing, a);
-        const formats::FlowLine* lb = formats::find_input_line(drawing, b);
+        const formats::FlowLine* la = inputs.find(a);
+        const formats::FlowLine* lb = inputs.find(b);
         if (la && lb) return interpolated_points(*la, *lb, w, 1.0);
     }
     throw ValidationError({Problem{Problem::Severity::error, file, "inputs",

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -97,10 +98,12 @@ ParticleStreams::ParticleStreams(std::shared_ptr<const formats::ParticleBank> ba
     m_schedule = make_schedule(*m_bank, settings);
     m_fade_frames = settings.fade_frames >= 0 ? settings.fade_frames : std::clamp(m_schedule.start_every, 1, 3);
     m_wrap_fade_frames = settings.wrap_fade_frames;
-    for (const LineSchedule& ls : m_schedule.lines) {
-        std::size_t i = 0;
-        while (m_bank->lines[i].id != ls.line_id) ++i;
-        m_geometry.emplace_back(input_points[i], m_bank->patch_size_px / 3.0);
+    std::unordered_map<std::string, std::size_t> bank_line_by_id;
+    for (std::size_t i = 0; i < m_bank->lines.size(); ++i) bank_line_by_id.emplace(m_bank->lines[i].id, i);
+    for (std::size_t k = 0; k < m_schedule.lines.size(); ++k) {
+        const std::string& id = m_schedule.lines[k].line_id;
+        m_geometry.emplace_back(input_points[bank_line_by_id.at(id)], m_bank->patch_size_px / 3.0);
+        m_stream_by_id.emplace(id, static_cast<int>(k));
     }
     // Group segments into the lines they were cut from.
     for (std::size_t k = 0; k < m_schedule.lines.size(); ++k) {
@@ -112,20 +115,19 @@ ParticleStreams::ParticleStreams(std::shared_ptr<const formats::ParticleBank> ba
             from = 0.0;
             to = m_geometry[k].length_px();
         }
-        auto it = std::find_if(m_inputs.begin(), m_inputs.end(), [&](const InputLine& l) { return l.id == base; });
-        if (it == m_inputs.end()) {
-            m_inputs.push_back(InputLine{base, 0.0, {}, {}});
-            it = std::prev(m_inputs.end());
-        }
-        it->segments.push_back({static_cast<int>(k), from, to});
-        it->length_px = std::max(it->length_px, to);
+        const auto [found, added] = m_input_by_id.emplace(base, static_cast<int>(m_inputs.size()));
+        if (added) m_inputs.push_back(InputLine{base, 0.0, {}, {}});
+        InputLine& line = m_inputs[static_cast<std::size_t>(found->second)];
+        line.segments.push_back({static_cast<int>(k), from, to});
+        line.length_px = std::max(line.length_px, to);
     }
+    const std::optional<InputLineIndex> drawn = drawing ? std::optional<InputLineIndex>(*drawing) : std::nullopt;
     for (InputLine& line : m_inputs) {
         std::sort(line.segments.begin(), line.segments.end(),
                   [](const InputLine::Segment& a, const InputLine::Segment& b) { return a.from_px < b.from_px; });
-        if (drawing) {
+        if (drawn) {
             try {
-                line.points = input_line_points(*drawing, line.id, "");
+                line.points = input_line_points(*drawn, line.id, "");
                 line.length_px = formats::polyline_length(line.points);
             } catch (const std::exception&) {
                 // keep the tracked extent
@@ -135,23 +137,22 @@ ParticleStreams::ParticleStreams(std::shared_ptr<const formats::ParticleBank> ba
 }
 
 int ParticleStreams::input_line_index(const std::string& id) const {
-    for (std::size_t i = 0; i < m_inputs.size(); ++i)
-        if (m_inputs[i].id == id) return static_cast<int>(i);
-    return -1;
+    const auto found = m_input_by_id.find(id);
+    return found == m_input_by_id.end() ? -1 : found->second;
 }
 
 std::vector<std::vector<Eigen::Vector2d>> ParticleStreams::input_points_from_drawing(const formats::ParticleBank& bank,
                                                                                      const formats::FlowLineSet& drawing,
                                                                                      const std::string& drawing_file) {
     std::vector<std::vector<Eigen::Vector2d>> out;
-    for (const formats::BankFlowLine& line : bank.lines) out.push_back(input_line_points(drawing, line.id, drawing_file));
+    const InputLineIndex inputs(drawing);
+    for (const formats::BankFlowLine& line : bank.lines) out.push_back(input_line_points(inputs, line.id, drawing_file));
     return out;
 }
 
 int ParticleStreams::stream_index(const std::string& line_id) const {
-    for (std::size_t i = 0; i < m_schedule.lines.size(); ++i)
-        if (m_schedule.lines[i].line_id == line_id) return static_cast<int>(i);
-    return -1;
+    const auto found = m_stream_by_id.find(line_id);
+    return found == m_stream_by_id.end() ? -1 : found->second;
 }
 
 void ParticleStreams::visible(int stream, int frame, std::vector<Visible>& out) const {

@@ -168,6 +168,36 @@ QualityReport measure_quality(const std::vector<std::vector<float>>& clip_luma,
                               clip_luma, output_luma, width, height, mask, settings);
 }
 
+double detail_kept(const Synthesizer& synth, const ClipFrames& footage, const std::vector<std::vector<Eigen::Vector2d>>& lines,
+                   int sample_frames, double region_px) {
+    const int width = footage.width(), height = footage.height();
+    const std::vector<std::uint8_t> region = line_band_mask(lines, width, height, region_px);
+    std::vector<std::vector<float>> clip_luma, output_luma;
+    for (int i = 0; i < footage.count(); ++i) clip_luma.push_back(footage.luma(i));
+    const int period = std::max(1, synth.period_frames());
+    for (int k = 0; k < sample_frames; ++k)
+        output_luma.push_back(luma(to_display(synth.render(1 + k * period / std::max(1, sample_frames)))));
+    const std::vector<double> clip_hf = sequence_stats(clip_luma, width, height, region).hf_energy;
+    const std::vector<double> output_hf = sequence_stats(output_luma, width, height, region).hf_energy;
+    const auto mean = [](const std::vector<double>& v) {
+        return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+    };
+    const double clip_mean = mean(clip_hf);
+    return clip_mean > 0.0 ? mean(output_hf) / clip_mean : 1.0;
+}
+
+BackgroundChoice choose_background(const std::shared_ptr<const ParticleStreams>& streams,
+                                   const std::shared_ptr<const ClipFrames>& clip, const ClipFrames& footage,
+                                   const SynthesisSettings& settings, const std::vector<std::vector<Eigen::Vector2d>>& lines,
+                                   double min_detail) {
+    BackgroundChoice choice;
+    const Synthesizer over_median(streams, {}, make_background(BackgroundMode::median, clip, streams->schedule(), streams->patch_size()),
+                                  settings);
+    choice.median_detail = detail_kept(over_median, footage, lines);
+    if (choice.median_detail < min_detail) choice.mode = BackgroundMode::replay;
+    return choice;
+}
+
 RgbImage naive_loop_frame(const ClipFrames& clip, int frame) {
     const int n = clip.count();
     if (n == 0) throw std::invalid_argument("empty clip");

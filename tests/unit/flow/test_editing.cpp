@@ -213,12 +213,19 @@ TEST(FlowEditing, InterpolatesDenseLinesBetweenNeighboursOnly) {
     drawing.inputs = {line("in-1", drawn[0]), line("in-2", drawn[1])};
     const auto dense = densify_input_lines(drawing, 12.0, 60.0);
     ASSERT_EQ(dense.size(), 4u);
-    const auto rebuilt = input_line_points(drawing, dense[2].id, "drawing.svg");
+    const auto rebuilt = input_line_points(InputLineIndex(drawing), dense[2].id, "drawing.svg");
     ASSERT_EQ(rebuilt.size(), dense[2].points.size());
     for (std::size_t i = 0; i < rebuilt.size(); ++i) EXPECT_TRUE(rebuilt[i].isApprox(dense[2].points[i]));
-    const auto segment = input_line_points(drawing, segment_line_id(dense[2].id, 10.0, 50.0), "drawing.svg");
+    const auto segment = input_line_points(InputLineIndex(drawing), segment_line_id(dense[2].id, 10.0, 50.0), "drawing.svg");
     EXPECT_NEAR(formats::polyline_length(segment), 40.0, 1e-9);
-    const std::string message = flowvid::testing::validation_messages([&] { input_line_points(drawing, "nope", "drawing.svg"); });
+    const std::string message = flowvid::testing::validation_messages([&] { input_line_points(InputLineIndex(drawing), "nope", "drawing.svg"); });
+    // The index finds what a scan of the drawing finds: the first of equal ids.
+    formats::FlowLineSet twice = drawing;
+    twice.inputs.push_back(line("in-1", drawn[1]));
+    const InputLineIndex index(twice);
+    EXPECT_EQ(index.find("in-1"), formats::find_input_line(twice, "in-1"));
+    EXPECT_EQ(index.find("in-2"), &twice.inputs[1]);
+    EXPECT_EQ(index.find("in-3"), nullptr);
     EXPECT_NE(message.find("drawing.svg"), std::string::npos) << message;
     EXPECT_NE(message.find("nope"), std::string::npos) << message;
 }

@@ -3,6 +3,7 @@
 
 #include "flowvid/flow/quality.hpp"
 #include "flowvid/flow/synthetic.hpp"
+#include "flowvid/flow/tracking.hpp"
 
 #include <gtest/gtest.h>
 
@@ -127,4 +128,58 @@ TEST(FlowQuality, FlowMapBaselineAdvectsAndCrossFades) {
     // Frame 5: layer 0 offset 4 (weight 1/2), layer 1 offset 12 (weight 1/2).
     EXPECT_NEAR(baseline.render(5).pixel(20, 30)[0], 0.5f * (26.0f + 18.0f) / kH, 1e-5f);
     EXPECT_EQ(baseline.render(3).rgb, baseline.render(3 + 16).rgb);  // periodic
+}
+
+// --background auto (issue #30): a narrow stream tracked with 16 px patches
+// leaves the rest of the 20 px flow region to the background. Beside it a
+// still, textured rock keeps its detail in the median plate (the plate stays
+// the default); mist that is new in every frame turns to a smooth median,
+// the output over it keeps little of the clip's detail, and the clip is
+// replayed instead.
+TEST(FlowQuality, TheDefaultBackgroundReplaysTheClipWhereTheMedianPlateBlursIt) {
+    SyntheticFlowSpec spec;
+    spec.width = 96;
+    spec.height = 96;
+    spec.frames = 48;
+    spec.curve = {{48.0, -8.0}, {48.0, 104.0}};
+    spec.band_px = 6.0;
+    spec.speed_px_per_frame = [](double) { return 3.0; };
+    spec.feature_px = 3.0;
+    const SyntheticFlow flow(spec);
+    formats::FlowLineSet drawing;
+    drawing.width = spec.width;
+    drawing.height = spec.height;
+    formats::FlowLine line;
+    line.id = "in-1";
+    line.points = spec.curve;
+    drawing.inputs = {line};
+
+    const auto choose = [&](bool mist) {
+        std::vector<RgbImage> display;
+        for (int t = 0; t < spec.frames; ++t) {
+            RgbImage frame = flow.frame(t);
+            if (mist)
+                for (int y = 0; y < spec.height; ++y)
+                    for (int x = 0; x < spec.width; ++x)
+                        if (std::abs(x - 48) > 9)
+                            for (int c = 0; c < 3; ++c)
+                                frame.pixel(x, y)[c] = 0.3f + 0.4f * value_noise(x / 2.0, y / 2.0, 100 + static_cast<std::uint64_t>(t));
+            display.push_back(frame);
+        }
+        MemoryFrames frames(display, spec.fps);
+        TrackingSettings tracking;
+        tracking.patch_size_px = 16;
+        tracking.start_every = 2;
+        tracking.max_path_frames = -1;
+        auto bank = std::make_shared<formats::ParticleBank>(track_particles(frames, {line}, tracking).bank);
+        auto clip = std::make_shared<ClipFrames>(ClipFrames::read_all(frames));
+        SynthesisSettings settings;
+        auto streams = std::make_shared<ParticleStreams>(bank, std::vector<std::vector<Eigen::Vector2d>>{line.points}, settings);
+        return choose_background(streams, clip, *clip, settings, {line.points});
+    };
+    const BackgroundChoice rock = choose(false), mist = choose(true);
+    EXPECT_EQ(rock.mode, BackgroundMode::median) << rock.median_detail;
+    EXPECT_GT(rock.median_detail, 0.9);
+    EXPECT_EQ(mist.mode, BackgroundMode::replay) << mist.median_detail;
+    EXPECT_LT(mist.median_detail, 0.6);
 }

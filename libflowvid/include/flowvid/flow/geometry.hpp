@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace flowvid::flow {
@@ -129,10 +130,22 @@ std::vector<Eigen::Vector2d> sub_polyline(const std::vector<Eigen::Vector2d>& po
 std::vector<formats::FlowLine> densify_input_lines(const formats::FlowLineSet& drawing, double spacing_px,
                                                    double max_gap_px, double max_angle_deg = 45.0);
 
+// The input lines of a drawing by id, found in constant time: a bank names
+// each of its lines, and a scan per name is quadratic on big drawings. Refers
+// to `drawing`, which must outlive the index.
+class InputLineIndex {
+public:
+    explicit InputLineIndex(const formats::FlowLineSet& drawing);
+    const formats::FlowLine* find(const std::string& id) const;  // nullptr when no drawn input line has `id`
+
+private:
+    std::unordered_map<std::string, const formats::FlowLine*> m_by_id;
+};
+
 // The polyline of an input line named by a bank: a drawn input line, or an
 // interpolated line or a segment rebuilt from its id. Throws ValidationError naming `file`
 // (the flow-line file) when the id names no drawn line.
-std::vector<Eigen::Vector2d> input_line_points(const formats::FlowLineSet& drawing, const std::string& id,
+std::vector<Eigen::Vector2d> input_line_points(const InputLineIndex& inputs, const std::string& id,
                                                const std::string& file);
 
 }  // namespace flowvid::flow

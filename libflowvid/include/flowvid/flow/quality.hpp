@@ -27,6 +27,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -43,6 +44,32 @@ struct SequenceStats {
 };
 SequenceStats sequence_stats(const std::vector<std::vector<float>>& luma_frames, int width, int height,
                              const std::vector<std::uint8_t>& mask);
+
+// How much of the clip's fine detail a synthesis keeps where the flow is:
+// the mean HF energy (as SequenceStats) of `sample_frames` output frames
+// spread over one period, over the mean HF energy of all the frames of
+// `footage` (the clip as filmed), in the pixels within `region_px` of `lines`
+// (the drawn input lines; 20 px, as the flow region of the shared scoring
+// tool). 1 = as detailed as the footage; a still median plate of mist or
+// spray that the particles do not cover gives much less.
+double detail_kept(const Synthesizer& synth, const ClipFrames& footage, const std::vector<std::vector<Eigen::Vector2d>>& lines,
+                   int sample_frames = 8, double region_px = 20.0);
+
+// The default background of plain synthesis (`--background auto`): the
+// median plate, unless the synthesis over it keeps less than `min_detail` of
+// the clip's detail in the flow region (detail_kept; mist, spray or drifting
+// light that the particles do not cover turn to a smooth blur in a median);
+// then the clip replayed in step with the particles, which shows real frames
+// there. min_detail 0.8: the lower end of what the footage's own frames span.
+struct BackgroundChoice {
+    BackgroundMode mode = BackgroundMode::median;
+    double median_detail = 1.0;  // detail_kept over the median plate
+};
+// `clip`: the frames synthesis uses (stabilised); `footage`: as filmed.
+BackgroundChoice choose_background(const std::shared_ptr<const ParticleStreams>& streams,
+                                   const std::shared_ptr<const ClipFrames>& clip, const ClipFrames& footage,
+                                   const SynthesisSettings& settings, const std::vector<std::vector<Eigen::Vector2d>>& lines,
+                                   double min_detail = 0.8);
 
 struct QualitySettings {
     int patch_px = 16;           // fidelity patches

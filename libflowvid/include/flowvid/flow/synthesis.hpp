@@ -50,6 +50,7 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 namespace flowvid::flow {
@@ -322,6 +323,10 @@ private:
     Schedule m_schedule;
     std::vector<LineGeometry> m_geometry;  // per schedule line
     std::vector<InputLine> m_inputs;
+    // Ids to indices: banks and drawings may hold many lines, and every output
+    // line looks its input up.
+    std::unordered_map<std::string, int> m_stream_by_id;  // into m_schedule.lines
+    std::unordered_map<std::string, int> m_input_by_id;   // into m_inputs
     int m_fade_frames = 2;
     int m_wrap_fade_frames = -1;
 };
