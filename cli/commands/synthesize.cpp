@@ -92,6 +92,8 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     std::string background_name = auto_background ? "median" : options.background;
     const flow::TextureLayer layer = flow::texture_layer_from_string(options.texture);
     const bool moving = layer == flow::TextureLayer::moving;
+    // Only plain synthesis of the whole texture chooses; edits and the moving layer keep the plate.
+    const bool background_to_choose = auto_background && !edit && !moving;
     if (moving_layer_refused(layer, mode, options.background, true)) return kExitUsage;
     if ((mode != flow::BackgroundMode::none || moving) && !capture) {
         log_message("error: " + options.bank + ": " +
@@ -118,7 +120,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     }
 
     std::shared_ptr<flow::ClipFrames> clip;
-    flow::ClipFrames footage;  // as filmed, for --background auto
+    flow::ClipFrames footage;  // as filmed when the clip was resampled, for --background auto
     if (mode != flow::BackgroundMode::none || moving) {
         Progress reading(global, "read clip");
         flow::CaptureFrames frames(*capture);
@@ -135,7 +137,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
                 reading.update(f);
                 return true;
             },
-            auto_background ? &footage : nullptr));
+            background_to_choose ? &footage : nullptr));
         reading.done();
         log_message(flow::describe(camera));
     }
@@ -155,9 +157,10 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     // Plain synthesis over a plate that blurs what the particles leave
     // uncovered replays the clip instead (flow::choose_background). Edits and
     // the moving layer keep the plate: their background is a scene to draw on.
-    if (auto_background && !edit && !moving) {
-        const flow::BackgroundChoice choice =
-            flow::choose_background(streams, clip, footage, settings, flow::drawn_input_polylines(drawing));
+    if (background_to_choose) {
+        const flow::BackgroundChoice choice = flow::choose_background(
+            streams, clip, footage.count() > 0 ? footage : *clip, settings, flow::drawn_input_polylines(drawing));
+        footage = flow::ClipFrames();  // not needed while rendering
         mode = choice.mode;
         background_name = flow::to_string(mode);
         char text[240];

@@ -12,7 +12,7 @@
 using namespace flowvid::testing;
 
 namespace {
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 std::string example_preset() { return source_path("formats/examples/cotton.fabric.json"); }
 }  // namespace
 

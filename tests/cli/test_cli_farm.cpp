@@ -29,7 +29,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 
 // ctest runs the tests of this file as parallel processes: one folder each.
 std::string own_dir(const std::string& name) { return scratch_dir(name + "_" + std::to_string(::getpid())); }

@@ -32,7 +32,7 @@ constexpr int kExitInterrupted = 130;
 constexpr int kLimitSeconds = 30;
 constexpr long kLimitKilobytes = 1L << 20;  // 1 GiB of address space
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 std::string own_dir(const std::string& name) { return scratch_dir(name + "_" + std::to_string(::getpid())); }
 
 struct LimitedRun {

@@ -16,7 +16,7 @@ using namespace flowvid::testing;
 
 namespace {
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 std::string major() { return shared_path("captures/rigid-toss-major"); }
 
 Eigen::Vector3d vec3(const nlohmann::json& j) { return {j[0].get<double>(), j[1].get<double>(), j[2].get<double>()}; }

@@ -20,7 +20,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 std::string own_dir(const std::string& name) { return scratch_dir(name + "_" + std::to_string(::getpid())); }
 
 const std::string kWaving = "captures/cloth-cotton-waving-1";

@@ -18,6 +18,9 @@ std::string scratch_dir(const std::string& name);
 void write_text(const std::string& path, const std::string& text);
 std::string read_text(const std::string& path);
 
+// True when `part` occurs in `text` (messages name the file, field and fix).
+inline bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
 // Runs `action`, expects a flowvid::ValidationError and returns its problems
 // joined one per line (what a user would read).
 std::string validation_messages(const std::function<void()>& action);

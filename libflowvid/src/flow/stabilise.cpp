@@ -181,10 +181,7 @@ ClipFrames read_clip_stabilised(FrameSequence& frames, const formats::FlowLineSe
     };
     ClipFrames seen = ClipFrames::read_all(frames, 0, part(0.0, 0.5));
     motion = estimate_camera_motion(seen, drawn_input_polylines(drawing), {}, part(0.5, 0.8));
-    if (motion.still()) {
-        if (as_filmed) *as_filmed = seen;
-        return seen;
-    }
+    if (motion.still()) return seen;
     StabilisedFrames stabilised(seen, motion);
     ClipFrames out = ClipFrames::read_all(stabilised, 0, part(0.8, 1.0));
     if (as_filmed) *as_filmed = std::move(seen);

@@ -37,7 +37,7 @@ namespace {
 
 std::string tiny(const std::string& name) { return test_data("formats/capture/" + name); }
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 
 std::string errors_of(const std::vector<Problem>& problems) {
     std::string text;

@@ -24,7 +24,7 @@ namespace {
 std::string example_path() { return source_path("formats/examples/toss.diagnosis.json"); }
 nlohmann::json example() { return nlohmann::json::parse(read_text(example_path())); }
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 
 std::string write_json(const std::string& dir, const nlohmann::json& document, const std::string& name = "diagnosis.json") {
     const std::string path = dir + "/" + name;

@@ -31,7 +31,7 @@ std::string write_json(const std::string& dir, const nlohmann::json& document, c
     return path;
 }
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 
 }  // namespace
 

@@ -23,7 +23,7 @@ namespace {
 
 std::string example_path() { return source_path("formats/examples/cloth.fit_shard.json"); }
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 
 FitShard shard(int index, int count, double error, const std::string& sha = std::string(64, 'a')) {
     FitShard s;

@@ -24,7 +24,7 @@ namespace {
 std::string example_path() { return source_path("formats/examples/gapbench.labels.json"); }
 nlohmann::json example() { return nlohmann::json::parse(read_text(example_path())); }
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 
 }  // namespace
 

@@ -40,7 +40,7 @@ using flowvid::testing::write_text;
 
 namespace {
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 
 std::string example_path() { return source_path("formats/examples/example.bank.exr"); }
 

@@ -36,7 +36,7 @@ using flowvid::testing::write_text;
 
 namespace {
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 
 // A grid animation with awkward floats (negative zero, subnormals, large and
 // tiny magnitudes) so that any lossy step would show.

@@ -20,7 +20,7 @@ using flowvid::testing::write_text;
 
 namespace {
 
-bool mentions(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+using flowvid::testing::mentions;
 
 struct Example {
     formats::Capture capture;

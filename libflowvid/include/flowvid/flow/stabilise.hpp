@@ -88,8 +88,10 @@ std::vector<std::vector<Eigen::Vector2d>> drawn_input_polylines(const formats::F
 // The whole clip in memory as seen from its first frame's camera: read once,
 // the drift estimated around the drawing's input lines, then resampled
 // (unchanged when the camera is still). `motion` receives the estimate;
-// `as_filmed`, when given, the frames as they were read (measures that compare
-// with the footage use these: resampling softens the finest detail).
+// `as_filmed`, when given and the frames were resampled, the frames as they
+// were read (measures that compare with the footage use these: resampling
+// softens the finest detail). For a still camera it is left as it was: the
+// frames returned are the footage.
 ClipFrames read_clip_stabilised(FrameSequence& frames, const formats::FlowLineSet& drawing, CameraMotion& motion,
                                 const std::function<bool(double)>& progress = {}, ClipFrames* as_filmed = nullptr);
 
