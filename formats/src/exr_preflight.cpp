@@ -1,6 +1,9 @@
 #include "exr_preflight.hpp"
 
+#include <algorithm>
 #include <cstring>
+#include <initializer_list>
+#include <limits>
 #include <fstream>
 
 namespace flowvid::formats::detail {
@@ -86,6 +89,25 @@ std::uint32_t fixed_attribute_size(const std::string& type) {
     for (const auto& [name, size] : sizes)
         if (type == name) return size;
     return 0;
+}
+
+constexpr std::uint64_t kSaturated = std::numeric_limits<std::uint64_t>::max() / 2;
+
+std::uint64_t saturating_product(std::initializer_list<std::uint64_t> factors) {
+    std::uint64_t product = 1;
+    for (const std::uint64_t factor : factors) {
+        if (factor != 0 && product > kSaturated / factor) return kSaturated;
+        product *= factor;
+    }
+    return product;
+}
+
+// Pixels along one axis that OpenEXR decodes: whole tiles for a tiled part.
+std::uint64_t padded_extent(std::int64_t pixels, std::int64_t tile) {
+    const auto n = static_cast<std::uint64_t>(pixels);
+    if (tile <= 0) return n;
+    const auto t = static_cast<std::uint64_t>(tile);
+    return (n + t - 1) / t * t;
 }
 
 // Names a part's data window the way flowvid's EXR messages do.
@@ -201,6 +223,7 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
                               truncated_fix);
             return std::nullopt;
         }
+        if (!tiled_part) part.tile_width = part.tile_height = 0;  // a stray "tiles" attribute is ignored
         if (tiled_part) {
             if (part.tile_width < 1 || part.tile_height < 1) return fail(which + "tiled without a valid tile size", truncated_fix);
             part.chunk_count = ((part.width + part.tile_width - 1) / part.tile_width) *
@@ -219,16 +242,19 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
     }
 
     // Each chunk has an 8-byte offset in the file, and compression cannot pack
-    // real pixels tighter than max_compression_ratio.
+    // real pixels tighter than max_compression_ratio. OpenEXR decodes a tiled
+    // part a whole tile at a time, so tiles larger than the data window count at
+    // their full size (a 4 x 2 image in 4 x 40M tiles made it reserve 1.9 GB).
     std::uint64_t chunks = 0;
     std::uint64_t raw_bytes = 0;
     std::uint64_t largest_part_bytes = 0;
     const ExrPartPeek* largest = &peek.parts.front();
     for (const ExrPartPeek& part : peek.parts) {
         chunks += static_cast<std::uint64_t>(part.chunk_count);
-        const std::uint64_t bytes = static_cast<std::uint64_t>(part.width) * static_cast<std::uint64_t>(part.height) *
-                                    static_cast<std::uint64_t>(part.bytes_per_pixel);
-        raw_bytes += bytes;
+        const std::uint64_t bytes = saturating_product({padded_extent(part.width, part.tile_width),
+                                                        padded_extent(part.height, part.tile_height),
+                                                        static_cast<std::uint64_t>(part.bytes_per_pixel)});
+        raw_bytes = std::min(raw_bytes + bytes, kSaturated);
         if (bytes > largest_part_bytes) {
             largest_part_bytes = bytes;
             largest = &part;
@@ -238,9 +264,14 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
         return fail(std::to_string(chunks) + " chunks cannot fit in a file of " + std::to_string(file_size) + " bytes",
                     truncated_fix);
     if (!peek.deep && raw_bytes > (std::uint64_t(1) << 20) && raw_bytes / max_compression_ratio > file_size) {
+        const bool tiles_pad = padded_extent(largest->width, largest->tile_width) != std::uint64_t(largest->width) ||
+                               padded_extent(largest->height, largest->tile_height) != std::uint64_t(largest->height);
+        const std::string tiles = tiles_pad ? " (its " + std::to_string(largest->tile_width) + " x " +
+                                                  std::to_string(largest->tile_height) + "-pixel tiles are decoded whole)"
+                                            : "";
         diagnostics.error(window_field(peek, *largest),
-                          "the header declares " + std::to_string(raw_bytes) + " bytes of decoded data, more than a " +
-                              std::to_string(file_size) + "-byte file can hold",
+                          "the header declares " + std::to_string(raw_bytes) + " bytes of decoded data" + tiles +
+                              ", more than a " + std::to_string(file_size) + "-byte file can hold",
                           truncated_fix);
         return std::nullopt;
     }

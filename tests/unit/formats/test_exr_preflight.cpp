@@ -63,6 +63,25 @@ TEST(ExrPreflight, DataWindowLargerThanTheFileIsRefused) {
     EXPECT_NE(text.find("cannot fit in a file"), std::string::npos) << text;
 }
 
+TEST(ExrPreflight, TilesLargerThanTheImageCountAtTheirDecodedSize) {
+    // 465 bytes: a 4 x 2 float RGB image in tiles 4 x 40M pixels. OpenEXR
+    // decodes whole tiles, so it reserved 1.9 GB (found by the CI fuzz run).
+    const std::string path = test_data("formats/exr/huge_tiles.vertex_animation.exr");
+    const long before = peak_rss_kb();
+    const std::string text = joined(validate_vertex_animation_file(path, Strictness::strict));
+    EXPECT_NE(text.find(path + ": data window: the header declares " + std::to_string(4ull * 40'000'000 * 12) +
+                        " bytes of decoded data (its 4 x 40000000-pixel tiles are decoded whole)"),
+              std::string::npos)
+        << text;
+    EXPECT_LT(peak_rss_kb() - before, 64 * 1024) << "the reader allocated more than 64 MB for a 465-byte file";
+
+    // The same file with its 4 x 4 tiles (as written) reads: tiles are not refused as such.
+    const VertexAnimation tiled = read_vertex_animation(test_data("formats/exr/tiled.vertex_animation.exr"));
+    EXPECT_EQ(tiled.vertex_count, 4);
+    EXPECT_EQ(tiled.frame_count, 2);
+    EXPECT_FLOAT_EQ(tiled.positions_m.back().z(), 0.5f);
+}
+
 TEST(ExrPreflight, ValidFilesPass) {
     EXPECT_TRUE(validate_particle_bank_file(source_path("formats/examples/example.bank.exr"), Strictness::strict).empty());
     EXPECT_TRUE(validate_vertex_animation_file(source_path("formats/examples/example.vertex_animation.exr"), Strictness::strict)
