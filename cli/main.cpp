@@ -120,6 +120,9 @@ int main(int argc, char** argv) {
     } catch (const flowvid::ValidationError& error) {
         print_problems(error.problems());
         return kExitInvalidInput;
+    } catch (const flowvid::UsageError& error) {
+        log_message(std::string("error: ") + error.what());
+        return kExitUsage;
     } catch (const flowvid::IoError& error) {
         log_message(std::string("error: ") + error.what());
         return kExitIoError;

@@ -208,7 +208,26 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
                                    std::to_string(options.blender_frames)},
                          out, "edit.json", summary);
     if (status != kExitOk) return status;
+    // The particle edit measured as it was rendered (the add-on's --coverage 2).
+    const std::string edit_lines = summary.value("flowlines", "");
+    if (!edit_lines.empty())
+        status = run_flowvid({"quality", "--bank", bank, "--capture", clip.string(), "--flowlines", edit_lines, "--edit",
+                              "--coverage", "2", "--frames", std::to_string(options.blender_frames), "--json"},
+                             out / "quality_edit.json", global);
+    if (status != kExitOk) return status;
     const nlohmann::json quality = read_json_file(out / "quality.json");
+    const nlohmann::json quality_edit = read_json_file(out / "quality_edit.json");
+    const auto print_region = [](const char* what, const nlohmann::json& measures) {
+        std::cout << "  " << what << " over the whole flow region: detail " << html::format_number(measures.value("detail", NAN))
+                  << " (of the clip's), patch fidelity " << html::format_number(measures.value("patch_fidelity", NAN))
+                  << " (1: as novel as a real frame), share above the clip's 99th "
+                  << html::format_percent(measures.value("share_above_clip_p99", NAN)) << ", motion "
+                  << html::format_number(measures.value("motion", NAN)) << '\n';
+    };
+    if (!quality.is_discarded() && quality.contains("region") && quality["region"].contains("ours"))
+        print_region("loop", quality["region"]["ours"]);
+    if (!quality_edit.is_discarded() && quality_edit.contains("region") && quality_edit["region"].contains("ours"))
+        print_region("particle edit", quality_edit["region"]["ours"]);
     if (!quality.is_discarded() && quality.contains("methods")) {
         for (const char* method : {"ours", "loop", "flow map"}) {
             if (!quality["methods"].contains(method)) continue;
@@ -403,6 +422,23 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
                                       "", "1"});
             body << html::table(table);
         }
+        const nlohmann::json quality_edit = read_json_file(out / "video" / "quality_edit.json");
+        html::Table region;
+        region.caption = "what a viewer sees: every pixel within 20 px of the drawn lines (the edit's moving lines at "
+                         "each frame). detail: fine detail kept, 1 = the clip's; patch fidelity: distance to the nearest "
+                         "clip patch over a real frame's own, 1 = as novel as footage";
+        region.header = {"sequence", "detail", "patch fidelity", "share above the clip's 99th percentile", "motion"};
+        const auto add_region = [&region](const std::string& name, const nlohmann::json& report) {
+            if (report.is_discarded() || !report.contains("region") || !report["region"].contains("ours")) return;
+            const nlohmann::json& m = report["region"]["ours"];
+            region.rows.push_back({name, html::format_number(m.value("detail", NAN)),
+                                   html::format_number(m.value("patch_fidelity", NAN)),
+                                   html::format_percent(m.value("share_above_clip_p99", NAN)),
+                                   html::format_number(m.value("motion", NAN))});
+        };
+        add_region("loop", quality);
+        add_region("particle edit", quality_edit);
+        if (!region.rows.empty()) body << html::table(region);
     }
     const nlohmann::json diagnosis = read_json_file(out / "diagnosis" / "diagnose.json");
     if (!diagnosis.is_discarded() && diagnosis.is_object()) {

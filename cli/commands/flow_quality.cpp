@@ -10,10 +10,9 @@
 #include "flowvid/flow/quality.hpp"
 #include "flowvid/flow/stabilise.hpp"
 #include "flowvid/flow/synthesis.hpp"
-#include "flowvid/formats/any_file.hpp"
+#include "flowvid/flow/synthesis_job.hpp"
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/formats/flowlines.hpp"
-#include "flowvid/formats/particle_bank.hpp"
 
 #include <cstdio>
 #include <filesystem>
@@ -30,14 +29,20 @@ struct QualityOptions {
     std::string flowlines;
     int frames = 0;
     SynthesisOptions synthesis;
-    std::string background = "median";
+    std::string background = "auto";
     std::string texture = "whole";
+    bool edit = false;
     double band_px = 0.0;
+    double region_px = 20.0;
     int cycle = 32;
     int threads = 0;
     bool json = false;
     std::string series_csv;
 };
+
+std::string clip_frames_name(const flow::PreparedSynthesis& prepared) {
+    return prepared.capture ? prepared.capture->clip_path() : std::string("the clip");
+}
 
 nlohmann::json report_json(const flow::QualityReport& r) {
     return {{"seam_max_ratio", r.max_transition_ratio},
@@ -86,79 +91,121 @@ void write_series_csv(const std::string& path, const flow::Comparison& result) {
     });
 }
 
+nlohmann::json region_json(const flow::RegionQuality& r) {
+    return {{"seam_max_ratio_p99", r.seam_max_ratio},
+            {"share_above_clip_p99", r.share_above_p99},
+            {"pulse_cv", r.pulse_cv},
+            {"pulse_peak", r.pulse_peak},
+            {"detail", r.detail},
+            {"patch_fidelity", r.patch_fidelity},
+            {"patch_rms", r.patch_rms},
+            {"motion", r.motion},
+            {"region_pixels", r.output_region_pixels}};
+}
+
+nlohmann::json clip_region_json(const flow::RegionQuality& r) {
+    return {{"seam_max_ratio_p99", r.clip_seam_max_ratio},
+            {"share_above_clip_p99", r.clip_share_above_p99},
+            {"pulse_cv", r.clip_pulse_cv},
+            {"pulse_peak", r.clip_pulse_peak},
+            {"patch_rms", r.clip_patch_rms},
+            {"region_pixels", r.clip_region_pixels}};
+}
+
+void print_region_table(const std::vector<std::pair<std::string, flow::RegionQuality>>& rows, double region_px) {
+    if (rows.empty()) return;
+    std::printf("whole flow region (within %.0f px of the drawn lines; ../shared/tools/baselines_flow.py's measures):\n",
+                region_px);
+    std::printf("%-9s %9s %9s %9s %9s | %7s %9s %9s | %7s\n", "method", "seam/p99", "share>p99", "pulse cv", "pulse pk",
+                "detail", "patch fid", "patch rms", "motion");
+    for (const auto& [name, r] : rows)
+        std::printf("%-9s %9.2f %9.3f %9.3f %9.2f | %7.2f %9.2f %9.2f | %7.2f\n", name.c_str(), r.seam_max_ratio,
+                    r.share_above_p99, r.pulse_cv, r.pulse_peak, r.detail, r.patch_fidelity, r.patch_rms, r.motion);
+    const flow::RegionQuality& c = rows.front().second;
+    std::printf("%-9s %9.2f %9.3f %9.3f %9.2f | %7.2f %9.2f %9.2f | %7.2f\n", "clip", c.clip_seam_max_ratio,
+                c.clip_share_above_p99, c.clip_pulse_cv, c.clip_pulse_peak, 1.0, 1.0, c.clip_patch_rms, 1.0);
+}
+
+// An edit has no baselines (they follow the input lines): it is measured over
+// its own flow region, the output lines' (at every frame for moving lines),
+// against the clip's.
+int run_edit_quality(const QualityOptions& options, const GlobalOptions& global, const flow::PreparedSynthesis& prepared) {
+    const flow::ClipFrames& clip = *prepared.clip;
+    const flow::Synthesizer& synth = *prepared.synthesizer;
+    const int width = clip.width(), height = clip.height();
+    const int frames = options.frames > 0 ? options.frames : 2 * clip.count();
+    Progress progress(global, "measure");
+    InterruptWatch interrupt;
+    std::vector<std::vector<float>> clip_luma, output_luma;
+    for (int i = 0; i < clip.count(); ++i) clip_luma.push_back(clip.luma(i));
+    bool moving_lines = false;
+    for (const formats::FlowLine& line : prepared.drawing.outputs) moving_lines = moving_lines || line.is_time_varying();
+    std::vector<std::vector<std::uint8_t>> regions;
+    const int rendered = synth.render_frames(1, frames, options.threads, [&](int frame, const flow::RgbImage& image) {
+        output_luma.push_back(flow::luma(flow::to_display(image)));
+        if (moving_lines || regions.empty())
+            regions.push_back(flow::line_band_mask(prepared.drawn_lines_at(frame), width, height, options.region_px));
+        progress.update(0.8 * frame / frames, "frame " + std::to_string(frame));
+        return !interrupt.requested();
+    });
+    if (rendered < frames) {
+        log_message("interrupted");
+        return kExitInterrupted;
+    }
+    flow::RegionSettings region_settings;
+    region_settings.region_px = options.region_px;
+    const flow::RegionMeter meter(clip_luma, width, height,
+                                  flow::line_band_mask(flow::drawn_input_polylines(prepared.drawing), width, height,
+                                                       options.region_px),
+                                  region_settings);
+    const flow::RegionQuality edit = meter.measure(output_luma, regions);
+    progress.done();
+    nlohmann::json summary = {{"bank", options.bank},
+                              {"clip", clip_frames_name(prepared)},
+                              {"clip_frames", clip.count()},
+                              {"output_frames", frames},
+                              {"edit", true},
+                              {"output_lines", prepared.drawing.outputs.size()},
+                              {"moving_lines", moving_lines},
+                              {"region_px", options.region_px},
+                              {"background", flow::to_string(prepared.background)},
+                              {"texture", options.texture},
+                              {"region", {{"ours", region_json(edit)}}},
+                              {"clip_region_reference", clip_region_json(edit)}};
+    if (options.json) {
+        std::cout << summary.dump(2) << '\n';
+        return kExitOk;
+    }
+    std::printf("%s: %d clip frames, %d output frames of the edit along %zu output lines%s\n", clip_frames_name(prepared).c_str(),
+                clip.count(), frames, prepared.drawing.outputs.size(), moving_lines ? " (moving: the region follows them)" : "");
+    print_region_table({{"edit", edit}}, options.region_px);
+    return kExitOk;
+}
+
 int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     if (!options.series_csv.empty()) prepare_output_folder(options.series_csv);
-    std::vector<Problem> warnings;
-    auto bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(options.bank, &warnings));
-    print_problems(warnings);
-    std::string why_no_clip;
-    const std::optional<formats::Capture> opened = open_bank_clip(options.capture, options.bank, *bank, why_no_clip);
-    if (!opened) {
-        log_message("error: " + options.bank + ": the measures need the source clip (" + why_no_clip + "); give --capture");
-        return kExitUsage;
-    }
-    const formats::Capture& capture = *opened;
-    std::string lines_path = options.flowlines;
-    if (lines_path.empty() && !capture.flowlines.empty()) lines_path = capture.resolve(capture.flowlines);
-    if (lines_path.empty()) {
-        log_message("error: no flow lines: give --flowlines FILE (the drawing the bank was tracked with)");
-        return kExitUsage;
-    }
-    const formats::FlowLineSet drawing = formats::read_flowline_drawing(lines_path, &warnings);
-    print_problems(warnings);
-
-    const flow::TextureLayer layer = flow::texture_layer_from_string(options.texture);
-    const flow::BackgroundMode background_mode = flow::background_mode_from_string(options.background);
-    const bool moving = layer == flow::TextureLayer::moving;
-    if (moving_layer_refused(layer, background_mode, options.background, false)) return kExitUsage;
-    flow::SynthesisSettings settings = synthesis_settings(options.synthesis);
-    settings.texture_layer = layer;
-    const std::vector<std::vector<Eigen::Vector2d>> input_points =
-        flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path);
-    auto streams = std::make_shared<flow::ParticleStreams>(bank, input_points, settings, &drawing);
-    report_schedule(streams->schedule());
-
-    Progress reading(global, "read clip");
-    flow::CaptureFrames frames(capture);
-    if (frames.width() != bank->clip_width_px || frames.height() != bank->clip_height_px) {
-        log_message("error: " + capture.clip_path() + ": frames are " + std::to_string(frames.width()) + " x " +
-                    std::to_string(frames.height()) + " but the bank was tracked at " +
-                    std::to_string(bank->clip_width_px) + " x " + std::to_string(bank->clip_height_px));
-        return kExitInvalidInput;
-    }
-    flow::CameraMotion camera;
-    const auto clip_frames = std::make_shared<const flow::ClipFrames>(flow::read_clip_stabilised(frames, drawing, camera, [&](double f) {
-        reading.update(f);
-        return true;
-    }));
-    reading.done();
-    log_message(flow::describe(camera));
-    const flow::ClipFrames& clip = *clip_frames;
-    const flow::RgbImage plate = flow::median_plate(clip);  // also the flow map's background
-    // As synth renders it: the moving layer over the dark plate it was taken
-    // from, with the window chosen on whole textures.
-    std::optional<flow::Background> background;
-    if (moving) {
-        flow::RgbImage still_plate = flow::moving_layer_still_plate(clip);
-        flow::keep_moving_part(*bank, input_points, still_plate);
-        background = flow::Background::plate(std::move(still_plate));
-    } else if (background_mode == flow::BackgroundMode::median) {
-        background = flow::Background::plate(plate);
-    } else {
-        background = flow::make_background(background_mode, clip_frames, streams->schedule(), streams->patch_size());
-    }
-    const flow::Synthesizer synth(streams, {}, std::move(*background), settings);
+    flow::SynthesisJob job = synthesis_job(options.bank, options.capture, options.flowlines, options.background,
+                                           options.texture, options.synthesis);
+    job.keep_clip = true;  // the measures compare with it
+    job.edit = options.edit;
+    job.edit_settings.threads = options.threads;
+    const flow::PreparedSynthesis prepared = prepare_synthesis_logged(job, global);
+    if (options.edit) return run_edit_quality(options, global, prepared);
+    const flow::ClipFrames& clip = *prepared.clip;
+    const flow::RgbImage plate = flow::median_plate(clip);  // the flow map's background
 
     flow::ComparisonSettings compare;
     compare.output_frames = options.frames;
     compare.band_half_width_px = options.band_px;
     compare.flow_map_cycle_frames = options.cycle;
     compare.threads = options.threads;
+    compare.region_lines = flow::drawn_input_polylines(prepared.drawing);
+    compare.region.region_px = options.region_px;
     Progress progress(global, "measure");
     InterruptWatch interrupt;
     flow::Comparison result;
     try {
-        result = flow::compare_with_baselines(clip, *streams, synth, plate, compare, [&](double f) {
+        result = flow::compare_with_baselines(clip, *prepared.streams, *prepared.synthesizer, plate, compare, [&](double f) {
             progress.update(f);
             return !interrupt.requested();
         });
@@ -170,14 +217,14 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     progress.done();
     if (!options.series_csv.empty()) write_series_csv(options.series_csv, result);
 
-    const flow::Schedule& schedule = streams->schedule();
+    const flow::Schedule& schedule = prepared.streams->schedule();
     int missing = 0, borrowed = 0;  // slots without a particle of their start frame; those borrowing a near one
     for (const flow::LineSchedule& l : schedule.lines) {
         missing += l.substituted;
         borrowed += l.borrowed;
     }
     nlohmann::json summary = {{"bank", options.bank},
-                              {"clip", capture.clip_path()},
+                              {"clip", clip_frames_name(prepared)},
                               {"clip_frames", clip.count()},
                               {"output_frames", result.output_frames},
                               {"mask_pixels", result.mask_pixels},
@@ -189,7 +236,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                               {"borrowed_slots", borrowed},
                               // What the measured synthesis was rendered with, so figures can be traced.
                               {"synthesis",
-                               {{"background", options.background},
+                               {{"background", flow::to_string(prepared.background)},
                                 {"texture", options.texture},
                                 {"blend", options.synthesis.blend},
                                 {"overlap_sharpness", options.synthesis.overlap_sharpness},
@@ -199,9 +246,19 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                                 {"borrow_within_frames", options.synthesis.borrow_within_frames},
                                 {"first_start_frame", schedule.first_start_frame}}}};
     summary.update(window_summary(schedule));
-    nlohmann::json methods = nlohmann::json::object();
-    for (const flow::MethodQuality& m : result.methods) methods[m.method] = report_json(m.report);
+    nlohmann::json methods = nlohmann::json::object(), region = nlohmann::json::object();
+    std::vector<std::pair<std::string, flow::RegionQuality>> region_rows;
+    for (const flow::MethodQuality& m : result.methods) {
+        methods[m.method] = report_json(m.report);
+        if (m.region) {
+            region[m.method] = region_json(*m.region);
+            region_rows.emplace_back(m.method, *m.region);
+        }
+    }
     summary["methods"] = methods;
+    summary["region_px"] = options.region_px;
+    summary["region"] = region;
+    if (!region_rows.empty()) summary["clip_region_reference"] = clip_region_json(region_rows.front().second);
     // The clip against itself: what an output that moves like it scores.
     const flow::QualityReport& reference = result.methods.front().report;
     summary["clip_reference"] = {{"seam_max_ratio", reference.clip_max_ratio},
@@ -215,9 +272,10 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     }
     std::printf("%s: %d clip frames, %d output frames, %zu lines, K = %d, step %d, period %d frames, %d of %zu slots "
                 "without a particle (%d borrowing a near one)\n",
-                capture.clip_path().c_str(), clip.count(), result.output_frames, schedule.lines.size(),
+                clip_frames_name(prepared).c_str(), clip.count(), result.output_frames, schedule.lines.size(),
                 schedule.particles_per_line, schedule.start_every, schedule.period_frames, missing,
                 schedule.lines.size() * static_cast<std::size_t>(schedule.particles_per_line), borrowed);
+    std::printf("band around the tracked lines (%zu pixels):\n", result.mask_pixels);
     std::printf("%-9s %9s %9s %9s | %8s %8s | %9s %9s %8s | %7s\n", "method", "seam max", "share>p99", "spike", "pulsing",
                 "(clip)", "patch d", "(self d)", "HF ratio", "motion");
     for (const flow::MethodQuality& m : result.methods) {
@@ -231,6 +289,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     std::printf("clip: its transitions span %.2f..%.2f x its p95; an output whose seam max is below %.2f changes less "
                 "than the clip at every frame\n",
                 reference.clip_min_ratio, reference.clip_max_ratio, reference.clip_min_ratio);
+    print_region_table(region_rows, options.region_px);
     return kExitOk;
 }
 
@@ -239,10 +298,11 @@ const RegisterCommand registration{Command{
     [](CLI::App& app) -> CommandRunner {
         auto options = std::make_shared<QualityOptions>();
         app.footer(
-            "Renders frames 1..N of the infinite sequence (as flowvid synth does, with its --background and\n"
+            "Renders frames 1..N of the infinite sequence (as flowvid synth renders it, with its --background and\n"
             "--texture), the clip looped, and the flow-map method games use (the clip's first frame advected\n"
             "by the tracked speeds in two layers half a cycle apart, cross-faded), and measures each against\n"
-            "the clip on luma in the band around the tracked lines (issue 6):\n"
+            "the clip on luma, twice.\n"
+            "In the band around the tracked lines (issue 6):\n"
             "  seam max   largest frame-to-frame difference / the clip's 95th percentile\n"
             "  share>p99  share of transitions above the clip's 99th percentile\n"
             "  spike      largest transition / the method's own median transition (a seam stands out\n"
@@ -252,21 +312,35 @@ const RegisterCommand registration{Command{
             "             clip's patches to frames >= 5 apart)\n"
             "  HF ratio   output / clip high-frequency energy (blur lowers it)\n"
             "  motion     output / clip median frame-to-frame difference (a still frame slid along: low)\n"
-            "The last row measures the clip against itself: what an output that moves like the clip scores.\n\n"
+            "Over the whole flow region (every pixel within --region px of the drawn lines: what a viewer\n"
+            "sees), as ../shared/tools/baselines_flow.py scores it:\n"
+            "  seam/p99   largest whole-frame transition / the clip's 99th percentile; share>p99 as above\n"
+            "  pulse cv   variation of the Laplacian energy in the region; pulse pk: its largest share in\n"
+            "             one period of 4..50 frames (a periodic pulse: near 1)\n"
+            "  detail     Laplacian energy, output / clip (0.8..1.25: as detailed as the footage)\n"
+            "  patch fid  24x24 output patches to the nearest clip patch anywhere in the clip's region,\n"
+            "             over the clip's own leave-one-frame-out distance (1: as novel as a real frame)\n"
+            "  motion     median change in the region, output / clip\n"
+            "The clip rows measure the clip against itself: what an output that moves like the clip scores.\n"
+            "--edit measures the edit along the drawing's output lines instead (as flowvid edit renders it,\n"
+            "defaults): over the output lines' region, at every frame for moving (keyed) lines.\n\n"
             "Examples:\n"
-            "  flowvid track --capture ../shared/captures/video-waterfall-cascade --densify 12 --out w.bank.exr\n"
+            "  flowvid track --capture ../shared/captures/video-waterfall-cascade --out w.bank.exr\n"
             "  flowvid quality --bank w.bank.exr\n"
             "  flowvid quality --bank w.bank.exr --series w.quality.csv   # per-frame curves to plot\n"
+            "  flowvid quality --bank w.bank.exr --edit --frames 240      # the capture's drawn edit\n"
+            "  flowvid quality --bank w.bank.exr --edit --flowlines particles.flowlines.json\n"
             "  flowvid quality --bank fire.bank.exr --capture ../shared/captures/video-fire-pot --json");
         app.add_option("--bank", options->bank, "particle bank written by flowvid track (.exr)")->required();
         app.add_option("--capture,--clip", options->capture, "the source clip (default: the one recorded in the bank)");
-        app.add_option("--flowlines", options->flowlines, "the drawing the bank was tracked with (default: the capture's)");
+        app.add_option("--flowlines", options->flowlines, "the drawing the bank was tracked with, with the output lines for --edit (default: the capture's)");
         app.add_option("--frames", options->frames, "output frames measured (0 = twice the clip)")
             ->check(CLI::NonNegativeNumber);
         add_synthesis_options(app, options->synthesis);  // as synth renders
         app.add_option("--background", options->background,
-                       "our synthesis's background where no line reaches: median, loop, replay or relit (as in synth)")
-            ->check(CLI::IsMember({"median", "loop", "replay", "relit"}))
+                       "our synthesis's background where no line reaches: auto, median, loop, replay or relit (as in "
+                       "synth and edit)")
+            ->check(CLI::IsMember({"auto", "median", "loop", "replay", "relit"}))
             ->capture_default_str();
         app.add_option("--texture", options->texture,
                        "what our synthesis's patches carry: whole, or moving (the light the flow adds, screened over "
@@ -274,6 +348,11 @@ const RegisterCommand registration{Command{
             ->check(CLI::IsMember({"whole", "moving"}))
             ->capture_default_str();
         app.add_option("--band", options->band_px, "measure within PX of the tracked lines (0 = a quarter patch)");
+        app.add_option("--region", options->region_px, "the whole flow region: within PX of the drawn lines")
+            ->check(CLI::PositiveNumber)
+            ->capture_default_str();
+        app.add_flag("--edit", options->edit,
+                     "measure the edit along the drawing's output lines (as flowvid edit renders it) over their region");
         app.add_option("--cycle", options->cycle, "flow-map layer life in frames")->capture_default_str();
         app.add_option("--threads", options->threads, "frames rendered at once (0 = all cores)");
         app.add_flag("--json", options->json, "print the measures as JSON");

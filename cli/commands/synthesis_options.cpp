@@ -2,40 +2,18 @@
 
 #include "flowvid/error.hpp"
 #include "flowvid/flow/frames.hpp"
+#include "flowvid/flow/synthesis_job.hpp"
 #include "output.hpp"
 
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 namespace flowvid::cli {
 
 namespace {
 nlohmann::json number_or_null(double value) { return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value); }
 }  // namespace
-
-bool moving_layer_refused(flow::TextureLayer layer, flow::BackgroundMode mode, const std::string& background_option,
-                          bool none_allowed) {
-    const bool still = mode == flow::BackgroundMode::median || mode == flow::BackgroundMode::none;
-    if (layer != flow::TextureLayer::moving || still) return false;
-    log_message("error: --texture moving screens the flames over a still background, and the " + background_option +
-                " background already " +
-                (mode == flow::BackgroundMode::relit ? "carries their light" : "shows them") +
-                ": use --background median (the clip's dark plate)" + (none_allowed ? " or none" : ""));
-    return true;
-}
-
-void report_schedule(const flow::Schedule& schedule) {
-    for (const std::string& w : schedule.warnings) log_message("warning: " + w);
-    const flow::Schedule::Window& longest = schedule.longest_window;
-    if (longest.particles_per_line == 0) return;
-    char text[400];
-    std::snprintf(text, sizeof text,
-                  "window: K = %d particles from input frame %d (period %d frames), whose wrap joins better than the longest "
-                  "window's (K = %d from frame %d): join error %.3f against %.3f (--particles and --first-start choose another)",
-                  schedule.particles_per_line, schedule.first_start_frame, schedule.period_frames, longest.particles_per_line,
-                  longest.first_start_frame, schedule.wrap_join_error, longest.wrap_join_error);
-    log_message(text);
-}
 
 nlohmann::json window_summary(const flow::Schedule& schedule) {
     nlohmann::json out = {{"wrap_join_error", number_or_null(schedule.wrap_join_error)}};
@@ -45,22 +23,6 @@ nlohmann::json window_summary(const flow::Schedule& schedule) {
                                  {"first_start_frame", longest.first_start_frame},
                                  {"wrap_join_error", number_or_null(longest.wrap_join_error)}};
     return out;
-}
-
-std::optional<formats::Capture> open_bank_clip(const std::string& capture_option, const std::string& bank_path,
-                                               const formats::ParticleBank& bank, std::string& why_not) {
-    if (!capture_option.empty()) return flow::open_clip(capture_option, bank.fps);
-    const std::string recorded = formats::resolve_source_clip(bank_path, bank);
-    if (recorded.empty()) {
-        why_not = "not recorded in the bank";
-        return std::nullopt;
-    }
-    try {
-        return flow::open_clip(recorded, bank.fps);
-    } catch (const Error& error) {
-        why_not = recorded + " recorded in the bank: " + error.what();
-        return std::nullopt;
-    }
 }
 
 void add_synthesis_options(CLI::App& app, SynthesisOptions& o) {
@@ -102,6 +64,42 @@ flow::SynthesisSettings synthesis_settings(const SynthesisOptions& o) {
     settings.overlap_sharpness = o.overlap_sharpness;
     settings.borrow_within_frames = o.borrow_within_frames;
     return settings;
+}
+
+flow::SynthesisJob synthesis_job(const std::string& bank, const std::string& capture, const std::string& flowlines,
+                                 const std::string& background, const std::string& texture, const SynthesisOptions& options) {
+    flow::SynthesisJob job;
+    job.bank_path = bank;
+    job.clip_path = capture;
+    job.flowlines_path = flowlines;
+    job.background = background;
+    job.settings = synthesis_settings(options);
+    job.settings.texture_layer = flow::texture_layer_from_string(texture);
+    return job;
+}
+
+flow::PreparedSynthesis prepare_synthesis_logged(const flow::SynthesisJob& job, const GlobalOptions& global) {
+    std::optional<Progress> stage;
+    std::string stage_name;
+    flow::PreparedSynthesis prepared = flow::prepare_synthesis(
+        job,
+        [&](const std::string& name, double fraction) {
+            if (name != stage_name) {
+                if (stage) stage->done();
+                stage.emplace(global, name);
+                stage_name = name;
+            }
+            stage->update(fraction);
+            return true;
+        },
+        [&](const std::string& line) {
+            if (stage) stage->done();  // a message ends the progress line it interrupts
+            stage.reset();
+            stage_name.clear();
+            log_message(line);
+        });
+    if (stage) stage->done();
+    return prepared;
 }
 
 }  // namespace flowvid::cli

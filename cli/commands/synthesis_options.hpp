@@ -3,6 +3,8 @@
 // quality): the K-particle window and how overlapping patches are blended.
 
 #include "flowvid/flow/synthesis.hpp"
+#include "flowvid/flow/synthesis_job.hpp"
+#include "command.hpp"
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/particle_bank.hpp"
 
@@ -33,26 +35,16 @@ void add_synthesis_options(CLI::App& app, SynthesisOptions& options);
 // The library settings those options give (the rest at their defaults).
 flow::SynthesisSettings synthesis_settings(const SynthesisOptions& options);
 
-// --texture moving screens the flow over a still background; the looped or
-// replayed clip already shows it, and the relit plate its light. Logs why and
-// returns true when `mode` is one of those (the caller exits with kExitUsage
-// before reading the clip).
-bool moving_layer_refused(flow::TextureLayer layer, flow::BackgroundMode mode, const std::string& background_option,
-                          bool none_allowed);
-
-// Logs the schedule's warnings and, when the window was shortened for a
-// better-joining wrap, which window was taken over the longest and why.
-void report_schedule(const flow::Schedule& schedule);
-
 // The window's wrap join for a command's summary: {"wrap_join_error": x or
 // null, "longest_window": {...} when a shorter window was taken}.
 nlohmann::json window_summary(const flow::Schedule& schedule);
 
-// The clip a bank was tracked from (a capture folder, a video or an image
-// pattern): `capture_option` when given (its errors name the file and the
-// fix), else the one the bank records. Nothing when the bank records none or
-// it cannot be opened; `why_not` then says which and why.
-std::optional<formats::Capture> open_bank_clip(const std::string& capture_option, const std::string& bank_path,
-                                               const formats::ParticleBank& bank, std::string& why_not);
+// The job the synthesis options describe (the rest at the library's defaults).
+flow::SynthesisJob synthesis_job(const std::string& bank, const std::string& capture, const std::string& flowlines,
+                                 const std::string& background, const std::string& texture, const SynthesisOptions& options);
+
+// flow::prepare_synthesis with its progress on the terminal (--progress) and
+// its messages in the log.
+flow::PreparedSynthesis prepare_synthesis_logged(const flow::SynthesisJob& job, const GlobalOptions& global);
 
 }  // namespace flowvid::cli

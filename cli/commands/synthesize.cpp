@@ -9,14 +9,9 @@
 
 #include "flowvid/flow/editing.hpp"
 #include "flowvid/flow/frames.hpp"
-#include "flowvid/flow/quality.hpp"
-#include "flowvid/flow/stabilise.hpp"
-#include "flowvid/flow/synthesis.hpp"
-#include "flowvid/formats/any_file.hpp"
+#include "flowvid/flow/synthesis_job.hpp"
 #include "flowvid/formats/flowlines.hpp"
-#include "flowvid/formats/particle_bank.hpp"
 
-#include <algorithm>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -79,149 +74,39 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     flow::FrameWriter::check_target(options.out, options.loop ? 0 : last - first + 1);
     prepare_output_folder(options.out);  // out/%06d.png or a video: its folder, made when missing
     if (!options.dense_out.empty()) prepare_output_folder(options.dense_out);
-    std::vector<Problem> warnings;
-    auto bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(options.bank, &warnings));
-    print_problems(warnings);
 
-    // The clip: for the background and, by default, the flow lines.
-    std::string why_no_clip;
-    const std::optional<formats::Capture> capture = open_bank_clip(options.capture, options.bank, *bank, why_no_clip);
-    // auto: chosen below, once the particles and the clip are there.
-    const bool auto_background = options.background == "auto";
-    flow::BackgroundMode mode = auto_background ? flow::BackgroundMode::median : flow::background_mode_from_string(options.background);
-    std::string background_name = auto_background ? "median" : options.background;
-    const flow::TextureLayer layer = flow::texture_layer_from_string(options.texture);
-    const bool moving = layer == flow::TextureLayer::moving;
-    // Only plain synthesis of the whole texture chooses; edits and the moving layer keep the plate.
-    const bool background_to_choose = auto_background && !edit && !moving;
-    if (moving_layer_refused(layer, mode, options.background, true)) return kExitUsage;
-    if ((mode != flow::BackgroundMode::none || moving) && !capture) {
-        log_message("error: " + options.bank + ": " +
-                    (moving ? std::string("--texture moving needs the source clip's still plate")
-                            : std::string("the background needs the source clip")) +
-                    " (" + why_no_clip + "); give --capture" + (moving ? "" : ", or --background none"));
-        return kExitUsage;
-    }
-    std::string lines_path = options.flowlines;
-    if (lines_path.empty() && capture && !capture->flowlines.empty()) lines_path = capture->resolve(capture->flowlines);
-    if (lines_path.empty()) {
-        log_message("error: no flow lines: give --flowlines FILE (the drawing the bank was tracked with)");
-        return kExitUsage;
-    }
-    const formats::FlowLineSet drawing = formats::read_flowline_drawing(lines_path, &warnings);
-    print_problems(warnings);
-    if (drawing.width != bank->clip_width_px || drawing.height != bank->clip_height_px)
-        log_message("warning: " + lines_path + ": drawn for " + std::to_string(drawing.width) + " x " +
-                    std::to_string(drawing.height) + " but the bank's clip is " + std::to_string(bank->clip_width_px) +
-                    " x " + std::to_string(bank->clip_height_px) + ": lines are read in the clip's pixels");
-    if (edit && drawing.outputs.empty()) {
-        log_message("error: " + lines_path + ": no output lines to edit with (draw them in the group id=\"output\")");
-        return kExitInvalidInput;
-    }
+    flow::SynthesisJob job = synthesis_job(options.bank, options.capture, options.flowlines, options.background,
+                                           options.texture, options.synthesis);
+    job.settings.mapping = flow::arc_mapping_from_string(options.mapping);
+    job.settings.carry_background = options.carry_background;
+    job.edit = edit;
+    job.interpolate = !options.no_interpolate;
+    job.edit_settings.spacing_px = options.spacing_px;
+    job.edit_settings.max_gap_px = options.max_gap_px;
+    job.edit_settings.correspondence_frames = options.correspondence_frames;
+    job.edit_settings.interpolated_inputs = options.interpolated_inputs == "any"
+                                                ? flow::EditSettings::InterpolatedInputs::any
+                                                : flow::EditSettings::InterpolatedInputs::between;
+    job.edit_settings.threads = options.threads;
+    const flow::PreparedSynthesis prepared = prepare_synthesis_logged(job, global);
+    const flow::Synthesizer& synthesizer = *prepared.synthesizer;
 
-    std::shared_ptr<flow::ClipFrames> clip;
-    flow::ClipFrames footage;  // as filmed when the clip was resampled, for --background auto
-    if (mode != flow::BackgroundMode::none || moving) {
-        Progress reading(global, "read clip");
-        flow::CaptureFrames frames(*capture);
-        if (frames.width() != bank->clip_width_px || frames.height() != bank->clip_height_px) {
-            log_message("error: " + capture->clip_path() + ": frames are " + std::to_string(frames.width()) + " x " +
-                        std::to_string(frames.height()) + " but the bank was tracked at " +
-                        std::to_string(bank->clip_width_px) + " x " + std::to_string(bank->clip_height_px));
-            return kExitInvalidInput;
-        }
-        flow::CameraMotion camera;
-        clip = std::make_shared<flow::ClipFrames>(flow::read_clip_stabilised(
-            frames, drawing, camera,
-            [&](double f) {
-                reading.update(f);
-                return true;
-            },
-            background_to_choose ? &footage : nullptr));
-        reading.done();
-        log_message(flow::describe(camera));
-    }
-    const std::vector<std::vector<Eigen::Vector2d>> input_points =
-        flow::ParticleStreams::input_points_from_drawing(*bank, drawing, lines_path);
-    // The moving layer is screened over the plate it was taken from (the
-    // clip's dark plate), which --background median then shows.
-    std::optional<flow::RgbImage> still_plate;
-    if (moving) still_plate = flow::moving_layer_still_plate(*clip);
-
-    flow::SynthesisSettings settings = synthesis_settings(options.synthesis);
-    settings.mapping = flow::arc_mapping_from_string(options.mapping);
-    settings.carry_background = options.carry_background;
-    settings.texture_layer = layer;
-    auto streams = std::make_shared<flow::ParticleStreams>(bank, input_points, settings, &drawing);
-    report_schedule(streams->schedule());
-    // Plain synthesis over a plate that blurs what the particles leave
-    // uncovered replays the clip instead (flow::choose_background). Edits and
-    // the moving layer keep the plate: their background is a scene to draw on.
-    if (background_to_choose) {
-        const flow::BackgroundChoice choice = flow::choose_background(
-            streams, clip, footage.count() > 0 ? footage : *clip, settings, flow::drawn_input_polylines(drawing));
-        footage = flow::ClipFrames();  // not needed while rendering
-        mode = choice.mode;
-        background_name = flow::to_string(mode);
-        char text[240];
-        std::snprintf(text, sizeof text,
-                      "background: %s (over the median plate the output keeps %.0f %% of the clip's detail within 20 px "
-                      "of the lines%s; --background to choose)",
-                      background_name.c_str(), 100.0 * choice.median_detail,
-                      mode == flow::BackgroundMode::replay ? ", below 80 %: the clip is replayed in step with the particles" : "");
-        log_message(text);
-    }
-    flow::Background background = moving && mode == flow::BackgroundMode::median
-                                      ? flow::Background::plate(*still_plate)
-                                      : flow::make_background(mode, clip, streams->schedule(), streams->patch_size());
-
-    std::vector<flow::OutputLine> outputs;
     nlohmann::json summary;
-    if (edit) {
-        if (options.no_interpolate) {
-            for (const formats::FlowLine& line : drawing.outputs) outputs.push_back({line, line.from});
-        } else {
-            flow::EditSettings edit_settings;
-            edit_settings.spacing_px = options.spacing_px;
-            edit_settings.max_gap_px = options.max_gap_px;
-            edit_settings.mapping = settings.mapping;
-            edit_settings.correspondence_frames = options.correspondence_frames;
-            edit_settings.interpolated_inputs = options.interpolated_inputs == "any"
-                                                    ? flow::EditSettings::InterpolatedInputs::any
-                                                    : flow::EditSettings::InterpolatedInputs::between;
-            edit_settings.threads = options.threads;
-            Progress planning(global, "correspondence");
-            const flow::EditPlan plan = flow::plan_edit(drawing, *streams, edit_settings, [&](const flow::EditProgress& p) {
-                planning.update(static_cast<double>(p.pairs_done) / std::max(1, p.pair_count));
-                return true;
-            });
-            planning.done();
-            for (const std::string& w : plan.warnings) log_message("warning: " + w);
-            outputs = flow::output_lines(plan);
-            int interpolated = 0;
-            for (const flow::DenseLine& d : plan.lines) interpolated += d.drawn ? 0 : 1;
-            summary["dense_lines"] = plan.lines.size();
-            summary["interpolated_lines"] = interpolated;
-            summary["correspondence_cost"] = plan.total_cost;
-            if (!options.dense_out.empty()) {
-                formats::write_flowline_set(options.dense_out, flow::plan_to_flowlines(drawing, plan));
-            }
-        }
+    if (prepared.plan) {
+        int interpolated = 0;
+        for (const flow::DenseLine& d : prepared.plan->lines) interpolated += d.drawn ? 0 : 1;
+        summary["dense_lines"] = prepared.plan->lines.size();
+        summary["interpolated_lines"] = interpolated;
+        summary["correspondence_cost"] = prepared.plan->total_cost;
+        if (!options.dense_out.empty())
+            formats::write_flowline_set(options.dense_out, flow::plan_to_flowlines(prepared.drawing, *prepared.plan));
     }
-    // The window and the edit's correspondence were chosen on whole textures,
-    // so that both layers of one bank keep one timing and one assignment.
-    if (moving) flow::keep_moving_part(*bank, input_points, *still_plate);
-    const flow::Synthesizer synthesizer(streams, outputs, std::move(background), settings);
-    for (const std::string& w : synthesizer.warnings())
-        if (std::find(streams->schedule().warnings.begin(), streams->schedule().warnings.end(), w) ==
-            streams->schedule().warnings.end())
-            log_message("warning: " + w);
     if (options.loop) {
         first = 1;
         last = synthesizer.period_frames();
     }
 
-    flow::FrameWriter writer(options.out, synthesizer.width(), synthesizer.height(), bank->fps, last - first + 1);
+    flow::FrameWriter writer(options.out, synthesizer.width(), synthesizer.height(), prepared.bank->fps, last - first + 1);
     Progress progress(global, edit ? "edit" : "synth");
     std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs
     interrupt.emplace();
@@ -236,7 +121,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     else writer.discard();  // an interrupted video is not published as if it were whole
     progress.done();
 
-    const flow::Schedule& schedule = streams->schedule();
+    const flow::Schedule& schedule = prepared.streams->schedule();
     summary["output"] = options.out;
     summary["frames"] = {first, first + written - 1};
     summary["frames_written"] = written;
@@ -246,7 +131,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     summary["first_start_frame"] = schedule.first_start_frame;
     summary.update(window_summary(schedule));
     summary["lines"] = schedule.lines.size();
-    summary["background"] = background_name;
+    summary["background"] = flow::to_string(prepared.background);
     summary["texture"] = options.texture;
     if (edit) summary["mapping"] = options.mapping;
     if (options.json) std::cout << summary.dump(2) << '\n';

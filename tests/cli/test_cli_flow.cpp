@@ -6,6 +6,7 @@
 #include "test_support.hpp"
 
 #include "flowvid/flow/frames.hpp"
+#include "flowvid/flow/quality.hpp"
 #include "flowvid/flow/synthetic.hpp"
 
 #include <gtest/gtest.h>
@@ -376,12 +377,22 @@ TEST(CliFlow, QualityPrintsOursAgainstBothBaselines) {
     for (const char* part : {"ours", "loop", "flow map", "seam max", "share>p99", "pulsing", "patch d", "HF ratio"})
         EXPECT_TRUE(mentions(table.out, part)) << part << "\n" << table.out;
 
-    const CliResult json = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60", "--json"});
+    // Over the median plate (auto would replay the clip, whose own transitions then show).
+    const CliResult json = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60",
+                                        "--background", "median", "--json"});
     ASSERT_EQ(json.exit_code, 0) << json.err;
     const nlohmann::json j = nlohmann::json::parse(json.out);
     EXPECT_EQ(j.at("output_frames").get<int>(), 60);
     const auto& loop = j.at("methods").at("loop");
     const auto& ours = j.at("methods").at("ours");
+    // The whole flow region too: the loop copies clip frames, so its patches
+    // are the clip's (distance 0) and its detail the clip's (its first 20 frames twice).
+    const auto& loop_region = j.at("region").at("loop");
+    EXPECT_NEAR(loop_region.at("patch_rms").get<double>(), 0.0, 1e-6);
+    EXPECT_NEAR(loop_region.at("detail").get<double>(), 1.0, 0.05);
+    EXPECT_GT(j.at("clip_region_reference").at("patch_rms").get<double>(), 0.0);
+    for (const char* part : {"whole flow region", "patch fid", "pulse pk"})
+        EXPECT_TRUE(mentions(table.out, part)) << part << "\n" << table.out;
     // The loop jumps once per 40-frame clip; our synthesis of the uniform
     // procedural flow has no transition above the clip's 99th percentile.
     EXPECT_GT(loop.at("share_above_clip_p99").get<double>(), 0.0);
@@ -509,4 +520,32 @@ TEST(CliFlow, QualitySeriesShowsWhereTheLoopJumpsAndReproducesTheMeasures) {
                                            "--texture", "moving", "--background", "loop"});
     EXPECT_EQ(refused.exit_code, 2) << refused.err;
     EXPECT_TRUE(mentions(refused.err, "--background median")) << refused.err;
+}
+
+TEST(CliFlow, QualityMeasuresAnEditOverItsOutputLinesRegion) {
+    const CliResult r = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--edit", "--frames",
+                                     "30", "--json"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_TRUE(j.at("edit").get<bool>());
+    EXPECT_EQ(j.at("output_lines").get<int>(), 2);
+    EXPECT_FALSE(j.at("moving_lines").get<bool>());
+    // The edit is measured where its output lines are, the clip where its input lines are.
+    const auto pixels_near = [](std::vector<std::vector<Eigen::Vector2d>> lines) {
+        const std::vector<std::uint8_t> mask = flowvid::flow::line_band_mask(lines, 96, 80, 20.0);
+        return static_cast<double>(std::count(mask.begin(), mask.end(), 1));
+    };
+    const double output_pixels = pixels_near({{{24, -4}, {30, 84}}, {{44, -4}, {52, 84}}});
+    const double input_pixels = pixels_near({{{48, -4}, {48, 84}}, {{40, -4}, {40, 84}}});
+    ASSERT_NE(output_pixels, input_pixels);
+    const auto& ours = j.at("region").at("ours");
+    EXPECT_EQ(ours.at("region_pixels").get<double>(), output_pixels);
+    EXPECT_EQ(j.at("clip_region_reference").at("region_pixels").get<double>(), input_pixels);
+    EXPECT_GT(ours.at("detail").get<double>(), 0.0);
+    EXPECT_GT(ours.at("patch_fidelity").get<double>(), 0.0);
+
+    const CliResult table = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--edit", "--frames", "10"});
+    ASSERT_EQ(table.exit_code, 0) << table.err;
+    EXPECT_TRUE(mentions(table.out, "edit along 2 output lines")) << table.out;
+    EXPECT_TRUE(mentions(table.out, "whole flow region")) << table.out;
 }

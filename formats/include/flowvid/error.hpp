@@ -51,6 +51,13 @@ public:
     using Error::Error;
 };
 
+// A request lacks something only the user can give (an input not named and
+// not recorded anywhere): the fix names the option.
+class UsageError : public Error {
+public:
+    using Error::Error;
+};
+
 // A file was read but its content is invalid. Carries every problem found, not
 // only the first, so a user fixes them all in one pass.
 class ValidationError : public Error {

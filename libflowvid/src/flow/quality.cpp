@@ -348,6 +348,14 @@ Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams&
     add("ours", ours);
     add("loop", loop);
     add("flow map", flowmap);
+    if (!settings.region_lines.empty()) {
+        const std::vector<std::uint8_t> region =
+            line_band_mask(settings.region_lines, width, height, settings.region.region_px);
+        const RegionMeter meter(clip_luma, width, height, region, settings.region);
+        out.methods[0].region = meter.measure(ours, {region});
+        out.methods[1].region = meter.measure(loop, {region});
+        out.methods[2].region = meter.measure(flowmap, {region});
+    }
     return out;
 }
 

@@ -183,3 +183,87 @@ TEST(FlowQuality, TheDefaultBackgroundReplaysTheClipWhereTheMedianPlateBlursIt) 
     EXPECT_EQ(mist.mode, BackgroundMode::replay) << mist.median_detail;
     EXPECT_LT(mist.median_detail, 0.6);
 }
+
+// ---- the whole flow region ---------------------------------------------------------
+
+TEST(FlowRegionQuality, APeriodicSeriesPutsItsPowerInOneBin) {
+    std::vector<double> sine, steps;
+    for (int t = 0; t < 120; ++t) {
+        sine.push_back(3.0 + std::sin(2.0 * M_PI * t / 10.0));  // period 10: in the 4..50 band
+        steps.push_back(t < 60 ? 1.0 : 2.0);                    // one step: its power is spread, mostly at long periods
+    }
+    EXPECT_NEAR(periodic_peak_share(sine), 1.0, 1e-9);
+    EXPECT_LT(periodic_peak_share(steps), 0.1);
+    EXPECT_EQ(periodic_peak_share({1.0, 2.0, 3.0}), 0.0);  // too short to say
+}
+
+TEST(FlowRegionQuality, TheClipAgainstItselfAndABlurOfIt) {
+    // A texture sliding 1 px per frame: replayed, every measure is the clip's own;
+    // blurred, it keeps less detail and its patches are no longer the clip's.
+    std::vector<std::vector<float>> clip, replayed, blurred;
+    for (int t = 0; t < 30; ++t) clip.push_back(noise_frame(t, 5, 3.0));
+    for (int t = 0; t < 30; ++t) {
+        replayed.push_back(clip[static_cast<std::size_t>(t)]);
+        blurred.push_back(box_blur(clip[static_cast<std::size_t>(t)]));
+    }
+    std::vector<std::uint8_t> band(static_cast<std::size_t>(kW) * kH, 0);
+    for (int y = 0; y < kH; ++y)
+        for (int x = 16; x < 48; ++x) band[static_cast<std::size_t>(y) * kW + x] = 1;
+    RegionSettings settings;
+    settings.patch_px = 12;
+    settings.query_stride_px = 6;
+    settings.search_stride_px = 2;
+    const RegionMeter meter(clip, kW, kH, band, settings);
+    const RegionQuality same = meter.measure(replayed, {band});
+    EXPECT_NEAR(same.detail, 1.0, 1e-12);
+    EXPECT_NEAR(same.motion, 1.0, 1e-12);
+    EXPECT_NEAR(same.seam_max_ratio, same.clip_seam_max_ratio, 1e-12);
+    EXPECT_NEAR(same.share_above_p99, same.clip_share_above_p99, 1e-12);
+    EXPECT_NEAR(same.pulse_cv, same.clip_pulse_cv, 1e-12);
+    EXPECT_NEAR(same.patch_rms, 0.0, 1e-6);  // every patch is in the clip (no frame left out)
+    EXPECT_GT(same.clip_patch_rms, 0.1);     // leaving a frame out, the odd shifts are off the clip's patch grid
+    EXPECT_EQ(same.clip_region_pixels, static_cast<std::size_t>(32 * kH));
+
+    const RegionQuality blur = meter.measure(blurred, {band});
+    EXPECT_LT(blur.detail, 0.5);
+    EXPECT_GT(blur.patch_rms, 1.0);
+
+    // Nothing changes in a still clip: the motion ratio is not defined and reported as 0.
+    const RegionMeter still_meter({clip[0], clip[0]}, kW, kH, band, settings);
+    EXPECT_EQ(still_meter.measure(replayed, {band}).motion, 0.0);
+}
+
+TEST(FlowRegionQuality, AMovingRegionIsMeasuredWhereItIsAtEachFrame) {
+    // Output frames that are flat grey except for the clip's texture inside a
+    // band that moves 2 px per frame: measured in that moving band, they keep
+    // all the detail; measured in a fixed band, part of it is flat.
+    std::vector<std::vector<float>> clip, output;
+    std::vector<std::vector<std::uint8_t>> moving;
+    const std::size_t pixels = static_cast<std::size_t>(kW) * kH;
+    std::vector<std::uint8_t> fixed(pixels, 0);
+    for (int y = 0; y < kH; ++y)
+        for (int x = 8; x < 24; ++x) fixed[static_cast<std::size_t>(y) * kW + x] = 1;
+    for (int t = 0; t < 12; ++t) clip.push_back(noise_frame(t, 6, 3.0));
+    for (int t = 0; t < 12; ++t) {
+        std::vector<float> frame(pixels, 0.5f);
+        std::vector<std::uint8_t> region(pixels, 0);
+        for (int y = 0; y < kH; ++y)
+            for (int x = 8 + 2 * t - 1; x < 24 + 2 * t + 1; ++x) {  // texture one pixel wider than the region
+                const std::size_t i = static_cast<std::size_t>(y) * kW + x;
+                frame[i] = clip[static_cast<std::size_t>(t)][i];
+                if (x >= 8 + 2 * t && x < 24 + 2 * t) region[i] = 1;
+            }
+        output.push_back(frame);
+        moving.push_back(region);
+    }
+    RegionSettings settings;
+    settings.patch_px = 8;
+    settings.query_stride_px = 4;
+    settings.search_stride_px = 2;
+    const RegionQuality followed = measure_region_quality(clip, output, kW, kH, fixed, moving, settings);
+    const RegionQuality still = measure_region_quality(clip, output, kW, kH, fixed, {fixed}, settings);
+    EXPECT_NEAR(followed.output_region_pixels, 16.0 * kH, 1e-9);
+    EXPECT_GT(followed.detail, 0.8);
+    EXPECT_LT(still.detail, 0.6 * followed.detail);
+    EXPECT_THROW(measure_region_quality(clip, output, kW, kH, fixed, {fixed, fixed}, settings), std::invalid_argument);
+}

@@ -28,6 +28,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -115,6 +116,85 @@ QualityReport measure_quality(const std::vector<std::vector<float>>& clip_luma,
                               const std::vector<std::vector<float>>& output_luma, int width, int height,
                               const std::vector<std::uint8_t>& mask, const QualitySettings& settings = {});
 
+// ---- the whole flow region (issue #30) -------------------------------------------------
+//
+// What a viewer sees of the flow: every pixel within 20 px of the drawn lines
+// (the input lines for synthesis; an edit's output lines, at each output
+// frame for lines that move), measured as ../shared/tools/baselines_flow.py
+// measures it, on luma:
+//   seam     whole-frame mean |g(t+1) - g(t)|; the largest output transition
+//            and the share above the clip's 99th percentile
+//   pulse    per-frame variance of the 3x3 Laplacian in the region: its
+//            coefficient of variation, and the largest share of its variation
+//            in one period of 4..50 frames (a periodic pulse: near 1)
+//   detail   mean Laplacian variance, output / clip
+//   patch    24 x 24 output patches (centre in the region) to their nearest clip
+//            patch anywhere in the clip's region (stride 6, any frame); RMS grey
+//            levels, over the clip's own leave-one-frame-out distance
+//   motion   median region transition, output / clip (1 = changes as the clip)
+// The clip's region is the drawn input lines'; an edited region is compared
+// with it, since that is where the clip's flow is.
+
+struct RegionSettings {
+    double region_px = 20.0;
+    int patch_px = 24;
+    int query_stride_px = 12;   // output patches on this grid ...
+    int query_frames = 20;      // ... in this many output frames, evenly spread
+    int max_queries = 240;      // at most (drawn evenly from the grid)
+    int search_stride_px = 6;   // clip patches on this grid
+    int max_search_frames = 60; // clip frames searched (evenly spread)
+    std::uint64_t seed = 7;
+};
+
+struct RegionQuality {
+    double seam_max_ratio = 0.0;       // largest output transition / clip p99 (whole frame)
+    double share_above_p99 = 0.0;
+    double clip_seam_max_ratio = 0.0;  // the clip's own largest / its p99
+    double clip_share_above_p99 = 0.0;
+    double pulse_cv = 0.0;
+    double clip_pulse_cv = 0.0;
+    double pulse_peak = 0.0;
+    double clip_pulse_peak = 0.0;
+    double detail = 0.0;
+    double patch_rms = 0.0;            // grey levels (0..255)
+    double clip_patch_rms = 0.0;       // leave-one-frame-out
+    double patch_fidelity = 0.0;       // patch_rms / clip_patch_rms
+    double motion = 0.0;
+    std::size_t clip_region_pixels = 0;
+    double output_region_pixels = 0.0; // mean over frames
+};
+
+// The clip's side of the measures, computed once (its transitions, its
+// Laplacian energy, the patch database and its leave-one-frame-out distance),
+// then any number of outputs measured against it.
+class RegionMeter {
+public:
+    // Luma in [0, 1]; `clip_region`: within region_px of the drawn input lines.
+    RegionMeter(const std::vector<std::vector<float>>& clip_luma, int width, int height,
+                std::vector<std::uint8_t> clip_region, const RegionSettings& settings = {});
+    ~RegionMeter();
+    RegionMeter(const RegionMeter&) = delete;
+    RegionMeter& operator=(const RegionMeter&) = delete;
+    // `output_regions`: one mask per output frame, or one for all.
+    RegionQuality measure(const std::vector<std::vector<float>>& output_luma,
+                          const std::vector<std::vector<std::uint8_t>>& output_regions) const;
+
+private:
+    struct Clip;
+    std::unique_ptr<Clip> m_clip;
+};
+
+// One output measured against its clip (a RegionMeter used once).
+RegionQuality measure_region_quality(const std::vector<std::vector<float>>& clip_luma,
+                                     const std::vector<std::vector<float>>& output_luma, int width, int height,
+                                     const std::vector<std::uint8_t>& clip_region,
+                                     const std::vector<std::vector<std::uint8_t>>& output_regions,
+                                     const RegionSettings& settings = {});
+
+// The share of a series' variation (around its mean) in its strongest DFT bin
+// with a period of min_period..max_period samples (0 for fewer than 8 samples).
+double periodic_peak_share(const std::vector<double>& series, double min_period = 4.0, double max_period = 50.0);
+
 // ---- baselines ----------------------------------------------------------------------
 
 // (a) Output frame t (1-based) = clip frame (t - 1) mod count, linear RGB.
@@ -154,12 +234,17 @@ struct ComparisonSettings {
     int flow_map_cycle_frames = 32;
     int threads = 0;                  // rendering threads (0 = hardware)
     QualitySettings quality;
+    // When given (the drawn input lines), every method is also measured over
+    // the whole flow region (measure_region_quality).
+    std::vector<std::vector<Eigen::Vector2d>> region_lines;
+    RegionSettings region;
 };
 
 struct MethodQuality {
     std::string method;  // "ours", "loop", "flow map"
     QualityReport report;
     SequenceStats series;  // per frame, in the mask: where a seam or a pulse happens
+    std::optional<RegionQuality> region;
 };
 
 struct Comparison {

@@ -1,0 +1,178 @@
+#include "flowvid/flow/synthesis_job.hpp"
+
+#include "flowvid/flow/quality.hpp"
+#include "flowvid/formats/any_file.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+namespace flowvid::flow {
+
+namespace {
+
+// The clip a bank was tracked from: the one named, else the one the bank records.
+std::optional<formats::Capture> open_bank_clip(const SynthesisJob& job, const formats::ParticleBank& bank,
+                                               std::string& why_not) {
+    if (!job.clip_path.empty()) return open_clip(job.clip_path, bank.fps);
+    const std::string recorded = formats::resolve_source_clip(job.bank_path, bank);
+    if (recorded.empty()) {
+        why_not = "not recorded in the bank";
+        return std::nullopt;
+    }
+    try {
+        return open_clip(recorded, bank.fps);
+    } catch (const Error& error) {
+        why_not = recorded + " recorded in the bank: " + error.what();
+        return std::nullopt;
+    }
+}
+
+void say(const SynthesisLog& log, const std::string& line) {
+    if (log) log(line);
+}
+
+void check_progress(const SynthesisProgress& progress, const std::string& stage, double fraction) {
+    if (progress && !progress(stage, fraction)) throw SynthesisCancelled();
+}
+
+// The schedule's warnings and, when the window was shortened for a
+// better-joining wrap, which window was taken over the longest and why.
+void report_window(const Schedule& schedule, const SynthesisLog& log) {
+    for (const std::string& w : schedule.warnings) say(log, "warning: " + w);
+    const Schedule::Window& longest = schedule.longest_window;
+    if (longest.particles_per_line == 0) return;
+    char text[400];
+    std::snprintf(text, sizeof text,
+                  "window: K = %d particles from input frame %d (period %d frames), whose wrap joins better than the longest "
+                  "window's (K = %d from frame %d): join error %.3f against %.3f (--particles and --first-start choose another)",
+                  schedule.particles_per_line, schedule.first_start_frame, schedule.period_frames, longest.particles_per_line,
+                  longest.first_start_frame, schedule.wrap_join_error, longest.wrap_join_error);
+    say(log, text);
+}
+
+}  // namespace
+
+std::vector<std::vector<Eigen::Vector2d>> PreparedSynthesis::drawn_lines_at(int frame) const {
+    std::vector<std::vector<Eigen::Vector2d>> lines;
+    if (outputs.empty()) return drawn_input_polylines(drawing);
+    for (const formats::FlowLine& line : drawing.outputs) lines.push_back(formats::points_at_frame(line, frame));
+    return lines;
+}
+
+PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProgress& progress, const SynthesisLog& log) {
+    PreparedSynthesis out;
+    std::vector<Problem> warnings;
+    out.bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(job.bank_path, &warnings));
+    for (const Problem& w : warnings) say(log, w.to_string());
+    warnings.clear();
+
+    // auto is decided once the particles and the clip are there.
+    const bool auto_background = job.background == "auto";
+    out.background = auto_background ? BackgroundMode::median : background_mode_from_string(job.background);
+    const bool moving = job.settings.texture_layer == TextureLayer::moving;
+    // Only plain synthesis of the whole texture chooses; edits and the moving
+    // layer keep the plate: their background is a scene to draw on.
+    const bool background_to_choose = auto_background && !job.edit && !moving;
+    if (moving && out.background != BackgroundMode::median && out.background != BackgroundMode::none)
+        throw UsageError("", "", "--texture moving screens the flames over a still background, and the " + job.background +
+                                     " background already " +
+                                     (out.background == BackgroundMode::relit ? "carries their light" : "shows them"),
+                         "use --background median (the clip's dark plate) or none");
+
+    std::string why_no_clip;
+    const bool clip_needed = out.background != BackgroundMode::none || moving || job.keep_clip;
+    out.capture = open_bank_clip(job, *out.bank, why_no_clip);
+    if (clip_needed && !out.capture) {
+        const std::string need = job.keep_clip ? "the measures need the source clip"
+                                 : moving      ? "--texture moving needs the source clip's still plate"
+                                               : "the background needs the source clip";
+        throw UsageError(job.bank_path, "", need + " (" + why_no_clip + ")",
+                         moving || job.keep_clip ? "give --capture" : "give --capture, or --background none");
+    }
+
+    out.flowlines_path = job.flowlines_path;
+    if (out.flowlines_path.empty() && out.capture && !out.capture->flowlines.empty())
+        out.flowlines_path = out.capture->resolve(out.capture->flowlines);
+    if (out.flowlines_path.empty())
+        throw UsageError("", "", "no flow lines", "give --flowlines FILE (the drawing the bank was tracked with)");
+    out.drawing = formats::read_flowline_drawing(out.flowlines_path, &warnings);
+    for (const Problem& w : warnings) say(log, w.to_string());
+    if (out.drawing.width != out.bank->clip_width_px || out.drawing.height != out.bank->clip_height_px)
+        say(log, "warning: " + out.flowlines_path + ": drawn for " + std::to_string(out.drawing.width) + " x " +
+                     std::to_string(out.drawing.height) + " but the bank's clip is " +
+                     std::to_string(out.bank->clip_width_px) + " x " + std::to_string(out.bank->clip_height_px) +
+                     ": lines are read in the clip's pixels");
+    if (job.edit && out.drawing.outputs.empty())
+        throw ValidationError({{Problem::Severity::error, out.flowlines_path, "output",
+                                "no output lines to edit with", "draw them in the group id=\"output\""}});
+
+    ClipFrames footage;  // as filmed, when the clip was resampled and the background is to be chosen
+    if (clip_needed) {
+        CaptureFrames frames(*out.capture);
+        if (frames.width() != out.bank->clip_width_px || frames.height() != out.bank->clip_height_px)
+            throw ValidationError({{Problem::Severity::error, out.capture->clip_path(), "frames",
+                                    "frames are " + std::to_string(frames.width()) + " x " + std::to_string(frames.height()) +
+                                        " but the bank was tracked at " + std::to_string(out.bank->clip_width_px) + " x " +
+                                        std::to_string(out.bank->clip_height_px),
+                                    "give the clip the bank was tracked from (--capture)"}});
+        CameraMotion camera;
+        out.clip = std::make_shared<const ClipFrames>(read_clip_stabilised(
+            frames, out.drawing, camera, [&](double f) { return !progress || progress("read clip", f); },
+            background_to_choose ? &footage : nullptr));
+        out.camera = camera;
+        say(log, describe(camera));
+    }
+    out.input_points = ParticleStreams::input_points_from_drawing(*out.bank, out.drawing, out.flowlines_path);
+    // The moving layer is screened over the plate it was taken from (the
+    // clip's dark plate), which the median background then shows.
+    std::optional<RgbImage> still_plate;
+    if (moving) still_plate = moving_layer_still_plate(*out.clip);
+
+    SynthesisSettings settings = job.settings;
+    out.streams = std::make_shared<ParticleStreams>(out.bank, out.input_points, settings, &out.drawing);
+    report_window(out.streams->schedule(), log);
+    if (background_to_choose) {
+        const BackgroundChoice choice = choose_background(out.streams, out.clip, footage.count() > 0 ? footage : *out.clip,
+                                                          settings, drawn_input_polylines(out.drawing));
+        footage = ClipFrames();  // not needed while rendering
+        out.background = choice.mode;
+        out.median_detail = choice.median_detail;
+        char text[240];
+        std::snprintf(text, sizeof text,
+                      "background: %s (over the median plate the output keeps %.0f %% of the clip's detail within 20 px "
+                      "of the lines%s; --background to choose)",
+                      to_string(out.background), 100.0 * choice.median_detail,
+                      out.background == BackgroundMode::replay ? ", below 80 %: the clip is replayed in step with the particles"
+                                                               : "");
+        say(log, text);
+    }
+    Background background = moving && out.background == BackgroundMode::median
+                                ? Background::plate(*still_plate)
+                                : make_background(out.background, out.clip, out.streams->schedule(), out.streams->patch_size());
+
+    if (job.edit) {
+        if (!job.interpolate) {
+            for (const formats::FlowLine& line : out.drawing.outputs) out.outputs.push_back({line, line.from});
+        } else {
+            EditSettings edit_settings = job.edit_settings;
+            edit_settings.mapping = settings.mapping;
+            out.plan = plan_edit(out.drawing, *out.streams, edit_settings, [&](const EditProgress& p) {
+                return !progress || progress("correspondence", static_cast<double>(p.pairs_done) / std::max(1, p.pair_count));
+            });
+            check_progress(progress, "correspondence", 1.0);
+            for (const std::string& w : out.plan->warnings) say(log, "warning: " + w);
+            out.outputs = output_lines(*out.plan);
+        }
+    }
+    // The window and the edit's correspondence were chosen on whole textures,
+    // so that both layers of one bank keep one timing and one assignment.
+    if (moving) keep_moving_part(*out.bank, out.input_points, *still_plate);
+    out.synthesizer = std::make_unique<Synthesizer>(out.streams, out.outputs, std::move(background), settings);
+    const std::vector<std::string>& scheduled = out.streams->schedule().warnings;
+    for (const std::string& w : out.synthesizer->warnings())
+        if (std::find(scheduled.begin(), scheduled.end(), w) == scheduled.end()) say(log, "warning: " + w);
+    if (!job.keep_clip) out.clip.reset();  // a background that replays the clip holds it itself
+    return out;
+}
+
+}  // namespace flowvid::flow
