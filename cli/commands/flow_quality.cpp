@@ -30,8 +30,9 @@ struct QualityOptions {
     int frames = 0;
     SynthesisOptions synthesis;
     std::string background = "auto";
-    std::string texture = "whole";
+    std::string texture = "auto";
     bool edit = false;
+    EditOptions edit_options;
     double band_px = 0.0;
     double region_px = 20.0;
     int cycle = 32;
@@ -169,7 +170,9 @@ int run_edit_quality(const QualityOptions& options, const GlobalOptions& global,
                               {"moving_lines", moving_lines},
                               {"region_px", options.region_px},
                               {"background", flow::to_string(prepared.background)},
-                              {"texture", options.texture},
+                              {"texture", flow::to_string(prepared.texture_layer)},
+                              {"coverage", prepared.coverage_weight},
+                              {"carry_background", prepared.carry_background},
                               {"region", {{"ours", region_json(edit)}}},
                               {"clip_region_reference", clip_region_json(edit)}};
     if (options.json) {
@@ -187,8 +190,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     flow::SynthesisJob job = synthesis_job(options.bank, options.capture, options.flowlines, options.background,
                                            options.texture, options.synthesis);
     job.keep_clip = true;  // the measures compare with it
-    job.edit = options.edit;
-    job.edit_settings.threads = options.threads;
+    if (options.edit) apply_edit_options(options.edit_options, options.threads, job);
     const flow::PreparedSynthesis prepared = prepare_synthesis_logged(job, global);
     if (options.edit) return run_edit_quality(options, global, prepared);
     const flow::ClipFrames& clip = *prepared.clip;
@@ -237,10 +239,10 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                               // What the measured synthesis was rendered with, so figures can be traced.
                               {"synthesis",
                                {{"background", flow::to_string(prepared.background)},
-                                {"texture", options.texture},
+                                {"texture", flow::to_string(prepared.texture_layer)},
                                 {"blend", options.synthesis.blend},
                                 {"overlap_sharpness", options.synthesis.overlap_sharpness},
-                                {"coverage", options.synthesis.coverage},
+                                {"coverage", prepared.coverage_weight},
                                 {"fade_frames", options.synthesis.fade_frames},
                                 {"wrap_fade_frames", options.synthesis.wrap_fade_frames},
                                 {"borrow_within_frames", options.synthesis.borrow_within_frames},
@@ -323,7 +325,7 @@ const RegisterCommand registration{Command{
             "  motion     median change in the region, output / clip\n"
             "The clip rows measure the clip against itself: what an output that moves like the clip scores.\n"
             "--edit measures the edit along the drawing's output lines instead (as flowvid edit renders it,\n"
-            "defaults): over the output lines' region, at every frame for moving (keyed) lines.\n\n"
+            "with its options): over the output lines' region, at every frame for moving (keyed) lines.\n\n"
             "Examples:\n"
             "  flowvid track --capture ../shared/captures/video-waterfall-cascade --out w.bank.exr\n"
             "  flowvid quality --bank w.bank.exr\n"
@@ -343,9 +345,9 @@ const RegisterCommand registration{Command{
             ->check(CLI::IsMember({"auto", "median", "loop", "replay", "relit"}))
             ->capture_default_str();
         app.add_option("--texture", options->texture,
-                       "what our synthesis's patches carry: whole, or moving (the light the flow adds, screened over "
-                       "the clip's dark plate; as in synth)")
-            ->check(CLI::IsMember({"whole", "moving"}))
+                       "what our synthesis's patches carry: auto, whole, or moving (the light the flow adds, screened "
+                       "over the clip's dark plate; as in synth and edit)")
+            ->check(CLI::IsMember({"auto", "whole", "moving"}))
             ->capture_default_str();
         app.add_option("--band", options->band_px, "measure within PX of the tracked lines (0 = a quarter patch)");
         app.add_option("--region", options->region_px, "the whole flow region: within PX of the drawn lines")
@@ -353,6 +355,7 @@ const RegisterCommand registration{Command{
             ->capture_default_str();
         app.add_flag("--edit", options->edit,
                      "measure the edit along the drawing's output lines (as flowvid edit renders it) over their region");
+        add_edit_options(app, options->edit_options);  // as edit renders
         app.add_option("--cycle", options->cycle, "flow-map layer life in frames")->capture_default_str();
         app.add_option("--threads", options->threads, "frames rendered at once (0 = all cores)");
         app.add_flag("--json", options->json, "print the measures as JSON");

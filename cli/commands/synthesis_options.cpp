@@ -34,8 +34,9 @@ void add_synthesis_options(CLI::App& app, SynthesisOptions& o) {
                    "most N frames away, else it is left empty (0 = always empty)")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
-    app.add_option("--coverage", o.coverage, "accumulated feather weight at which texture fully hides the background")
-        ->capture_default_str();
+    app.add_option("--coverage", o.coverage,
+                   "accumulated feather weight at which texture fully hides the background (default: 0.5; 2 for "
+                   "the moving layer of an edit, whose light then fades with the feather)");
     app.add_option("--fade-frames", o.fade_frames, "particles fade in and out over N frames (-1 = automatic)");
     app.add_option("--wrap-fade-frames", o.wrap_fade_frames,
                    "the first particle of each period (where the diagonal order wraps) fades in over N frames "
@@ -57,13 +58,50 @@ flow::SynthesisSettings synthesis_settings(const SynthesisOptions& o) {
     settings.particles = o.particles;
     settings.first_start_frame = o.first_start;
     settings.seed = o.seed;
-    settings.coverage_weight = o.coverage;
+    settings.coverage_weight = o.coverage < 0.0 ? 0.5 : o.coverage;
     settings.fade_frames = o.fade_frames;
     settings.wrap_fade_frames = o.wrap_fade_frames;
     settings.preserve_detail = o.blend == "detail";
     settings.overlap_sharpness = o.overlap_sharpness;
     settings.borrow_within_frames = o.borrow_within_frames;
     return settings;
+}
+
+void add_edit_options(CLI::App& app, EditOptions& o) {
+    app.add_option("--mapping", o.mapping, "equal or scaled arc length from input to output lines")
+        ->check(CLI::IsMember({"equal", "scaled"}))
+        ->capture_default_str();
+    app.add_option("--spacing", o.spacing_px, "interpolated lines at most PX apart (0 = half a patch)");
+    app.add_option("--max-gap", o.max_gap_px, "output lines further apart are not interpolated between (0 = 6 patches)");
+    app.add_flag("--no-interpolate", o.no_interpolate, "render only the drawn output lines");
+    app.add_option("--correspondence-frames", o.correspondence_frames, "frames the overlap error is averaged over")
+        ->capture_default_str();
+    app.add_option("--interpolated-inputs", o.interpolated_inputs,
+                   "inputs an interpolated line may carry: between (those between its two drawn lines' inputs, "
+                   "across the flow) or any (every input line, as the thesis; favours flat, static texture)")
+        ->check(CLI::IsMember({"between", "any"}))
+        ->capture_default_str();
+    app.add_flag("--carry-background", o.carry_background,
+                 "under the particles of a line moved off the flow, show the background around its input line "
+                 "(smoothed): fills the gaps its particles leave (for water; not for fire). Default: on where "
+                 "--background auto replays the clip");
+    app.add_flag("--no-carry-background", o.no_carry_background,
+                 "never carry the background, not even where --background auto replays the clip")
+        ->excludes("--carry-background");
+}
+
+void apply_edit_options(const EditOptions& o, int threads, flow::SynthesisJob& job) {
+    job.edit = true;
+    job.settings.mapping = flow::arc_mapping_from_string(o.mapping);
+    job.settings.carry_background = o.carry_background;
+    job.carry_replayed_background = !o.no_carry_background;
+    job.interpolate = !o.no_interpolate;
+    job.edit_settings.spacing_px = o.spacing_px;
+    job.edit_settings.max_gap_px = o.max_gap_px;
+    job.edit_settings.correspondence_frames = o.correspondence_frames;
+    job.edit_settings.interpolated_inputs = o.interpolated_inputs == "any" ? flow::EditSettings::InterpolatedInputs::any
+                                                                          : flow::EditSettings::InterpolatedInputs::between;
+    job.edit_settings.threads = threads;
 }
 
 flow::SynthesisJob synthesis_job(const std::string& bank, const std::string& capture, const std::string& flowlines,
@@ -74,7 +112,9 @@ flow::SynthesisJob synthesis_job(const std::string& bank, const std::string& cap
     job.flowlines_path = flowlines;
     job.background = background;
     job.settings = synthesis_settings(options);
-    job.settings.texture_layer = flow::texture_layer_from_string(texture);
+    job.texture_auto = texture == "auto";
+    if (!job.texture_auto) job.settings.texture_layer = flow::texture_layer_from_string(texture);
+    job.coverage_auto = options.coverage < 0.0;
     return job;
 }
 

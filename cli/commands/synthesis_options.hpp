@@ -20,13 +20,32 @@ struct SynthesisOptions {
     int particles = 0;
     int first_start = -1;
     unsigned long long seed = 0;
-    double coverage = 0.5;
+    double coverage = -1.0;  // < 0: automatic (SynthesisJob::coverage_auto)
     int fade_frames = -1;
     int wrap_fade_frames = -1;
     std::string blend = "detail";
     double overlap_sharpness = 4.0;
     int borrow_within_frames = flow::SynthesisSettings{}.borrow_within_frames;
 };
+
+// What `flowvid edit` (and `flowvid quality --edit`) take for the edit itself.
+struct EditOptions {
+    std::string mapping = "equal";
+    double spacing_px = 0.0;
+    double max_gap_px = 0.0;
+    bool no_interpolate = false;
+    int correspondence_frames = 30;
+    std::string interpolated_inputs = "between";
+    bool carry_background = false;
+    bool no_carry_background = false;
+};
+
+// Adds --mapping, --spacing, --max-gap, --no-interpolate, --correspondence-frames,
+// --interpolated-inputs, --carry-background and --no-carry-background.
+void add_edit_options(CLI::App& app, EditOptions& options);
+
+// Sets the job's edit, its mapping and its carried background from the options.
+void apply_edit_options(const EditOptions& options, int threads, flow::SynthesisJob& job);
 
 // Adds --particles, --first-start, --seed, --borrow-within, --coverage,
 // --fade-frames, --wrap-fade-frames, --blend and --overlap-sharpness to a command.

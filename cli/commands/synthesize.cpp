@@ -27,19 +27,12 @@ struct RenderOptions {
     std::string frames = "100";
     std::string out;
     std::string background = "auto";
-    std::string texture = "whole";
+    std::string texture = "auto";
     SynthesisOptions synthesis;
     bool loop = false;
     int threads = 0;
     bool json = false;
-    // edit
-    std::string mapping = "equal";
-    double spacing_px = 0.0;
-    double max_gap_px = 0.0;
-    bool no_interpolate = false;
-    int correspondence_frames = 30;
-    std::string interpolated_inputs = "between";
-    bool carry_background = false;
+    EditOptions edit;
     std::string dense_out;
 };
 
@@ -77,17 +70,7 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
 
     flow::SynthesisJob job = synthesis_job(options.bank, options.capture, options.flowlines, options.background,
                                            options.texture, options.synthesis);
-    job.settings.mapping = flow::arc_mapping_from_string(options.mapping);
-    job.settings.carry_background = options.carry_background;
-    job.edit = edit;
-    job.interpolate = !options.no_interpolate;
-    job.edit_settings.spacing_px = options.spacing_px;
-    job.edit_settings.max_gap_px = options.max_gap_px;
-    job.edit_settings.correspondence_frames = options.correspondence_frames;
-    job.edit_settings.interpolated_inputs = options.interpolated_inputs == "any"
-                                                ? flow::EditSettings::InterpolatedInputs::any
-                                                : flow::EditSettings::InterpolatedInputs::between;
-    job.edit_settings.threads = options.threads;
+    if (edit) apply_edit_options(options.edit, options.threads, job);
     const flow::PreparedSynthesis prepared = prepare_synthesis_logged(job, global);
     const flow::Synthesizer& synthesizer = *prepared.synthesizer;
 
@@ -132,8 +115,12 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     summary.update(window_summary(schedule));
     summary["lines"] = schedule.lines.size();
     summary["background"] = flow::to_string(prepared.background);
-    summary["texture"] = options.texture;
-    if (edit) summary["mapping"] = options.mapping;
+    summary["texture"] = flow::to_string(prepared.texture_layer);
+    summary["coverage"] = prepared.coverage_weight;
+    if (edit) {
+        summary["mapping"] = options.edit.mapping;
+        summary["carry_background"] = prepared.carry_background;
+    }
     if (options.json) std::cout << summary.dump(2) << '\n';
     else std::cout << human_readable(summary);
     if (written < total) {
@@ -153,18 +140,19 @@ void add_common(CLI::App& app, RenderOptions& o) {
         ->required();
     app.add_option("--capture,--clip", o.capture, "the source clip (default: the one recorded in the bank)");
     app.add_option("--background", o.background,
-                   "where no line reaches: auto (synth: median, or replay when over the median the output keeps "
-                   "under 80 % of the clip's detail around the lines; edit: median), median (static plate), loop "
+                   "where no line reaches: auto (median, or replay when over the median synthesis keeps "
+                   "under 80 % of the clip's detail around the lines; with --texture moving: median), median (static plate), loop "
                    "(the clip), replay (the clip in step with the particles: the input frame they show), relit (the plate darkened where that frame is: the light of "
                    "flames comes and goes on the scene, and patch ends meet it), none")
         ->check(CLI::IsMember({"auto", "median", "loop", "replay", "relit", "none"}))
         ->capture_default_str();
     app.add_option("--texture", o.texture,
-                   "what a patch carries: whole (everything in it: water and the rock it passes), or moving (only the "
+                   "what a patch carries: whole (everything in it: water and the rock it passes), moving (only the "
                    "light the flow adds to the clip's dark plate, screened over that plate, or over black with "
                    "--background none: flames and smoke in front of a scene, whose edits should not move the "
-                   "scene's edges)")
-        ->check(CLI::IsMember({"whole", "moving"}))
+                   "scene's edges), or auto (moving for edits of a bank tracked with --dynamics non-stationary, "
+                   "else whole)")
+        ->check(CLI::IsMember({"auto", "whole", "moving"}))
         ->capture_default_str();
     app.add_flag("--loop", o.loop, "render exactly one period (frames 1..K*step): a file that loops seamlessly");
     add_synthesis_options(app, o.synthesis);
@@ -213,7 +201,10 @@ const RegisterCommand edit_registration{Command{
             "Output lines with keys (*.flowlines.json) move over time, e.g. lines from a simulation.\n"
             "Lines moved off the flow show their particles over the output's own background, which\n"
             "shows through where the input line's particles leave gaps (parts nothing crossed within\n"
-            "the clip); --carry-background fills those with the background around the input line.\n"
+            "the clip); --carry-background fills those with the background around the input line. Where\n"
+            "--background auto replays the clip (water whose mist a median plate would blur), that is on\n"
+            "by default: a new channel shows the clip's moving water around its input line, not the rock\n"
+            "it was drawn over (--no-carry-background: off). The log says what was chosen.\n"
             "Texture carried over a background unlike its own (water over rock) ends in a hard edge at\n"
             "the default --coverage 0.5; --coverage 2 blends it in.\n\n"
             "Examples:\n"
@@ -224,23 +215,7 @@ const RegisterCommand edit_registration{Command{
             "      --out smoke.mp4 --dense-out dense.flowlines.json");
         add_common(app, *options);
         app.add_option("--flowlines", options->flowlines, "input and output lines (SVG or *.flowlines.json)")->required();
-        app.add_option("--mapping", options->mapping, "equal or scaled arc length from input to output lines")
-            ->check(CLI::IsMember({"equal", "scaled"}))
-            ->capture_default_str();
-        app.add_option("--spacing", options->spacing_px, "interpolated lines at most PX apart (0 = half a patch)");
-        app.add_option("--max-gap", options->max_gap_px, "output lines further apart are not interpolated between (0 = 6 patches)");
-        app.add_flag("--no-interpolate", options->no_interpolate, "render only the drawn output lines");
-        app.add_option("--correspondence-frames", options->correspondence_frames,
-                       "frames the overlap error is averaged over")
-            ->capture_default_str();
-        app.add_option("--interpolated-inputs", options->interpolated_inputs,
-                       "inputs an interpolated line may carry: between (those between its two drawn lines' inputs, "
-                       "across the flow) or any (every input line, as the thesis; favours flat, static texture)")
-            ->check(CLI::IsMember({"between", "any"}))
-            ->capture_default_str();
-        app.add_flag("--carry-background", options->carry_background,
-                     "under the particles of a line moved off the flow, show the background around its input line "
-                     "(smoothed): fills the gaps its particles leave (for water; not for fire)");
+        add_edit_options(app, options->edit);
         app.add_option("--dense-out", options->dense_out, "write the dense output lines with their inputs (*.flowlines.json)")
             ->check(file_name_ending({".json"}, "flow lines as JSON", "dense.flowlines.json"));
         return [options](const GlobalOptions& global) { return render(*options, global, true); };

@@ -29,7 +29,7 @@ struct TrackOptions {
     std::string dense_out;
     double fps = 0.0;
     int frames = 0;
-    int patch = 24;
+    int patch = 0;  // 0: from the drawn lines' spacing
     std::string dynamics = "stationary";
     int start_every = 0;
     int max_path_frames = 0;
@@ -43,6 +43,9 @@ struct TrackOptions {
     int threads = 0;
     bool json = false;
 };
+
+int track_with(const TrackOptions& options, const GlobalOptions& global, const formats::Capture& capture,
+               const std::string& lines_path, const formats::FlowLineSet& drawing, flow::CaptureFrames& frames);
 
 int run_track(const TrackOptions& options, const GlobalOptions& global) {
     prepare_output_folder(options.out);
@@ -66,6 +69,24 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
                     std::to_string(drawing.height) + " but the clip is " + std::to_string(frames.width()) + " x " +
                     std::to_string(frames.height()));
 
+    TrackOptions chosen = options;  // the patch size decided below
+    if (chosen.patch <= 0) {
+        const flow::PatchSizeChoice choice = flow::patch_size_from_lines(flow::drawn_input_polylines(drawing));
+        chosen.patch = choice.patch_px;
+        char text[240];
+        if (choice.neighbour_pairs > 0)
+            std::snprintf(text, sizeof text,
+                          "patch: %d px (half the median gap of %.0f px between neighbouring drawn lines; --patch to choose)",
+                          choice.patch_px, choice.median_gap_px);
+        else
+            std::snprintf(text, sizeof text, "patch: %d px (no drawn line has a neighbour; --patch to choose)", choice.patch_px);
+        log_message(text);
+    }
+    return track_with(chosen, global, capture, lines_path, drawing, frames);
+}
+
+int track_with(const TrackOptions& options, const GlobalOptions& global, const formats::Capture& capture,
+               const std::string& lines_path, const formats::FlowLineSet& drawing, flow::CaptureFrames& frames) {
     flow::TrackingSettings settings;
     settings.patch_size_px = options.patch;
     settings.dynamics = options.dynamics == "stationary" ? formats::ParticleDynamics::stationary
@@ -228,8 +249,10 @@ const RegisterCommand registration{Command{
             "crosses within the clip (rocks a line runs over) are left out and listed. Only particles\n"
             "that complete their path are kept. --densify adds lines between neighbouring drawn lines\n"
             "(ids like in-1~in-2@0.500); synth and edit rebuild all of these from the same drawing.\n"
-            "Synthesis covers about a patch around each line: track warns when neighbouring lines are more\n"
-            "than 2 patches apart (water: --densify 12 with 24 px patches; flames: --patch 48 --densify 24).\n"
+            "The patch side defaults to half the median gap between neighbouring drawn lines (to the\n"
+            "nearest 8 px, 16..96): water drawn ~45 px apart gets 24 px, flames drawn ~100 px apart 48 px;\n"
+            "the log says what was chosen. Synthesis covers about a patch around each line: track warns\n"
+            "when neighbouring lines are more than 2 patches apart (--densify fills the gap).\n"
             "A camera that drifts is measured first (on the background, away from the lines) and the clip\n"
             "is tracked in its first frame's view, where the lines are drawn; synth, edit and quality do the\n"
             "same, so the output is a still camera. A still camera, or one whose background changes too much\n"
@@ -239,9 +262,9 @@ const RegisterCommand registration{Command{
             "Exit codes: 0 bank written, 1 no particle completed its path, 2 usage, 3 invalid input,\n"
             "4 I/O error, 130 interrupted.\n\n"
             "Examples:\n"
-            "  flowvid track --capture ../shared/captures/video-waterfall-cascade --densify 12 --out waterfall.bank.exr\n"
+            "  flowvid track --capture ../shared/captures/video-waterfall-cascade --out waterfall.bank.exr\n"
             "  flowvid track --capture clip.mp4 --flowlines lines.svg --patch 16 --densify 12 --out bank.exr\n"
-            "  flowvid track --capture fire/ --dynamics non-stationary --patch 48 --densify 24 --out fire.bank.exr --json");
+            "  flowvid track --capture fire/ --dynamics non-stationary --out fire.bank.exr --json");
         app.add_option("--capture,--clip", options->capture, "capture folder, video file or image pattern")->required();
         app.add_option("--flowlines", options->flowlines, "input flow lines (SVG or *.flowlines.json); default: the capture's");
         app.add_option("--out", options->out, "bank to write (.exr)")
@@ -249,9 +272,10 @@ const RegisterCommand registration{Command{
             ->check(file_name_ending({".exr"}, "a particle bank (an OpenEXR file)", "waterfall.bank.exr"));
         app.add_option("--fps", options->fps, "frame rate of a clip that records none (image sequences: 25)");
         app.add_option("--frames", options->frames, "use only the first N frames (0 = all)")->check(CLI::NonNegativeNumber);
-        app.add_option("--patch", options->patch, "patch side in pixels (the thesis: 24, 100 for flames)")
-            ->check(CLI::Range(4, 1024))
-            ->capture_default_str();
+        app.add_option("--patch", options->patch,
+                       "patch side in pixels (default: half the median gap between neighbouring drawn lines; the "
+                       "thesis: 24, 100 for flames)")
+            ->check(CLI::Range(4, 1024));
         app.add_option("--dynamics", options->dynamics,
                        "stationary (waterfalls, streams: speed depends on position) or non-stationary (fire, smoke: "
                        "each particle keeps its own speed)")

@@ -74,7 +74,8 @@ const std::string& tiny_capture() {
 const std::string& tiny_bank() {
     static const std::string bank = [] {
         const std::string path = own_dir("cli_flow_bank") + "/tiny.bank.exr";
-        const CliResult r = run_flowvid({"track", "--capture", tiny_capture(), "--out", path, "--json"});
+        // 24 px patches, as the thesis (the default would take 16 for lines 8 px apart).
+        const CliResult r = run_flowvid({"track", "--capture", tiny_capture(), "--patch", "24", "--out", path, "--json"});
         EXPECT_EQ(r.exit_code, 0) << r.err;
         return path;
     }();
@@ -548,4 +549,52 @@ TEST(CliFlow, QualityMeasuresAnEditOverItsOutputLinesRegion) {
     ASSERT_EQ(table.exit_code, 0) << table.err;
     EXPECT_TRUE(mentions(table.out, "edit along 2 output lines")) << table.out;
     EXPECT_TRUE(mentions(table.out, "whole flow region")) << table.out;
+}
+
+TEST(CliFlow, EditDefaultsFollowTheBankAndTheClip) {
+    const std::string dir = own_dir("cli_flow_edit_defaults");
+    const std::string lines = tiny_capture() + "/flowlines.svg";
+    // Whole textures of a stationary bank. The tiny clip's plate blurs its
+    // flow (auto replays it, as `quality` reports), so lines moved off the
+    // flow carry the replayed clip from around their input lines.
+    const CliResult water = run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frames", "2", "--json",
+                                         "--out", dir + "/w%04d.png"});
+    ASSERT_EQ(water.exit_code, 0) << water.err;
+    const nlohmann::json w = nlohmann::json::parse(water.out);
+    EXPECT_EQ(w.at("texture"), "whole");
+    EXPECT_EQ(w.at("coverage").get<double>(), 0.5);
+    EXPECT_EQ(w.at("background"), "replay");
+    EXPECT_TRUE(w.at("carry_background").get<bool>());
+    EXPECT_TRUE(mentions(water.err, "carry it from around their input lines")) << water.err;
+    const CliResult no_carry = run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frames", "2", "--json",
+                                            "--no-carry-background", "--out", dir + "/n%04d.png"});
+    ASSERT_EQ(no_carry.exit_code, 0) << no_carry.err;
+    EXPECT_FALSE(nlohmann::json::parse(no_carry.out).at("carry_background").get<bool>());
+    EXPECT_EQ(run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frames", "2", "--carry-background",
+                           "--no-carry-background", "--out", dir + "/x%04d.png"})
+                  .exit_code,
+              2);
+
+    // A non-stationary bank (flames, smoke): the edit moves only the light the
+    // flow adds, fading with the feather; plain synthesis keeps whole patches.
+    const std::string flames = dir + "/flames.bank.exr";
+    ASSERT_EQ(run_flowvid({"track", "--capture", tiny_capture(), "--dynamics", "non-stationary", "--out", flames}).exit_code, 0);
+    const CliResult fire = run_flowvid({"edit", "--bank", flames, "--flowlines", lines, "--frames", "2", "--json", "--out",
+                                        dir + "/f%04d.png"});
+    ASSERT_EQ(fire.exit_code, 0) << fire.err;
+    const nlohmann::json f = nlohmann::json::parse(fire.out);
+    EXPECT_EQ(f.at("texture"), "moving");
+    EXPECT_EQ(f.at("coverage").get<double>(), 2.0);
+    EXPECT_EQ(f.at("background"), "median");
+    EXPECT_FALSE(f.at("carry_background").get<bool>());
+    const CliResult synth = run_flowvid({"synth", "--bank", flames, "--frames", "2", "--json", "--out", dir + "/s%04d.png"});
+    ASSERT_EQ(synth.exit_code, 0) << synth.err;
+    EXPECT_EQ(nlohmann::json::parse(synth.out).at("texture"), "whole");
+    EXPECT_EQ(nlohmann::json::parse(synth.out).at("coverage").get<double>(), 0.5);
+    // Asked for, the options win.
+    const CliResult asked = run_flowvid({"edit", "--bank", flames, "--flowlines", lines, "--frames", "2", "--json",
+                                         "--texture", "whole", "--coverage", "1", "--out", dir + "/a%04d.png"});
+    ASSERT_EQ(asked.exit_code, 0) << asked.err;
+    EXPECT_EQ(nlohmann::json::parse(asked.out).at("texture"), "whole");
+    EXPECT_EQ(nlohmann::json::parse(asked.out).at("coverage").get<double>(), 1.0);
 }

@@ -250,6 +250,19 @@ std::vector<WideNeighbours> wide_neighbours(const std::vector<std::vector<Eigen:
     return out;
 }
 
+PatchSizeChoice patch_size_from_lines(const std::vector<std::vector<Eigen::Vector2d>>& lines, double max_gap_px) {
+    PatchSizeChoice choice;
+    std::vector<double> gaps;
+    for (const WideNeighbours& pair : wide_neighbours(lines, max_gap_px, 0.0)) gaps.push_back(pair.mean_gap_px);
+    choice.neighbour_pairs = static_cast<int>(gaps.size());
+    if (gaps.empty()) return choice;
+    std::sort(gaps.begin(), gaps.end());
+    const std::size_t n = gaps.size();
+    choice.median_gap_px = n % 2 ? gaps[n / 2] : 0.5 * (gaps[n / 2 - 1] + gaps[n / 2]);
+    choice.patch_px = std::clamp(8 * static_cast<int>(std::lround(choice.median_gap_px / 2.0 / 8.0)), 16, 96);
+    return choice;
+}
+
 std::vector<InterpolatedLine> interpolate_between(const std::vector<std::vector<Eigen::Vector2d>>& lines,
                                                   const std::vector<std::vector<int>>& chains, double spacing_px) {
     std::vector<InterpolatedLine> out;

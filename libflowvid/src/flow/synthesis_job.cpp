@@ -69,10 +69,19 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProg
     // auto is decided once the particles and the clip are there.
     const bool auto_background = job.background == "auto";
     out.background = auto_background ? BackgroundMode::median : background_mode_from_string(job.background);
-    const bool moving = job.settings.texture_layer == TextureLayer::moving;
-    // Only plain synthesis of the whole texture chooses; edits and the moving
-    // layer keep the plate: their background is a scene to draw on.
-    const bool background_to_choose = auto_background && !job.edit && !moving;
+    SynthesisSettings settings = job.settings;
+    const bool flames = out.bank->dynamics == formats::ParticleDynamics::non_stationary;
+    if (job.texture_auto) settings.texture_layer = job.edit && flames ? TextureLayer::moving : TextureLayer::whole;
+    const bool moving = settings.texture_layer == TextureLayer::moving;
+    if (job.coverage_auto) settings.coverage_weight = job.edit && moving ? 2.0 : 0.5;
+    out.texture_layer = settings.texture_layer;
+    out.coverage_weight = settings.coverage_weight;
+    if (job.texture_auto && moving)
+        say(log, "texture: moving (an edit of a non-stationary bank moves only the light the flow adds, at coverage " +
+                     std::string(settings.coverage_weight == 2.0 ? "2" : "as given") + "; --texture whole to move whole patches)");
+    // Whole textures choose (on plain synthesis, for edits too); the moving
+    // layer keeps the plate it was taken from.
+    const bool background_to_choose = auto_background && !moving;
     if (moving && out.background != BackgroundMode::median && out.background != BackgroundMode::none)
         throw UsageError("", "", "--texture moving screens the flames over a still background, and the " + job.background +
                                      " background already " +
@@ -128,7 +137,6 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProg
     std::optional<RgbImage> still_plate;
     if (moving) still_plate = moving_layer_still_plate(*out.clip);
 
-    SynthesisSettings settings = job.settings;
     out.streams = std::make_shared<ParticleStreams>(out.bank, out.input_points, settings, &out.drawing);
     report_window(out.streams->schedule(), log);
     if (background_to_choose) {
@@ -137,15 +145,22 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProg
         footage = ClipFrames();  // not needed while rendering
         out.background = choice.mode;
         out.median_detail = choice.median_detail;
-        char text[240];
+        const bool carry = job.edit && job.carry_replayed_background && out.background == BackgroundMode::replay &&
+                           !settings.carry_background;
+        if (carry) settings.carry_background = true;
+        char text[400];
         std::snprintf(text, sizeof text,
-                      "background: %s (over the median plate the output keeps %.0f %% of the clip's detail within 20 px "
-                      "of the lines%s; --background to choose)",
+                      "background: %s (over the median plate synthesis keeps %.0f %% of the clip's detail within 20 px "
+                      "of the lines%s; --background to choose)%s",
                       to_string(out.background), 100.0 * choice.median_detail,
                       out.background == BackgroundMode::replay ? ", below 80 %: the clip is replayed in step with the particles"
-                                                               : "");
+                                                               : "",
+                      carry ? "; lines moved off the flow carry it from around their input lines "
+                              "(--no-carry-background: not)"
+                            : "");
         say(log, text);
     }
+    out.carry_background = settings.carry_background;
     Background background = moving && out.background == BackgroundMode::median
                                 ? Background::plate(*still_plate)
                                 : make_background(out.background, out.clip, out.streams->schedule(), out.streams->patch_size());

@@ -760,3 +760,28 @@ TEST(FlowEditing, TheMovingLayerMovesTheFlameNotTheEdgeBehindIt) {
     clip->append(RgbImage(120, 120));
     EXPECT_THROW(Synthesizer(streams, {}, Background::looped(clip), settings), std::invalid_argument);
 }
+
+TEST(FlowGeometry, ThePatchSizeFollowsTheGapBetweenDrawnLines) {
+    // Vertical lines `gap` apart, 200 px long: every neighbour pair's mean gap is `gap`.
+    const auto parallel = [](int count, double gap) {
+        std::vector<std::vector<Eigen::Vector2d>> lines;
+        for (int i = 0; i < count; ++i) lines.push_back({{100.0 + gap * i, 0.0}, {100.0 + gap * i, 200.0}});
+        return lines;
+    };
+    const PatchSizeChoice water = patch_size_from_lines(parallel(6, 45.0));
+    EXPECT_EQ(water.neighbour_pairs, 5);
+    EXPECT_NEAR(water.median_gap_px, 45.0, 1e-9);
+    EXPECT_EQ(water.patch_px, 24);  // 22.5 to the nearest multiple of 8
+    EXPECT_EQ(patch_size_from_lines(parallel(6, 100.0)).patch_px, 48);  // 50 -> 48
+    EXPECT_EQ(patch_size_from_lines(parallel(3, 20.0)).patch_px, 16);   // 10 -> 8, at least 16
+    EXPECT_EQ(patch_size_from_lines(parallel(3, 230.0)).patch_px, 96);  // 115 -> 112, at most 96
+    // The median is robust to one far line; a line alone, or lines beyond
+    // max_gap_px, keep the thesis's 24 px.
+    std::vector<std::vector<Eigen::Vector2d>> with_far = parallel(5, 45.0);
+    with_far.push_back({{100.0 + 4 * 45.0 + 200.0, 0.0}, {100.0 + 4 * 45.0 + 200.0, 200.0}});
+    EXPECT_EQ(patch_size_from_lines(with_far).patch_px, 24);
+    const PatchSizeChoice alone = patch_size_from_lines(parallel(1, 0.0));
+    EXPECT_EQ(alone.neighbour_pairs, 0);
+    EXPECT_EQ(alone.patch_px, 24);
+    EXPECT_EQ(patch_size_from_lines(parallel(2, 300.0)).neighbour_pairs, 0);
+}

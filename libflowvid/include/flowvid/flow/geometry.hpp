@@ -92,6 +92,19 @@ struct WideNeighbours {
 std::vector<WideNeighbours> wide_neighbours(const std::vector<std::vector<Eigen::Vector2d>>& lines, double max_gap_px,
                                             double min_gap_px, double max_angle_deg = 45.0);
 
+// The default patch side for a drawing: half the median gap between
+// neighbouring drawn lines (mean gaps of consecutive lines in
+// neighbour_chains within max_gap_px), to the nearest multiple of 8 px, within
+// 16..96; 24 (the thesis's) when no line has a neighbour. Patches scale with
+// how far apart the artist drew the lines: water drawn ~45 px apart gets 24 px
+// (the thesis's), flames drawn ~100 px apart 48 px (the thesis used 100).
+struct PatchSizeChoice {
+    int patch_px = 24;
+    double median_gap_px = 0.0;  // 0 without neighbours
+    int neighbour_pairs = 0;
+};
+PatchSizeChoice patch_size_from_lines(const std::vector<std::vector<Eigen::Vector2d>>& lines, double max_gap_px = 240.0);
+
 // A line of the dense set between two neighbours of a chain.
 struct InterpolatedLine {
     int a = 0;           // index of the first neighbour in the input list

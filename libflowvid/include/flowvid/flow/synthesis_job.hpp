@@ -31,11 +31,26 @@ struct SynthesisJob {
     std::string bank_path;       // particle bank (.exr) written by flowvid track
     std::string clip_path;       // capture folder, video or image pattern; empty: the clip the bank records
     std::string flowlines_path;  // the drawing; empty: the capture's
-    // auto (plain synthesis of whole textures: the median plate unless it
-    // blurs the flow region, then replay; otherwise the median plate),
-    // median, loop, replay, relit or none.
+    // auto (whole textures: the median plate unless, under plain synthesis,
+    // it blurs the flow region; then replay. The moving layer: the median
+    // plate), median, loop, replay, relit or none.
     std::string background = "auto";
     SynthesisSettings settings;  // texture layer, arc mapping, carried background, blending
+    // An edit whose background `auto` chose to replay the clip carries it
+    // under lines moved off the flow (settings.carry_background): a new
+    // channel then shows the moving water around its input line where its
+    // particles leave gaps, not the still scene it was drawn over. false:
+    // settings.carry_background alone decides.
+    bool carry_replayed_background = true;
+    // Chosen from the bank when true (settings.texture_layer and
+    // coverage_weight are then ignored): an edit of a non-stationary bank
+    // (flames, smoke) moves only the light the flow adds (TextureLayer::moving;
+    // whole patches would carry the scene behind the flames along the new
+    // lines), and that light fades out with the patches' feather (coverage
+    // weight 2) instead of standing as opaque discs; everything else renders
+    // whole textures at coverage 0.5.
+    bool texture_auto = false;
+    bool coverage_auto = false;
     bool edit = false;           // render the drawing's output lines instead of its input lines
     bool interpolate = true;     // edit: dense lines between the drawn ones (eq. 3.1); false: drawn lines only
     EditSettings edit_settings;  // its mapping is taken from `settings`
@@ -64,6 +79,9 @@ struct PreparedSynthesis {
     std::optional<CameraMotion> camera;      // when the clip was read
     BackgroundMode background = BackgroundMode::median;
     double median_detail = -1.0;             // auto: detail kept over the median plate (choose_background); -1 otherwise
+    bool carry_background = false;           // what renders (SynthesisSettings::carry_background, after auto)
+    TextureLayer texture_layer = TextureLayer::whole;  // what renders, after auto
+    double coverage_weight = 0.5;                      // what renders, after auto
     std::optional<EditPlan> plan;            // edit with interpolation
     std::vector<OutputLine> outputs;         // edit: what renders (dense or drawn lines)
     std::unique_ptr<Synthesizer> synthesizer;
