@@ -102,7 +102,9 @@ TEST(CliFlow, TracksAParticleBankThatValidates) {
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const nlohmann::json report = nlohmann::json::parse(r.out);
     EXPECT_GT(report["particles"].get<int>(), 10);
-    EXPECT_EQ(report["patch_size_px"], 24);
+    // The patch side from the drawing: lines 8 px apart give half of 8, at least 16.
+    EXPECT_EQ(report["patch_size_px"], 16);
+    EXPECT_TRUE(mentions(r.err, "patch: 16 px (half the median gap of 8 px")) << r.err;
     ASSERT_EQ(report["drawn_lines"].size(), 2u);
     EXPECT_NEAR(report["drawn_lines"][0]["mean_speed_px_per_frame"].get<double>(), 3.0, 0.3);
     EXPECT_TRUE(mentions(r.err, R"("event":"progress")")) << r.err;
