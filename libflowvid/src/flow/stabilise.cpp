@@ -165,6 +165,22 @@ RgbImage StabilisedFrames::frame(int index) {
     // WARP_INVERSE_MAP: out(x) = in(A x + t), the first frame's pixel x as this frame saw it.
     cv::warpAffine(in, warped, map, warped.size(), cv::INTER_LANCZOS4 | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
     for (float& v : out.rgb) v = std::clamp(v, 0.0f, 1.0f);  // Lanczos rings a little past the range
+    // What this frame did not see (the camera had moved on) is shown as the
+    // first frame saw it, fading in over a pixel: the repeated border column
+    // read as a streaked strip along the edge of every replayed frame.
+    const cv::Mat ones(seen.height, seen.width, CV_32F, cv::Scalar(1.0f));
+    cv::Mat seen_weight;
+    cv::warpAffine(ones, seen_weight, map, ones.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT,
+                   cv::Scalar(0.0f));
+    for (int y = 0; y < out.height; ++y)
+        for (int x = 0; x < out.width; ++x) {
+            const float w = std::clamp(seen_weight.at<float>(y, x), 0.0f, 1.0f);
+            if (w >= 1.0f) continue;
+            if (!m_first) m_first = m_source.frame(0);  // the first frame's own view: the camera's reference
+            float* o = out.pixel(x, y);
+            const float* f = m_first->pixel(x, y);
+            for (int c = 0; c < 3; ++c) o[c] = w * o[c] + (1.0f - w) * f[c];
+        }
     return out;
 }
 

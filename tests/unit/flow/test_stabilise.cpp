@@ -72,7 +72,7 @@ TEST(CameraDrift, FindsASubPixelDriftAroundTheFlowAndUndoesIt) {
     EXPECT_NEAR(motion.largest_offset_px, shifts.back().norm(), 0.1);
 
     // Stabilised, the last frame shows the first frame's scene away from the
-    // flow and the borders (what the camera did not see repeats its border).
+    // flow and the borders.
     StabilisedFrames stabilised(clip, motion);
     const RgbImage first = frames.front(), last = stabilised.frame(11);
     double sum = 0.0, drifting = 0.0;
@@ -86,6 +86,19 @@ TEST(CameraDrift, FindsASubPixelDriftAroundTheFlowAndUndoesIt) {
         }
     EXPECT_LT(std::sqrt(sum / n), 0.004);      // about 1/250 of the range: resampling only
     EXPECT_GT(std::sqrt(drifting / n), 0.05);  // and the drift was plain to see
+
+    // The last frame saw the first frame's pixels from x + 4.95: its right-most
+    // 4 columns it did not see at all. They show the first frame there, not the
+    // frame's own border column repeated (which differs from it).
+    double unseen_error = 0.0, repeated_border = 0.0;
+    for (int y = 20; y < kHeight - 20; ++y)
+        for (int x = kWidth - 4; x < kWidth; ++x) {
+            unseen_error = std::max(unseen_error, static_cast<double>(std::fabs(last.pixel(x, y)[0] - first.pixel(x, y)[0])));
+            repeated_border = std::max(repeated_border, static_cast<double>(std::fabs(
+                                                            frames.back().pixel(kWidth - 1, y)[0] - first.pixel(x, y)[0])));
+        }
+    EXPECT_LT(unseen_error, 1e-6);
+    EXPECT_GT(repeated_border, 0.05);
 }
 
 TEST(CameraDrift, AStillCameraWithFlickeringFlowLeavesTheFramesUnchanged) {

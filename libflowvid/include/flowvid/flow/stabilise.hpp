@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -62,8 +63,8 @@ CameraMotion estimate_camera_motion(FrameSequence& frames, const std::vector<std
 // The frames of `source` seen from the first frame's camera: each frame is
 // resampled (Lanczos, 8 x 8 taps: bilinear would halve the fine detail of
 // water) where the first frame's pixels lie in it; pixels the frame did not
-// see repeat its border. Frames of a still camera are passed through
-// unchanged. `source` must outlive this.
+// see show the first frame's (fading in over a pixel). Frames of a still
+// camera are passed through unchanged. `source` must outlive this.
 class StabilisedFrames : public FrameSequence {
 public:
     StabilisedFrames(FrameSequence& source, CameraMotion motion);
@@ -78,6 +79,7 @@ public:
 private:
     FrameSequence& m_source;
     CameraMotion m_motion;
+    std::optional<RgbImage> m_first;  // read when a frame first needs it
 };
 
 // The drawing's input lines as polylines: what the drift estimate leaves out.
