@@ -115,11 +115,11 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
     summary.update(window_summary(schedule));
     summary["lines"] = schedule.lines.size();
     summary["background"] = flow::to_string(prepared.background);
-    summary["texture"] = flow::to_string(prepared.texture_layer);
-    summary["coverage"] = prepared.coverage_weight;
+    summary["texture"] = flow::to_string(prepared.settings.texture_layer);
+    summary["coverage"] = prepared.settings.coverage_weight;
     if (edit) {
         summary["mapping"] = options.edit.mapping;
-        summary["carry_background"] = prepared.carry_background;
+        summary["carry_background"] = prepared.settings.carry_background;
     }
     if (options.json) std::cout << summary.dump(2) << '\n';
     else std::cout << human_readable(summary);

@@ -1,6 +1,7 @@
 #include "flowvid/flow/geometry.hpp"
 
 #include "flowvid/error.hpp"
+#include "series_statistics.hpp"
 
 #include <algorithm>
 #include <limits>
@@ -256,9 +257,7 @@ PatchSizeChoice patch_size_from_lines(const std::vector<std::vector<Eigen::Vecto
     for (const WideNeighbours& pair : wide_neighbours(lines, max_gap_px, 0.0)) gaps.push_back(pair.mean_gap_px);
     choice.neighbour_pairs = static_cast<int>(gaps.size());
     if (gaps.empty()) return choice;
-    std::sort(gaps.begin(), gaps.end());
-    const std::size_t n = gaps.size();
-    choice.median_gap_px = n % 2 ? gaps[n / 2] : 0.5 * (gaps[n / 2 - 1] + gaps[n / 2]);
+    choice.median_gap_px = detail::percentile(gaps, 0.5);
     choice.patch_px = std::clamp(8 * static_cast<int>(std::lround(choice.median_gap_px / 2.0 / 8.0)), 16, 96);
     return choice;
 }

@@ -2,6 +2,8 @@
 
 #include "flowvid/flow/geometry.hpp"
 
+#include "series_statistics.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -10,6 +12,9 @@
 #include <stdexcept>
 
 namespace flowvid::flow {
+
+using detail::mean_of;
+using detail::percentile;
 
 std::vector<std::uint8_t> line_band_mask(const std::vector<std::vector<Eigen::Vector2d>>& lines, int width, int height,
                                          double half_width_px) {
@@ -54,15 +59,6 @@ SequenceStats sequence_stats(const std::vector<std::vector<float>>& frames, int 
 
 namespace {
 
-double percentile(std::vector<double> values, double p) {
-    if (values.empty()) return 0.0;
-    std::sort(values.begin(), values.end());
-    const double r = p * (values.size() - 1);
-    const std::size_t i = static_cast<std::size_t>(r);
-    const std::size_t j = std::min(i + 1, values.size() - 1);
-    return values[i] + (r - i) * (values[j] - values[i]);
-}
-
 double coefficient_of_variation(const std::vector<double>& values) {
     if (values.size() < 2) return 0.0;
     const double mean = std::accumulate(values.begin(), values.end(), 0.0) / values.size();
@@ -72,9 +68,6 @@ double coefficient_of_variation(const std::vector<double>& values) {
     return mean > 0.0 ? std::sqrt(var) / mean : 0.0;
 }
 
-double mean(const std::vector<double>& values) {
-    return values.empty() ? 0.0 : std::accumulate(values.begin(), values.end(), 0.0) / values.size();
-}
 
 // Mean RMS distance from query patches of `queries_from` to their nearest
 // patch in `search_in`, at offsets within the radius, skipping frames closer
@@ -152,8 +145,8 @@ QualityReport quality_from_stats(const SequenceStats& clip, const SequenceStats&
     if (clip_median > 0.0) r.motion_ratio = out_median / clip_median;
     r.pulsing = coefficient_of_variation(out.hf_energy);
     r.clip_pulsing = coefficient_of_variation(clip.hf_energy);
-    const double clip_hf = mean(clip.hf_energy);
-    r.hf_power_ratio = clip_hf > 0.0 ? mean(out.hf_energy) / clip_hf : 0.0;
+    const double clip_hf = mean_of(clip.hf_energy);
+    r.hf_power_ratio = clip_hf > 0.0 ? mean_of(out.hf_energy) / clip_hf : 0.0;
     r.patch_distance = nearest_patch_distance(output_luma, clip_luma, false, width, height, mask, settings, settings.seed);
     r.clip_self_distance = nearest_patch_distance(clip_luma, clip_luma, true, width, height, mask, settings, settings.seed + 1);
     return r;
@@ -179,11 +172,8 @@ double detail_kept(const Synthesizer& synth, const ClipFrames& footage, const st
         output_luma.push_back(luma(to_display(synth.render(1 + k * period / std::max(1, sample_frames)))));
     const std::vector<double> clip_hf = sequence_stats(clip_luma, width, height, region).hf_energy;
     const std::vector<double> output_hf = sequence_stats(output_luma, width, height, region).hf_energy;
-    const auto mean = [](const std::vector<double>& v) {
-        return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
-    };
-    const double clip_mean = mean(clip_hf);
-    return clip_mean > 0.0 ? mean(output_hf) / clip_mean : 1.0;
+    const double clip_mean = mean_of(clip_hf);
+    return clip_mean > 0.0 ? mean_of(output_hf) / clip_mean : 1.0;
 }
 
 BackgroundChoice choose_background(const std::shared_ptr<const ParticleStreams>& streams,

@@ -4,6 +4,8 @@
 
 #include "flowvid/flow/quality.hpp"
 
+#include "series_statistics.hpp"
+
 #include <Eigen/Dense>
 
 #include <algorithm>
@@ -15,26 +17,19 @@
 
 namespace flowvid::flow {
 
+using detail::mean_of;
+using detail::percentile;
+
 namespace {
 
-double mean_of(const std::vector<double>& v) {
-    return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
-}
-
+// Population standard deviation over the mean, as numpy's std (the scoring
+// tool's); quality.cpp's coefficient_of_variation divides by n - 1.
 double cv_of(const std::vector<double>& v) {
     const double m = mean_of(v);
     if (v.size() < 2 || m <= 0.0) return 0.0;
     double s = 0.0;
     for (double x : v) s += (x - m) * (x - m);
     return std::sqrt(s / static_cast<double>(v.size())) / m;
-}
-
-double quantile(std::vector<double> v, double q) {
-    if (v.empty()) return 0.0;
-    std::sort(v.begin(), v.end());
-    const double r = q * static_cast<double>(v.size() - 1);
-    const std::size_t lo = static_cast<std::size_t>(std::floor(r)), hi = std::min(v.size() - 1, lo + 1);
-    return v[lo] + (r - static_cast<double>(lo)) * (v[hi] - v[lo]);
 }
 
 // Mean |g(t+1) - g(t)| over the whole frame, grey levels.
@@ -251,9 +246,9 @@ RegionMeter::RegionMeter(const std::vector<std::vector<float>>& clip_luma, int w
     Clip& c = *m_clip;
     if (clip_luma.size() < 2) throw std::invalid_argument("the clip needs at least two frames to be measured against");
     c.transitions = frame_transitions(clip_luma);
-    c.p99 = quantile(c.transitions, 0.99);
+    c.p99 = percentile(c.transitions, 0.99);
     for (const auto& g : clip_luma) c.energy.push_back(laplacian_variance(g, width, height, c.region));
-    c.motion = quantile(region_transitions(clip_luma, {c.region}), 0.5);
+    c.motion = percentile(region_transitions(clip_luma, {c.region}), 0.5);
     const std::vector<int> search_frames = spread(static_cast<int>(clip_luma.size()), s.max_search_frames);
     c.patches = std::make_unique<PatchDatabase>(clip_luma, search_frames, width, height, c.region, s);
     // Leave-one-frame-out queries come from searched frames, so that leaving one out means something.
@@ -296,7 +291,7 @@ RegionQuality RegionMeter::measure(const std::vector<std::vector<float>>& output
     q.pulse_peak = periodic_peak_share(out_e);
     q.clip_pulse_peak = periodic_peak_share(c.energy);
     q.detail = mean_of(c.energy) > 0.0 ? mean_of(out_e) / mean_of(c.energy) : 0.0;
-    q.motion = c.motion > 0.0 ? quantile(region_transitions(output_luma, output_regions), 0.5) / c.motion : 0.0;
+    q.motion = c.motion > 0.0 ? percentile(region_transitions(output_luma, output_regions), 0.5) / c.motion : 0.0;
 
     q.clip_patch_rms = c.loo_patch_rms;
     q.patch_rms = mean_patch_distance(*c.patches, output_luma, spread(static_cast<int>(output_luma.size()), c.settings.query_frames),

@@ -53,8 +53,8 @@ void report_window(const Schedule& schedule, const SynthesisLog& log) {
 }  // namespace
 
 std::vector<std::vector<Eigen::Vector2d>> PreparedSynthesis::drawn_lines_at(int frame) const {
-    std::vector<std::vector<Eigen::Vector2d>> lines;
     if (outputs.empty()) return drawn_input_polylines(drawing);
+    std::vector<std::vector<Eigen::Vector2d>> lines;
     for (const formats::FlowLine& line : drawing.outputs) lines.push_back(formats::points_at_frame(line, frame));
     return lines;
 }
@@ -74,8 +74,6 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProg
     if (job.texture_auto) settings.texture_layer = job.edit && flames ? TextureLayer::moving : TextureLayer::whole;
     const bool moving = settings.texture_layer == TextureLayer::moving;
     if (job.coverage_auto) settings.coverage_weight = job.edit && moving ? 2.0 : 0.5;
-    out.texture_layer = settings.texture_layer;
-    out.coverage_weight = settings.coverage_weight;
     if (job.texture_auto && moving)
         say(log, "texture: moving (an edit of a non-stationary bank moves only the light the flow adds, at coverage " +
                      std::string(settings.coverage_weight == 2.0 ? "2" : "as given") + "; --texture whole to move whole patches)");
@@ -160,7 +158,6 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProg
                             : "");
         say(log, text);
     }
-    out.carry_background = settings.carry_background;
     Background background = moving && out.background == BackgroundMode::median
                                 ? Background::plate(*still_plate)
                                 : make_background(out.background, out.clip, out.streams->schedule(), out.streams->patch_size());
@@ -183,6 +180,7 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProg
     // so that both layers of one bank keep one timing and one assignment.
     if (moving) keep_moving_part(*out.bank, out.input_points, *still_plate);
     out.synthesizer = std::make_unique<Synthesizer>(out.streams, out.outputs, std::move(background), settings);
+    out.settings = settings;
     const std::vector<std::string>& scheduled = out.streams->schedule().warnings;
     for (const std::string& w : out.synthesizer->warnings())
         if (std::find(scheduled.begin(), scheduled.end(), w) == scheduled.end()) say(log, "warning: " + w);

@@ -79,9 +79,7 @@ struct PreparedSynthesis {
     std::optional<CameraMotion> camera;      // when the clip was read
     BackgroundMode background = BackgroundMode::median;
     double median_detail = -1.0;             // auto: detail kept over the median plate (choose_background); -1 otherwise
-    bool carry_background = false;           // what renders (SynthesisSettings::carry_background, after auto)
-    TextureLayer texture_layer = TextureLayer::whole;  // what renders, after auto
-    double coverage_weight = 0.5;                      // what renders, after auto
+    SynthesisSettings settings;              // what renders: the job's, with texture, coverage and carrying decided
     std::optional<EditPlan> plan;            // edit with interpolation
     std::vector<OutputLine> outputs;         // edit: what renders (dense or drawn lines)
     std::unique_ptr<Synthesizer> synthesizer;
