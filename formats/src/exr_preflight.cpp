@@ -102,7 +102,7 @@ std::uint64_t saturating_product(std::initializer_list<std::uint64_t> factors) {
     return product;
 }
 
-// Pixels along one axis that OpenEXR decodes: whole tiles for a tiled part.
+// Pixels along one axis that OpenEXR decodes: whole tiles, or whole chunks of scan lines.
 std::uint64_t padded_extent(std::int64_t pixels, std::int64_t tile) {
     const auto n = static_cast<std::uint64_t>(pixels);
     if (tile <= 0) return n;
@@ -114,6 +114,11 @@ std::uint64_t padded_extent(std::int64_t pixels, std::int64_t tile) {
 std::string window_field(const ExrPeek& peek, const ExrPartPeek& part) {
     if (!peek.multi_part) return "data window";
     return "part \"" + part.name + "\" dataWindow";
+}
+
+// Rows OpenEXR decodes at once: a tile's height, or a scan-line chunk's lines.
+std::int64_t decoded_rows_at_once(const ExrPartPeek& part) {
+    return part.tile_width > 0 ? part.tile_height : part.scan_lines_per_chunk;
 }
 
 }  // namespace
@@ -152,6 +157,7 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
         ExrPartPeek part;
         bool has_window = false;
         int compression = 0;
+        std::int64_t most_lines_per_chunk = 1;  // over every "compression" attribute, should there be several
         bool tiled_part = (version & kTiledFlag) != 0;
         std::int64_t declared_chunks = -1;
         for (;;) {
@@ -203,6 +209,7 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
                 part.tile_height = static_cast<std::uint32_t>(i32(4));
             } else if (name == "compression" && size == 1) {
                 compression = v[0];
+                most_lines_per_chunk = std::max(most_lines_per_chunk, lines_per_chunk(compression));
             } else if (name == "channels" && type == "chlist") {
                 part.bytes_per_pixel = chlist_bytes;  // >= 0: checked above with every chlist
             } else if (name == "name" && type == "string") {
@@ -232,6 +239,7 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
             const std::int64_t lines = lines_per_chunk(compression);
             if (lines < 0) return fail(which + "unknown compression code " + std::to_string(compression), truncated_fix);
             part.chunk_count = (part.height + lines - 1) / lines;
+            part.scan_lines_per_chunk = std::max(lines, most_lines_per_chunk);
         }
         if (declared_chunks >= 0 && declared_chunks != part.chunk_count && !tiled_part)
             return fail(which + "chunkCount " + std::to_string(declared_chunks) + " does not match the data window (" +
@@ -244,7 +252,9 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
     // Each chunk has an 8-byte offset in the file, and compression cannot pack
     // real pixels tighter than max_compression_ratio. OpenEXR decodes a tiled
     // part a whole tile at a time, so tiles larger than the data window count at
-    // their full size (a 4 x 2 image in 4 x 40M tiles made it reserve 1.9 GB).
+    // their full size (a 4 x 2 image in 4 x 40M tiles made it reserve 1.9 GB),
+    // and a scan-line part whole chunks of lines (a ZIP image one line high but
+    // 7.5M pixels wide made its decompressor reserve 16 lines: 1.4 GB).
     std::uint64_t chunks = 0;
     std::uint64_t raw_bytes = 0;
     std::uint64_t largest_part_bytes = 0;
@@ -252,7 +262,7 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
     for (const ExrPartPeek& part : peek.parts) {
         chunks += static_cast<std::uint64_t>(part.chunk_count);
         const std::uint64_t bytes = saturating_product({padded_extent(part.width, part.tile_width),
-                                                        padded_extent(part.height, part.tile_height),
+                                                        padded_extent(part.height, decoded_rows_at_once(part)),
                                                         static_cast<std::uint64_t>(part.bytes_per_pixel)});
         raw_bytes = std::min(raw_bytes + bytes, kSaturated);
         if (bytes > largest_part_bytes) {
@@ -264,11 +274,15 @@ std::optional<ExrPeek> preflight_exr(const std::string& head, std::uint64_t file
         return fail(std::to_string(chunks) + " chunks cannot fit in a file of " + std::to_string(file_size) + " bytes",
                     truncated_fix);
     if (!peek.deep && raw_bytes > (std::uint64_t(1) << 20) && raw_bytes / max_compression_ratio > file_size) {
-        const bool tiles_pad = padded_extent(largest->width, largest->tile_width) != std::uint64_t(largest->width) ||
-                               padded_extent(largest->height, largest->tile_height) != std::uint64_t(largest->height);
-        const std::string tiles = tiles_pad ? " (its " + std::to_string(largest->tile_width) + " x " +
-                                                  std::to_string(largest->tile_height) + "-pixel tiles are decoded whole)"
-                                            : "";
+        const bool pads = padded_extent(largest->width, largest->tile_width) != std::uint64_t(largest->width) ||
+                          padded_extent(largest->height, decoded_rows_at_once(*largest)) != std::uint64_t(largest->height);
+        std::string tiles;
+        if (pads && largest->tile_width > 0)
+            tiles = " (its " + std::to_string(largest->tile_width) + " x " + std::to_string(largest->tile_height) +
+                    "-pixel tiles are decoded whole)";
+        else if (pads)
+            tiles = " (its " + std::to_string(largest->height) + "-line image is decoded " +
+                    std::to_string(largest->scan_lines_per_chunk) + " lines at a time)";
         diagnostics.error(window_field(peek, *largest),
                           "the header declares " + std::to_string(raw_bytes) + " bytes of decoded data" + tiles +
                               ", more than a " + std::to_string(file_size) + "-byte file can hold",

@@ -20,6 +20,9 @@ struct ExrPartPeek {
     std::int64_t height = 0;
     std::int64_t tile_width = 0;   // 0 for scan-line parts
     std::int64_t tile_height = 0;
+    // Scan-line parts: lines OpenEXR decodes at once (by compression; the
+    // most any "compression" attribute of the header asks for); 0 for tiles.
+    std::int64_t scan_lines_per_chunk = 0;
     std::int64_t bytes_per_pixel = 0;  // sum over channels (full resolution)
     std::int64_t chunk_count = 0;      // offset-table entries OpenEXR will read
 };

@@ -82,6 +82,21 @@ TEST(ExrPreflight, TilesLargerThanTheImageCountAtTheirDecodedSize) {
     EXPECT_FLOAT_EQ(tiled.positions_m.back().z(), 0.5f);
 }
 
+TEST(ExrPreflight, ScanLineChunksCountAtTheirDecodedSize) {
+    // 337 bytes: a float RGB image one line high and 100 000 pixels wide,
+    // ZIP-compressed. OpenEXR decodes ZIP 16 lines at a time, so the line
+    // counts as 16: 19.2 MB, more than 4096 x 337 bytes. Counted as one line
+    // (1.2 MB) it passed; the fuzzer's 7.5M-pixel line made it reserve 1.4 GB.
+    const std::string path = test_data("formats/exr/wide_zip_line.vertex_animation.exr");
+    const long before = peak_rss_kb();
+    const std::string text = joined(validate_vertex_animation_file(path, Strictness::strict));
+    EXPECT_NE(text.find(path + ": data window: the header declares " + std::to_string(16ull * 100'000 * 12) +
+                        " bytes of decoded data (its 1-line image is decoded 16 lines at a time), more than a 337-byte file"),
+              std::string::npos)
+        << text;
+    EXPECT_LT(peak_rss_kb() - before, 64 * 1024) << "the reader allocated more than 64 MB for a 337-byte file";
+}
+
 TEST(ExrPreflight, ValidFilesPass) {
     EXPECT_TRUE(validate_particle_bank_file(source_path("formats/examples/example.bank.exr"), Strictness::strict).empty());
     EXPECT_TRUE(validate_vertex_animation_file(source_path("formats/examples/example.vertex_animation.exr"), Strictness::strict)
