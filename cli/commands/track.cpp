@@ -4,6 +4,7 @@
 #include "command.hpp"
 #include "output.hpp"
 
+#include "flowvid/flow/auto_lines.hpp"
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/geometry.hpp"
 #include "flowvid/flow/stabilise.hpp"
@@ -27,13 +28,14 @@ struct TrackOptions {
     std::string flowlines;
     std::string out;
     std::string dense_out;
+    std::string auto_lines;  // propose input lines from the clip's optical flow, write them here (SVG), track along them
     double fps = 0.0;
     int frames = 0;
     int patch = 0;  // 0: from the drawn lines' spacing
     std::string dynamics = "stationary";
     int start_every = 0;
     int max_path_frames = 0;
-    double densify_px = 0.0;
+    double densify_px = -1.0;  // -1: twice the patch (only gaps synthesis would leave open get lines)
     double max_gap_px = 0.0;
     double max_speed_px = 40.0;
     double search_radius_px = 6.0;
@@ -45,23 +47,131 @@ struct TrackOptions {
 };
 
 int track_with(const TrackOptions& options, const GlobalOptions& global, const formats::Capture& capture,
-               const std::string& lines_path, const formats::FlowLineSet& drawing, flow::CaptureFrames& frames);
+               const std::string& lines_path, const formats::FlowLineSet& drawing, flow::CaptureFrames& frames,
+               const nlohmann::json& auto_summary);
+
+// --auto-lines: input lines proposed from the clip's mean optical flow
+// (flow/auto_lines.hpp), in the first frame's view when the camera drifts,
+// written as an SVG over the first frame for the artist to correct. With a
+// drawing as well, says how far the two are apart (px, both ways).
+int propose_lines(const TrackOptions& options, const GlobalOptions& global, const formats::Capture& capture,
+                  const formats::FlowLineSet* drawn, formats::FlowLineSet& proposed, nlohmann::json& summary) {
+    InterruptWatch interrupt;
+    flow::CaptureFrames frames(capture, options.frames);
+    // Twice when the camera drifts: the drift is measured away from the
+    // flow (the frame's flowing part would pull the estimate along with it),
+    // so first the lines of the frames as filmed show where the flow is; then
+    // the lines are proposed again in the first frame's view, where the bank
+    // is tracked.
+    const auto propose = [&](flow::FrameSequence& source, const std::string& stage, flow::AutoLines& out) {
+        Progress progress(global, stage);
+        try {
+            out = flow::propose_input_lines(source, {}, [&](double f) {
+                progress.update(f);
+                return !interrupt.requested();
+            });
+        } catch (const flow::AutoLinesCancelled&) {
+            log_message("interrupted: no lines written");
+            return kExitInterrupted;
+        } catch (const std::invalid_argument& e) {
+            log_message("error: " + frames.source() + ": " + e.what());
+            return kExitInvalidInput;
+        }
+        progress.done();
+        return kExitOk;
+    };
+    flow::AutoLines lines;
+    if (const int status = propose(frames, "optical flow", lines); status != kExitOk) return status;
+    flow::CameraMotion camera;
+    {
+        Progress measuring(global, "camera drift");
+        flow::CaptureFrames again(capture, options.frames);
+        camera = flow::estimate_camera_motion(again, flow::drawn_input_polylines(lines.drawing), {}, [&](double f) {
+            measuring.update(f);
+            return !interrupt.requested();
+        });
+        measuring.done();
+    }
+    if (interrupt.requested()) {
+        log_message("interrupted: no lines written");
+        return kExitInterrupted;
+    }
+    if (!camera.still()) {
+        flow::CaptureFrames again(capture, options.frames);
+        flow::StabilisedFrames stabilised(again, camera);
+        if (const int status = propose(stabilised, "optical flow, steadied", lines); status != kExitOk) return status;
+    }
+    if (lines.drawing.inputs.empty()) {
+        log_message("error: " + frames.source() +
+                    ": no flow found to propose lines along (nothing moves consistently faster than " +
+                    std::to_string(lines.min_speed_px_per_frame) +
+                    " px/frame; fix: draw the lines and give --flowlines, or use more --frames)");
+        return kExitFailure;
+    }
+    // The first frame beside the SVG, which shows it under the lines.
+    const std::filesystem::path svg(options.auto_lines);
+    const std::filesystem::path frame_png = svg.parent_path() / (svg.stem().string() + ".frame1.png");
+    flow::CaptureFrames first(capture, 1);
+    flow::write_image(frame_png.string(), flow::to_linear(first.frame(0)));
+    formats::write_flowlines_svg(options.auto_lines, lines.drawing, frame_png.filename().string());
+    char text[400];
+    std::snprintf(text, sizeof text,
+                  "auto lines: %zu proposed from the clip's optical flow (%d frame pairs; %.0f %% of the frame flows, "
+                  "median %.2f px/frame; lines %.0f px apart) -> %s, over its first frame %s: correct them there; "
+                  "track, synth and edit take the file with --flowlines",
+                  lines.drawing.inputs.size(), lines.frame_pairs, 100.0 * lines.flow_area_share,
+                  lines.median_speed_px_per_frame, lines.spacing_px, options.auto_lines.c_str(), frame_png.filename().c_str());
+    log_message(text);
+    summary = {{"file", options.auto_lines},
+               {"lines", lines.drawing.inputs.size()},
+               {"spacing_px", lines.spacing_px},
+               {"min_speed_px_per_frame", lines.min_speed_px_per_frame},
+               {"median_speed_px_per_frame", lines.median_speed_px_per_frame},
+               {"flow_area_share", lines.flow_area_share}};
+    if (drawn && !drawn->inputs.empty()) {
+        const auto drawn_lines = flow::drawn_input_polylines(*drawn);
+        const auto auto_polylines = flow::drawn_input_polylines(lines.drawing);
+        const double to_drawn = flow::mean_distance_to_lines(auto_polylines, drawn_lines);
+        const double from_drawn = flow::mean_distance_to_lines(drawn_lines, auto_polylines);
+        std::snprintf(text, sizeof text,
+                      "auto lines against the drawn ones: %.1f px from auto to drawn, %.1f px from drawn to auto (mean)",
+                      to_drawn, from_drawn);
+        log_message(text);
+        summary["mean_distance_to_drawn_px"] = to_drawn;
+        summary["mean_distance_from_drawn_px"] = from_drawn;
+    }
+    proposed = lines.drawing;
+    return kExitOk;
+}
 
 int run_track(const TrackOptions& options, const GlobalOptions& global) {
     prepare_output_folder(options.out);
     if (!options.dense_out.empty()) prepare_output_folder(options.dense_out);
+    if (!options.auto_lines.empty()) prepare_output_folder(options.auto_lines);
     const formats::Capture capture = flow::open_clip(options.capture, options.fps);
     std::string lines_path = options.flowlines;
-    if (lines_path.empty()) {
-        if (capture.flowlines.empty()) {
-            log_message("error: " + options.capture + ": no flow lines; give --flowlines FILE (SVG or *.flowlines.json)");
-            return kExitUsage;
-        }
-        lines_path = capture.resolve(capture.flowlines);
+    if (lines_path.empty() && !capture.flowlines.empty()) lines_path = capture.resolve(capture.flowlines);
+    if (lines_path.empty() && options.auto_lines.empty()) {
+        log_message("error: " + options.capture +
+                    ": no flow lines; give --flowlines FILE (SVG or *.flowlines.json), or --auto-lines FILE.svg to "
+                    "propose them from the clip's motion");
+        return kExitUsage;
     }
-    std::vector<Problem> warnings;
-    const formats::FlowLineSet drawing = formats::read_flowline_drawing(lines_path, &warnings);
-    print_problems(warnings);
+    std::optional<formats::FlowLineSet> drawn;
+    if (!lines_path.empty()) {
+        std::vector<Problem> warnings;
+        drawn = formats::read_flowline_drawing(lines_path, &warnings);
+        print_problems(warnings);
+    }
+    formats::FlowLineSet drawing;
+    nlohmann::json auto_summary;
+    if (!options.auto_lines.empty()) {
+        const int status = propose_lines(options, global, capture, drawn ? &*drawn : nullptr, drawing, auto_summary);
+        if (status != kExitOk) return status;
+        lines_path = options.auto_lines;
+    } else {
+        drawing = *drawn;
+    }
 
     flow::CaptureFrames frames(capture, options.frames);
     if (drawing.width != frames.width() || drawing.height != frames.height())
@@ -82,11 +192,18 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
             std::snprintf(text, sizeof text, "patch: %d px (no drawn line has a neighbour; --patch to choose)", choice.patch_px);
         log_message(text);
     }
-    return track_with(chosen, global, capture, lines_path, drawing, frames);
+    if (chosen.densify_px < 0.0) {
+        chosen.densify_px = 2.0 * chosen.patch;
+        log_message("densify: " + std::to_string(static_cast<int>(chosen.densify_px)) +
+                    " px (lines added only between neighbours more than 2 patches apart, where synthesis would show "
+                    "the background; --densify 0 for the lines as drawn)");
+    }
+    return track_with(chosen, global, capture, lines_path, drawing, frames, auto_summary);
 }
 
 int track_with(const TrackOptions& options, const GlobalOptions& global, const formats::Capture& capture,
-               const std::string& lines_path, const formats::FlowLineSet& drawing, flow::CaptureFrames& frames) {
+               const std::string& lines_path, const formats::FlowLineSet& drawing, flow::CaptureFrames& frames,
+               const nlohmann::json& auto_summary) {
     flow::TrackingSettings settings;
     settings.patch_size_px = options.patch;
     settings.dynamics = options.dynamics == "stationary" ? formats::ParticleDynamics::stationary
@@ -114,8 +231,8 @@ int track_with(const TrackOptions& options, const GlobalOptions& global, const f
                         std::to_string(2 * options.patch) + " px) apart (widest: " +
                         lines[static_cast<std::size_t>(wide.front().a)].id + " and " +
                         lines[static_cast<std::size_t>(wide.front().b)].id + ", " + widest +
-                        "): synthesis shows the background between them; draw lines closer, add --densify " +
-                        std::to_string(options.patch / 2) + " (half a patch), or use a larger --patch");
+                        "): synthesis shows the background between them; draw lines closer, leave --densify automatic, "
+                        "or use a larger --patch");
         }
     }
 
@@ -172,6 +289,8 @@ int track_with(const TrackOptions& options, const GlobalOptions& global, const f
                           {"segments", p.segments},
                           {"untracked_segments", p.untracked}});
     summary["camera"] = {{"model", flow::to_string(camera.model)}, {"largest_drift_px", camera.largest_offset_px}};
+    summary["densify_px"] = options.densify_px;
+    if (!auto_summary.is_null()) summary["auto_lines"] = auto_summary;
     summary["drawn_lines"] = probes;
     nlohmann::json tracked = nlohmann::json::array();
     for (const flow::LineTrackingStats& s : result.report.lines)
@@ -249,10 +368,16 @@ const RegisterCommand registration{Command{
             "crosses within the clip (rocks a line runs over) are left out and listed. Only particles\n"
             "that complete their path are kept. --densify adds lines between neighbouring drawn lines\n"
             "(ids like in-1~in-2@0.500); synth and edit rebuild all of these from the same drawing.\n"
+            "By default it adds them only where neighbours are more than 2 patches apart (synthesis covers\n"
+            "about a patch around each line, so wider gaps would show the background).\n"
             "The patch side defaults to half the median gap between neighbouring drawn lines (to the\n"
             "nearest 8 px, 16..96): water drawn ~45 px apart gets 24 px, flames drawn ~100 px apart 48 px;\n"
-            "the log says what was chosen. Synthesis covers about a patch around each line: track warns\n"
-            "when neighbouring lines are more than 2 patches apart (--densify fills the gap).\n"
+            "the log says what was chosen.\n"
+            "No lines drawn yet? --auto-lines FILE.svg proposes them from the clip's dense optical flow\n"
+            "(evenly spaced streamlines of its mean motion, fastest flow first), writes them as an SVG over\n"
+            "the clip's first frame for you to correct (Inkscape: edit the paths in group \"input\"), and\n"
+            "tracks along them; give the corrected file back with --flowlines. With a drawing too, the log\n"
+            "says how far the proposal lies from it.\n"
             "A camera that drifts is measured first (on the background, away from the lines) and the clip\n"
             "is tracked in its first frame's view, where the lines are drawn; synth, edit and quality do the\n"
             "same, so the output is a still camera. A still camera, or one whose background changes too much\n"
@@ -264,9 +389,14 @@ const RegisterCommand registration{Command{
             "Examples:\n"
             "  flowvid track --capture ../shared/captures/video-waterfall-cascade --out waterfall.bank.exr\n"
             "  flowvid track --capture clip.mp4 --flowlines lines.svg --patch 16 --densify 12 --out bank.exr\n"
+            "  flowvid track --capture stream.mp4 --auto-lines stream.lines.svg --out stream.bank.exr\n"
             "  flowvid track --capture fire/ --dynamics non-stationary --out fire.bank.exr --json");
         app.add_option("--capture,--clip", options->capture, "capture folder, video file or image pattern")->required();
         app.add_option("--flowlines", options->flowlines, "input flow lines (SVG or *.flowlines.json); default: the capture's");
+        app.add_option("--auto-lines", options->auto_lines,
+                       "propose input lines from the clip's optical flow, write them to this SVG (over the first "
+                       "frame, to correct) and track along them")
+            ->check(file_name_ending({".svg"}, "flow lines as SVG", "proposed.lines.svg"));
         app.add_option("--out", options->out, "bank to write (.exr)")
             ->required()
             ->check(file_name_ending({".exr"}, "a particle bank (an OpenEXR file)", "waterfall.bank.exr"));
@@ -288,7 +418,8 @@ const RegisterCommand registration{Command{
                        "cut lines into segments a particle crosses in about N frames (0 = a fifth of the clip, "
                        "-1 = never cut)");
         app.add_option("--densify", options->densify_px,
-                       "add interpolated input lines so that neighbours are at most PX apart (0 = lines as drawn)")
+                       "add interpolated input lines so that neighbours are at most PX apart (default: 2 patches, "
+                       "filling only gaps synthesis would leave open; 0 = lines as drawn)")
             ->check(CLI::NonNegativeNumber);
         app.add_option("--max-gap", options->max_gap_px, "drawn lines further apart are not interpolated between (0 = 6 patches)");
         app.add_option("--max-speed", options->max_speed_px, "largest step searched, px per frame")->capture_default_str();

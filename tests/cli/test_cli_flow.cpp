@@ -8,6 +8,7 @@
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/quality.hpp"
 #include "flowvid/flow/synthetic.hpp"
+#include "flowvid/formats/any_file.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -16,6 +17,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <unistd.h>
 
 using namespace flowvid::testing;
@@ -113,7 +115,7 @@ TEST(CliFlow, TracksAParticleBankThatValidates) {
     EXPECT_EQ(valid.exit_code, 0) << valid.out << valid.err;
 }
 
-TEST(CliFlow, TrackWarnsWhenNeighbouringLinesLeaveTheBackgroundBetweenThem) {
+TEST(CliFlow, TrackFillsGapsSynthesisWouldLeaveOpenAndWarnsWhenToldNotTo) {
     // Two lines 36 px apart inside the textured band; 8 px patches cover
     // about 8 px around each.
     const std::string dir = own_dir("cli_flow_sparse");
@@ -122,24 +124,66 @@ TEST(CliFlow, TrackWarnsWhenNeighbouringLinesLeaveTheBackgroundBetweenThem) {
 </svg>)");
     const auto track = [&](std::vector<std::string> extra) {
         std::vector<std::string> args = {"track", "--capture", tiny_capture(), "--flowlines", dir + "/sparse.svg",
-                                         "--frames", "12", "--out", dir + "/bank.exr"};
+                                         "--frames", "12", "--json", "--out", dir + "/bank.exr"};
         args.insert(args.end(), extra.begin(), extra.end());
         return run_flowvid(args);
     };
-    const CliResult sparse = track({"--patch", "8"});
+    // By default lines are added 2 patches apart (16 px): ceil(36 / 16) - 1 = 2
+    // between left and right, and no gap is left to warn about.
+    const CliResult automatic = track({"--patch", "8"});
+    ASSERT_EQ(automatic.exit_code, 0) << automatic.err;
+    EXPECT_TRUE(mentions(automatic.err, "densify: 16 px")) << automatic.err;
+    EXPECT_FALSE(mentions(automatic.err, "neighbouring lines are more than")) << automatic.err;
+    const nlohmann::json report = nlohmann::json::parse(automatic.out);
+    EXPECT_DOUBLE_EQ(report.at("densify_px").get<double>(), 16.0);
+    std::set<std::string> interpolated;  // whole lines (a line tracked in segments has ids like ID[0.0:40.0])
+    for (const auto& line : report.at("tracked_lines")) {
+        const std::string id = line.at("id").get<std::string>();
+        if (id.find("left~right@") == 0) interpolated.insert(id.substr(0, id.find('[')));
+    }
+    EXPECT_EQ(interpolated.size(), 2u) << automatic.out;
+    // The lines as drawn: the 36 px gap is more than 2 patches, and track says so.
+    const CliResult sparse = track({"--patch", "8", "--densify", "0"});
     EXPECT_EQ(sparse.exit_code, 0) << sparse.err;
     EXPECT_TRUE(mentions(sparse.err, "warning: 1 pair(s) of neighbouring lines are more than 2 patches (16 px) apart"))
         << sparse.err;
     EXPECT_TRUE(mentions(sparse.err, "left and right, 36 px")) << sparse.err;
-    EXPECT_TRUE(mentions(sparse.err, "--densify 4")) << sparse.err;
-    // Densified to half a patch, neighbours are 4 px apart: no warning.
-    const CliResult dense = track({"--patch", "8", "--densify", "4"});
-    EXPECT_EQ(dense.exit_code, 0) << dense.err;
-    EXPECT_FALSE(mentions(dense.err, "neighbouring lines")) << dense.err;
+    EXPECT_TRUE(mentions(sparse.err, "leave --densify automatic")) << sparse.err;
     // A larger patch covers the gap: 36 px is less than 2 patches of 24.
-    const CliResult larger = track({"--patch", "24"});
+    const CliResult larger = track({"--patch", "24", "--densify", "0"});
     EXPECT_EQ(larger.exit_code, 0) << larger.err;
     EXPECT_FALSE(mentions(larger.err, "neighbouring lines")) << larger.err;
+}
+
+// --auto-lines: lines proposed from the clip's optical flow lie in the
+// band that flows (x 8..88 of 96, down at 3 px/frame), run downstream, come
+// as an SVG over the first frame, and are what the bank is tracked along.
+TEST(CliFlow, TrackProposesLinesAlongTheClipsMotionWhenAsked) {
+    const std::string dir = own_dir("cli_flow_auto");
+    const CliResult r = run_flowvid({"track", "--capture", tiny_capture(), "--auto-lines", dir + "/proposed.svg", "--frames",
+                                     "20", "--json", "--out", dir + "/auto.bank.exr"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(mentions(r.err, "auto lines: ")) << r.err;
+    const nlohmann::json report = nlohmann::json::parse(r.out);
+    const nlohmann::json& proposed = report.at("auto_lines");
+    EXPECT_GE(proposed.at("lines").get<int>(), 1);
+    EXPECT_NEAR(proposed.at("median_speed_px_per_frame").get<double>(), 3.0, 0.5);
+    EXPECT_GT(proposed.at("flow_area_share").get<double>(), 0.7);  // 80 of 96 columns
+    // The capture's drawing (x = 40 and 48) is compared with the proposal,
+    // both ways: the proposal spreads its lines over the whole band, so the
+    // drawn lines lie near one of them but not every proposed line near a drawn one.
+    EXPECT_LT(proposed.at("mean_distance_from_drawn_px").get<double>(), 12.0) << r.out;
+    EXPECT_LT(proposed.at("mean_distance_to_drawn_px").get<double>(), 40.0) << r.out;
+    const flowvid::formats::FlowLineSet lines = flowvid::formats::read_flowline_drawing(dir + "/proposed.svg");
+    ASSERT_EQ(lines.inputs.size(), proposed.at("lines").get<std::size_t>());
+    for (const auto& line : lines.inputs) {
+        for (const auto& p : line.points) EXPECT_TRUE(p.x() > 6.0 && p.x() < 90.0) << line.id << " at x " << p.x();
+        EXPECT_LT(line.points.front().y(), line.points.back().y()) << line.id << " should run down, with the flow";
+    }
+    EXPECT_TRUE(fs::exists(dir + "/proposed.frame1.png"));
+    EXPECT_NE(file_bytes(dir + "/proposed.svg").find("proposed.frame1.png"), std::string::npos);
+    ASSERT_FALSE(report.at("tracked_lines").empty());
+    for (const auto& line : report.at("tracked_lines")) EXPECT_EQ(line.at("id").get<std::string>().rfind("auto-", 0), 0u);
 }
 
 // track says how sure its block matching was, and warns when most steps were
