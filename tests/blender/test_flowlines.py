@@ -152,3 +152,30 @@ def test_grease_pencil_flowlines():
         assert math.hypot(got[0] - x, got[1] - y) < 0.5, (got, x, y)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_assign_inputs_nearest_keeps_the_flow_under_the_line():
+    """The default rule gives each output line the nearest input line flowing its way; the direction
+    rule gives every near-vertical line the most vertical input, wherever it is drawn."""
+    from flowvid_blender import api
+
+    inputs = [{"id": "in-1", "points": [[100, 0], [100, 300]]},      # exactly vertical
+              {"id": "in-2", "points": [[190, 0], [210, 300]]},      # tilted 3.8 degrees
+              {"id": "up", "points": [[204, 300], [204, 0]]},        # nearest, but flowing the other way
+              {"id": "in-3", "points": [[300, 0], [300, 300]]}]
+    outputs = [{"id": "a", "points": [[205, 0], [205, 300]]},
+               {"id": "b", "keys": [{"frame": 1, "points": [[290, 0], [296, 300]]},
+                                    {"frame": 2, "points": [[120, 0], [120, 300]]}]},
+               {"id": "c", "points": [[110, 0], [110, 300]]}]
+    api.assign_inputs(outputs, inputs)
+    assert [line["from"] for line in outputs] == ["in-2", "in-3", "in-1"], outputs
+    api.assign_inputs(outputs, inputs, rule="direction")
+    assert [line["from"] for line in outputs] == ["in-1", "in-1", "in-1"], outputs
+    api.assign_inputs(outputs, inputs, by_hand={"a": "in-3"})
+    assert outputs[0]["from"] == "in-3"
+    try:
+        api.assign_inputs(outputs, inputs, rule="closest")
+    except api.FlowvidError as error:
+        assert "nearest, direction or cycle" in str(error)
+    else:
+        raise AssertionError("an unknown rule should be refused")

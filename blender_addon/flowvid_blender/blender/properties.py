@@ -31,7 +31,9 @@ class FlowvidSceneSettings(bpy.types.PropertyGroup):
     bank: StringProperty(name="Particle bank", subtype="FILE_PATH", description="*.bank.exr from flowvid track")
     flowlines: StringProperty(name="Flow lines", subtype="FILE_PATH", default="//flowvid/particles.flowlines.json")
     output_dir: StringProperty(name="Frames", subtype="DIR_PATH", default="//flowvid/frames/")
-    rule: EnumProperty(name="Assign inputs", default="direction", items=(
+    rule: EnumProperty(name="Assign inputs", default="nearest", items=(
+        ("nearest", "Nearest", "Each output line takes the nearest input line flowing its way: it keeps the "
+                               "texture of the flow it is drawn over"),
         ("direction", "By direction", "Each output line takes the input line whose direction is closest"),
         ("cycle", "In turn", "Output lines take the input lines one after the other"),
     ))

@@ -260,6 +260,11 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
         return out;
     };
 
+    // Drawn lines that carry an input an earlier drawn line already carries
+    // (a particle system's lines, all from one input) show its particles at
+    // their own offset in time: side by side at one time they would show the
+    // same texture shifted a few pixels, which blends into a flat blur.
+    std::set<std::string> carried_by_a_drawn_line;
     for (const std::vector<int>& chain : sparse_chains) {
         // The dense chain: drawn lines with the interpolated ones between them.
         std::vector<DenseLine> dense;
@@ -270,6 +275,7 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
             d.output.line = line;
             d.output.from = line.from;
             d.drawn = true;
+            if (!carried_by_a_drawn_line.insert(line.from).second) d.output.line.time_offset_frames = next_time_offset();
             dense.push_back(std::move(d));
             interpolated_allowed.emplace_back();
             if (k + 1 == chain.size()) break;

@@ -34,7 +34,8 @@ struct EditSettings {
     int samples_along = 12;          // sample points along each neighbour pair (times 5 across)
     ArcMapping mapping = ArcMapping::equal;
     int threads = 0;                 // 0 = hardware concurrency
-    // Each interpolated line shows its input's particles at its own offset in
+    // Each interpolated line, and each drawn line carrying an input an earlier
+    // drawn line carries, shows its input's particles at its own offset in
     // time (golden-ratio steps through the period): without it, neighbours
     // that carry the same input show the same particles side by side.
     bool offset_interpolated_lines = true;
