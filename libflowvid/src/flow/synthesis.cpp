@@ -338,6 +338,24 @@ WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, 
     return table;
 }
 
+// Carried background comes only from where the flow is: entries whose input
+// arc lies outside every range of `arcs_px` (stretches of the input line no
+// particle crossed, such as a rock ledge it runs over) lose their carry,
+// fading over `fade_px` beyond each range. Empty `arcs_px`: unchanged.
+void keep_carry_on_flowing_arcs(WarpTable& table, const std::vector<std::pair<double, double>>& arcs_px, double fade_px) {
+    if (arcs_px.empty()) return;
+    for (std::size_t b = 0; b + 1 < table.bucket_start.size(); ++b) {
+        const double s = table.s_min + static_cast<double>(b) + 0.5;  // the bucket's input arc
+        double weight = 0.0;
+        for (const auto& [from, to] : arcs_px) {
+            const double outside = std::max({0.0, from - s, s - to});
+            weight = std::max(weight, std::clamp(1.0 - outside / fade_px, 0.0, 1.0));
+        }
+        for (int i = table.bucket_start[b]; i < table.bucket_start[b + 1]; ++i)
+            table.entries[static_cast<std::size_t>(i)].carry *= static_cast<float>(weight);
+    }
+}
+
 void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStreams::Visible& particle, int patch) {
     if (table.bucket_start.size() < 2) return;
     const int buckets = static_cast<int>(table.bucket_start.size()) - 1;
@@ -577,6 +595,10 @@ struct Synthesizer::Plan {
     struct CarryLine {
         formats::FlowLine line;  // keyed lines: geometry per frame
         std::shared_ptr<const LineGeometry> input;
+        // Arc ranges of the input line its particles were tracked on, px
+        // (empty: all of it); the stretches between (rock nothing crossed)
+        // are not carried.
+        std::vector<std::pair<double, double>> flowing_arcs_px;
         WarpTable warp;          // fixed lines
     };
     std::vector<CarryLine> carry_lines;
@@ -665,15 +687,19 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         line.line = std::move(geometry);
         m_plan->lines.push_back(std::move(line));
     };
-    const auto add_carry = [&](const formats::FlowLine& output_line, std::vector<Eigen::Vector2d> input_points) {
+    const auto add_carry = [&](const formats::FlowLine& output_line, std::vector<Eigen::Vector2d> input_points,
+                               std::vector<std::pair<double, double>> flowing_arcs_px) {
         if (!m_carry_background || input_points.size() < 2) return;
         if (!output_line.is_time_varying() && same_points(output_line.points, input_points)) return;
         Plan::CarryLine carry;
         carry.line = output_line;
         carry.input = std::make_shared<const LineGeometry>(std::move(input_points), patch / 3.0);
-        if (!output_line.is_time_varying())
+        carry.flowing_arcs_px = std::move(flowing_arcs_px);
+        if (!output_line.is_time_varying()) {
             carry.warp = build_warp(LineGeometry(output_line.points, patch / 3.0), *carry.input, settings.mapping, patch,
                                     m_plan->width, m_plan->height);
+            keep_carry_on_flowing_arcs(carry.warp, carry.flowing_arcs_px, 0.5 * patch);
+        }
         m_plan->carry_lines.push_back(std::move(carry));
     };
     std::vector<std::string> off_frame, too_short;
@@ -689,7 +715,7 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         if (longest_inside_px < 1.0) (longest_px < 1.0 ? too_short : off_frame).push_back(output.line.id);
         const int stream = m_streams->stream_index(output.from);
         if (stream >= 0) {
-            add_carry(output.line, m_streams->geometry(stream).points());
+            add_carry(output.line, m_streams->geometry(stream).points(), {});
             add(std::move(output.line), stream);
             continue;
         }
@@ -702,7 +728,9 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         // A line tracked in segments: each segment goes to the matching part
         // of the output line (equal arc length, or scaled to the output's length).
         const ParticleStreams::InputLine& in = m_streams->input_lines()[static_cast<std::size_t>(group)];
-        add_carry(output.line, in.points);
+        std::vector<std::pair<double, double>> tracked_arcs;
+        for (const ParticleStreams::InputLine::Segment& seg : in.segments) tracked_arcs.emplace_back(seg.from_px, seg.to_px);
+        add_carry(output.line, in.points, tracked_arcs);
         const auto part_of = [&](const std::vector<Eigen::Vector2d>& points, const ParticleStreams::InputLine::Segment& seg,
                                  bool& empty) {
             const double length = formats::polyline_length(points);
@@ -778,6 +806,7 @@ void Synthesizer::carry_background_into(int frame, RgbImage& out, CarryBuffers& 
         }
         b.keyed_warps[keyed] = build_warp(LineGeometry(formats::points_at_frame(line.line, frame), patch / 3.0),
                                           *line.input, m_settings.mapping, patch, w, h);
+        keep_carry_on_flowing_arcs(b.keyed_warps[keyed], line.flowing_arcs_px, 0.5 * patch);
         b.tables.push_back(&b.keyed_warps[keyed++]);
     }
     if (m_plan->carry_source.empty()) b.source = smoothed(out, std::max(1, patch / 2));

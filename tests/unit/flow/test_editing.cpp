@@ -524,22 +524,24 @@ RgbImage position_plate() {
 }  // namespace
 
 TEST(FlowEditing, ANewLineCarriesTheBackgroundAroundItsInputLineWhereParticlesLeaveGaps) {
-    // in-0 is drawn from y = 10 to 90 at x = 20, but tracked only on its
-    // first 40 px (the segment in-0[0.0:40.0]); the output line lies 50 px
-    // to the right.
+    // in-0 is drawn from y = 10 to 110 at x = 20, and tracked on its first
+    // 70 px (the segment in-0[0.0:70.0]; the rest, like a rock ledge nothing
+    // crossed, is left out), where its particles cover the first 40 px; the
+    // output line lies 50 px to the right, from y = 10 to 90.
     auto bank = ramp_bank();
-    bank->lines[0].id = "in-0[0.0:40.0]";
-    for (auto& p : bank->particles) p.line_id = "in-0[0.0:40.0]";
+    bank->lines[0].id = "in-0[0.0:70.0]";
+    bank->lines[0].length_px = 70.0f;
+    for (auto& p : bank->particles) p.line_id = "in-0[0.0:70.0]";
     formats::FlowLineSet drawing;
     drawing.width = drawing.height = 120;
-    drawing.inputs.push_back(line("in-0", {{20.0, 10.0}, {20.0, 90.0}}));
+    drawing.inputs.push_back(line("in-0", {{20.0, 10.0}, {20.0, 110.0}}));
     const RgbImage plate = position_plate();
 
     const auto render = [&](bool carry, bool reference, std::vector<float>* coverage, double output_x = 70.0) {
         SynthesisSettings settings;
         settings.carry_background = carry;
         settings.reference_rendering = reference;
-        auto streams = std::make_shared<ParticleStreams>(bank, vertical_lines({20.0}, 10.0, 50.0), settings, &drawing);
+        auto streams = std::make_shared<ParticleStreams>(bank, vertical_lines({20.0}, 10.0, 80.0), settings, &drawing);
         const Synthesizer synth(streams, {{line("out", {{output_x, 10.0}, {output_x, 90.0}}), "in-0"}},
                                 Background::plate(plate), settings);
         return synth.render(20, coverage);
@@ -548,7 +550,7 @@ TEST(FlowEditing, ANewLineCarriesTheBackgroundAroundItsInputLineWhereParticlesLe
     const RgbImage on = render(true, false, &coverage_on);
     const RgbImage off = render(false, false, &coverage_off);
 
-    // Beyond the tracked segment (output arc 55..70) no particle covers the
+    // Beyond the particles' reach (output arc 55..70) no particle covers the
     // line: without carrying, the output's own plate shows (red = 70/120);
     // carried, the plate around the input line at the same arc length and
     // lateral offset (red = (20 + n)/120, green unchanged; the smoothing
@@ -562,6 +564,9 @@ TEST(FlowEditing, ANewLineCarriesTheBackgroundAroundItsInputLineWhereParticlesLe
         }
     // Off to the side (beyond half a patch) and past the line's end nothing is carried.
     EXPECT_NEAR(on.pixel(80, 72)[0], 80.0 / 120.0, 1e-5);
+    // Nor from the stretch of the input line no particle crossed (arc beyond
+    // 70 + half a patch): its rock would stand in the new flow.
+    for (int y : {86, 89}) EXPECT_NEAR(on.pixel(70, y)[0], 70.0 / 120.0, 1e-5) << y;
     EXPECT_NEAR(on.pixel(70, 100)[0], 70.0 / 120.0, 1e-5);
     // Where particles cover the line fully they show, whatever lies below.
     int covered = 0;
@@ -584,7 +589,7 @@ TEST(FlowEditing, ANewLineCarriesTheBackgroundAroundItsInputLineWhereParticlesLe
     {
         SynthesisSettings settings;
         settings.carry_background = true;
-        auto streams = std::make_shared<ParticleStreams>(bank, vertical_lines({20.0}, 10.0, 50.0), settings, &drawing);
+        auto streams = std::make_shared<ParticleStreams>(bank, vertical_lines({20.0}, 10.0, 80.0), settings, &drawing);
         formats::FlowLine keyed;
         keyed.id = "out";
         keyed.keys = {{1, {{70.0, 10.0}, {70.0, 90.0}}}, {40, {{70.0, 10.0}, {70.0, 90.0}}}};
