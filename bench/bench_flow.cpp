@@ -128,6 +128,15 @@ void BM_SynthesisFrame1280x720(benchmark::State& state) {
 }
 BENCHMARK(BM_SynthesisFrame1280x720)->Unit(benchmark::kMillisecond);
 
+void BM_SynthesisFrame1920x1080(benchmark::State& state) {
+    const Scene& s = scene_1080p();
+    const Synthesizer synth(s.streams, {}, Background::plate(s.plate), SynthesisSettings{});
+    int frame = 1;
+    for (auto _ : state) benchmark::DoNotOptimize(synth.render(frame++).rgb.data());
+    state.counters["fps"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_SynthesisFrame1920x1080)->Unit(benchmark::kMillisecond);
+
 void BM_EditFrame1280x720(benchmark::State& state) {
     SynthesisSettings settings;
     const Synthesizer synth(scene_streams(), bent_outputs(), Background::plate(scene().plate), settings);

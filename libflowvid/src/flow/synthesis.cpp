@@ -59,7 +59,8 @@ void sharpen_groups(float* rgbw, float& w0, float& w1, float& w2, const float* g
             *weights[g] = 0.0f;
             continue;
         }
-        const float powered = std::pow(w, exponent);
+        // The default exponent 4 by multiplication: powf was a tenth of a frame's time.
+        const float powered = exponent == 4.0f ? (w * w) * (w * w) : std::pow(w, exponent);
         for (int k = 0; k < 3; ++k) num[k] += powered * (sums[3 * g + k] / w);
         den += powered;
         *weights[g] = powered;
@@ -987,6 +988,11 @@ struct RenderBuffers {
     bool colours = false;
     std::vector<float> group_rgb;
     std::vector<float> row_sums;  // ring, with the detail gain: horizontal box sums of rgbw
+    // Per ring row: whether a pixel of it has a second group (only there do
+    // overlap sharpening and the detail gain act), and whether its row sums
+    // are made (they are made when a mixed row within the detail radius is
+    // finished: most rows show one input frame and need neither).
+    std::vector<unsigned char> mixed_row, summed_row;
 
     std::size_t ring_pixel(int y, int x) const {
         return static_cast<std::size_t>(y % ring_rows) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x);
@@ -1003,6 +1009,7 @@ inline void add_to_groups(RenderBuffers& s, std::size_t pixel, int n, const floa
     float* w0 = s.weight0.data() + pixel;
     float* w1 = s.weight1.data() + pixel;
     float* w2 = s.weight_rest.data() + pixel;
+    bool mixed = false;
     for (int j = 0; j < n; ++j) {
         const bool first = g0[j] == group || g0[j] < 0;
         const bool second = !first && (g1[j] == group || g1[j] < 0);
@@ -1011,7 +1018,9 @@ inline void add_to_groups(RenderBuffers& s, std::size_t pixel, int n, const floa
         w0[j] += first ? wa[j] : 0.0f;
         w1[j] += second ? wa[j] : 0.0f;
         w2[j] += first || second ? 0.0f : wa[j];
+        mixed |= !first;
     }
+    if (mixed) s.mixed_row[pixel / static_cast<std::size_t>(s.width)] = 1;
     if (!s.colours) return;
     for (int j = 0; j < n; ++j) {
         const int slot = g0[j] == group ? 0 : g1[j] == group ? 1 : 2;
@@ -1229,6 +1238,8 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
     }
     if (sharpen) s.group_rgb.resize(ring_pixels * kGroupColourFloats);
     if (detail) s.row_sums.resize(ring_pixels * 4);
+    s.mixed_row.assign(static_cast<std::size_t>(s.ring_rows), 0);
+    s.summed_row.assign(static_cast<std::size_t>(s.ring_rows), 0);
 
     const float full = static_cast<float>(std::max(1e-6, m_settings.coverage_weight));
     const bool screen = m_settings.texture_layer == TextureLayer::moving;
@@ -1237,6 +1248,8 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
         const int hi = step_hi(k);
         for (int y = lo; y < hi; ++y) {
             const std::size_t row = s.ring_pixel(y, 0);
+            s.mixed_row[static_cast<std::size_t>(y % s.ring_rows)] = 0;
+            s.summed_row[static_cast<std::size_t>(y % s.ring_rows)] = 0;
             std::fill_n(s.rgbw.data() + row * 4, static_cast<std::size_t>(w) * 4, 0.0f);
             if (groups) {
                 for (auto* v : {&s.group0, &s.group1}) std::fill_n(v->data() + row, static_cast<std::size_t>(w), -1);
@@ -1255,6 +1268,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
         }
         if (sharpen)
             for (int y = lo; y < hi; ++y) {
+                if (!s.mixed_row[static_cast<std::size_t>(y % s.ring_rows)]) continue;  // one group: nothing to sharpen
                 const std::size_t row = s.ring_pixel(y, 0);
                 for (int x = 0; x < w; ++x) {
                     const std::size_t i = row + static_cast<std::size_t>(x);
@@ -1262,8 +1276,6 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
                                    s.group_rgb.data() + i * kGroupColourFloats, static_cast<float>(m_settings.overlap_sharpness));
                 }
             }
-        if (detail)
-            for (int y = lo; y < hi; ++y) ring_row_sums(s, y, kDetailRadiusPx);
         lo = hi;
 
         // Finish band k (as the whole-frame pass: see render_reference).
@@ -1278,9 +1290,13 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
             // The row sums the local mean adds, in row order.
             const float* sums[2 * kDetailRadiusPx + 1];
             int sum_rows = 0;
-            if (detail)
-                for (int yy = std::max(0, y - kDetailRadiusPx); yy <= std::min(h - 1, y + kDetailRadiusPx); ++yy)
+            if (detail && s.mixed_row[static_cast<std::size_t>(y % s.ring_rows)])
+                for (int yy = std::max(0, y - kDetailRadiusPx); yy <= std::min(h - 1, y + kDetailRadiusPx); ++yy) {
+                    unsigned char& summed = s.summed_row[static_cast<std::size_t>(yy % s.ring_rows)];
+                    if (!summed) ring_row_sums(s, yy, kDetailRadiusPx);
+                    summed = 1;
                     sums[sum_rows++] = s.row_sums.data() + s.ring_pixel(yy, 0) * 4;
+                }
             for (int x = 0; x < w; ++x) {
                 const float* a = arow + 4 * x;
                 if (a[3] <= 1e-6f) continue;
