@@ -191,10 +191,9 @@ def video(options):
     os.makedirs(out, exist_ok=True)
     lines = os.path.join(out, "particles.flowlines.json")
     baked = api.bake_flowlines(emitter, camera, 1, options.frames, lines, inputs=options.inputs, scene=scene)
-    # The particles carry foam over darker water and rock: coverage 2 blends
-    # the texture in instead of ending it in a hard edge (flowvid edit --help).
+    # Defaults: an edit's texture fades with its feather where the clip had none.
     first = api.synthesize(options.bank, lines, 1, options.frames, os.path.join(out, "synthesized"),
-                           extra=("--capture", options.clip, "--coverage", "2"))
+                           extra=("--capture", options.clip))
     image = api.load_image_sequence(first, 1, options.frames)
     api.show_on_camera_plane(camera, image, 1, options.frames, scene=scene)
     started = time.monotonic()

@@ -192,9 +192,8 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
     const fs::path out = fs::path(options.out) / "video";
     fs::create_directories(out);
     const std::string bank = (out / "waterfall.bank.exr").string();
-    // --densify 12: the drawn lines are up to 67 px apart, and synthesis
-    // covers about a patch around each line (docs/flow.md, the recipe for water).
-    int status = run_flowvid({"track", "--capture", clip.string(), "--densify", "12", "--out", bank, "--json"},
+    // Defaults only: track chooses the patch and where to add lines from the drawing.
+    int status = run_flowvid({"track", "--capture", clip.string(), "--out", bank, "--json"},
                              out / "track.json", global);
     if (status == kExitOk)
         status = run_flowvid({"synth", "--bank", bank, "--loop", "--out", (out / "loop.mp4").string(), "--json"},
@@ -208,11 +207,11 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
                                    std::to_string(options.blender_frames)},
                          out, "edit.json", summary);
     if (status != kExitOk) return status;
-    // The particle edit measured as it was rendered (the add-on's --coverage 2).
+    // The particle edit measured as it was rendered (defaults, as the add-on renders it).
     const std::string edit_lines = summary.value("flowlines", "");
     if (!edit_lines.empty())
         status = run_flowvid({"quality", "--bank", bank, "--capture", clip.string(), "--flowlines", edit_lines, "--edit",
-                              "--coverage", "2", "--frames", std::to_string(options.blender_frames), "--json"},
+                              "--frames", std::to_string(options.blender_frames), "--json"},
                              out / "quality_edit.json", global);
     if (status != kExitOk) return status;
     const nlohmann::json quality = read_json_file(out / "quality.json");

@@ -35,8 +35,8 @@ void add_synthesis_options(CLI::App& app, SynthesisOptions& o) {
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
     app.add_option("--coverage", o.coverage,
-                   "accumulated feather weight at which texture fully hides the background (default: 0.5; 2 for "
-                   "the moving layer of an edit, whose light then fades with the feather)");
+                   "accumulated feather weight at which texture fully hides the background (default: 0.5 for "
+                   "synth; 2 for edits, whose texture then fades with the feather where the clip had none)");
     app.add_option("--fade-frames", o.fade_frames, "particles fade in and out over N frames (-1 = automatic)");
     app.add_option("--wrap-fade-frames", o.wrap_fade_frames,
                    "the first particle of each period (where the diagonal order wraps) fades in over N frames "

@@ -608,7 +608,7 @@ TEST(CliFlow, EditDefaultsFollowTheBankAndTheClip) {
     ASSERT_EQ(water.exit_code, 0) << water.err;
     const nlohmann::json w = nlohmann::json::parse(water.out);
     EXPECT_EQ(w.at("texture"), "whole");
-    EXPECT_EQ(w.at("coverage").get<double>(), 0.5);
+    EXPECT_EQ(w.at("coverage").get<double>(), 2.0);  // an edit's border fades
     EXPECT_EQ(w.at("background"), "replay");
     EXPECT_TRUE(w.at("carry_background").get<bool>());
     EXPECT_TRUE(mentions(water.err, "carry it from around their input lines")) << water.err;

@@ -73,7 +73,7 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProg
     const bool flames = out.bank->dynamics == formats::ParticleDynamics::non_stationary;
     if (job.texture_auto) settings.texture_layer = job.edit && flames ? TextureLayer::moving : TextureLayer::whole;
     const bool moving = settings.texture_layer == TextureLayer::moving;
-    if (job.coverage_auto) settings.coverage_weight = job.edit && moving ? 2.0 : 0.5;
+    if (job.coverage_auto) settings.coverage_weight = job.edit ? 2.0 : 0.5;
     if (job.texture_auto && moving)
         say(log, "texture: moving (an edit of a non-stationary bank moves only the light the flow adds, at coverage " +
                      std::string(settings.coverage_weight == 2.0 ? "2" : "as given") + "; --texture whole to move whole patches)");

@@ -46,9 +46,12 @@ struct SynthesisJob {
     // coverage_weight are then ignored): an edit of a non-stationary bank
     // (flames, smoke) moves only the light the flow adds (TextureLayer::moving;
     // whole patches would carry the scene behind the flames along the new
-    // lines), and that light fades out with the patches' feather (coverage
-    // weight 2) instead of standing as opaque discs; everything else renders
-    // whole textures at coverage 0.5.
+    // lines); everything else renders whole textures. An edit's texture fades
+    // out with the patches' feather (coverage weight 2): it lies where the clip
+    // had none, and a border that reaches full cover within a few pixels
+    // stands as a hard edge (the waterfall's new channel) or opaque discs (a
+    // lone flame). Plain synthesis puts patches back where they were cut, at
+    // coverage 0.5.
     bool texture_auto = false;
     bool coverage_auto = false;
     bool edit = false;           // render the drawing's output lines instead of its input lines
