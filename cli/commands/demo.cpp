@@ -5,6 +5,7 @@
 #include "output.hpp"
 #include "report_html.hpp"
 
+#include "flowvid/flow/frames.hpp"
 #include "flowvid/formats/any_file.hpp"
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
@@ -15,6 +16,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -187,6 +189,9 @@ int run_garment_stage(const DemoOptions& options, const GlobalOptions&) {
 // infinite loop synthesized and measured against naive looping and the flow
 // map, then an edit along a Blender particle system's flow lines seen through
 // the (panning) scene camera, rendered through Blender.
+// The output frame the index shows beside the clip's (the clip has 120).
+const std::string kSideBySideFrame = "50";
+
 int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
     const fs::path clip = fs::path(options.data) / "data" / "demo" / "waterfall";
     const fs::path out = fs::path(options.out) / "video";
@@ -200,6 +205,22 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
                              out / "loop.json", global);
     if (status == kExitOk)
         status = run_flowvid({"quality", "--bank", bank, "--json"}, out / "quality.json", global);
+    // One frame of the clip, of the synthesis and of an edit along the
+    // capture's drawn output lines, side by side in the index.
+    if (status == kExitOk)
+        status = run_flowvid({"synth", "--bank", bank, "--frames", kSideBySideFrame + ":" + kSideBySideFrame, "--out",
+                              (out / ("frame" + kSideBySideFrame + "_synth.png")).string()},
+                             out / "frame_synth.txt", global);
+    if (status == kExitOk)
+        status = run_flowvid({"edit", "--bank", bank, "--flowlines", (clip / "flowlines.svg").string(), "--frames",
+                              kSideBySideFrame + ":" + kSideBySideFrame, "--out",
+                              (out / ("frame" + kSideBySideFrame + "_edit.png")).string()},
+                             out / "frame_edit.txt", global);
+    if (status == kExitOk) {
+        flow::CaptureFrames frames(flow::open_clip(clip.string()));
+        const int index = std::min(std::stoi(kSideBySideFrame), frames.count()) - 1;
+        flow::write_image((out / ("frame" + kSideBySideFrame + "_clip.png")).string(), flow::to_linear(frames.frame(index)));
+    }
     if (status != kExitOk) return status;
     nlohmann::json summary;
     status = run_blender(options, {"video", "--bank", bank, "--clip", clip.string(), "--inputs",
@@ -403,6 +424,18 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
                  << link(edit.value("flowlines", ""), out, "the flow lines");
         body << "</p>\n";
         if (have_edit) body << thumbnail(edit["frames"]);
+        const std::string stem = "video/frame" + kSideBySideFrame;
+        if (fs::exists(out / (stem + "_clip.png")) && fs::exists(out / (stem + "_synth.png")) &&
+            fs::exists(out / (stem + "_edit.png"))) {
+            body << "<p>Frame " << kSideBySideFrame
+                 << ": the clip as filmed &middot; the synthesis (a still camera in the clip's first-frame view) &middot; "
+                    "an edit along the capture's drawn output lines (a new channel on the left)</p>\n<p>";
+            for (const auto& [file, what] : {std::pair<const char*, const char*>{"_clip.png", "the clip"},
+                                              {"_synth.png", "the synthesis"}, {"_edit.png", "the edit"}})
+                body << "<img src=\"" << html::escape(stem + file) << "\" alt=\"frame " << kSideBySideFrame << " of "
+                     << what << "\" width=\"320\"> ";
+            body << "</p>\n";
+        }
         if (have_quality) {
             html::Table table;
             table.caption = "loop seams: largest frame-to-frame change / the clip's 95th percentile; motion: median change / "

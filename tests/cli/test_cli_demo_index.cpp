@@ -54,6 +54,7 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
                                                   {"frames", {(out / "garment" / "frames" / "0001.png").string()}}});
     fs::create_directories(out / "video");
     std::ofstream(out / "video" / "loop.mp4") << "stand-in";
+    for (const char* which : {"clip", "synth", "edit"}) write_frame(out / "video" / ("frame50_" + std::string(which) + ".png"));
     write_json(out / "video" / "quality.json",
                {{"methods", {{"ours", {{"seam_max_ratio", 0.954}, {"share_above_clip_p99", 0.0}, {"motion_ratio", 0.973}}},
                              {"loop", {{"seam_max_ratio", 5.52}, {"share_above_clip_p99", 0.02}, {"motion_ratio", 1.0}}}}},
@@ -74,7 +75,8 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
     for (auto it = std::sregex_iterator(index.begin(), index.end(), href); it != std::sregex_iterator(); ++it)
         targets.insert((*it)[1].str());
     for (const char* expected : {"fabric/cotton.fabric.json", "garment/garment.mp4", "garment/frames/0001.png", "video/loop.mp4",
-                                 "formats/summaries.json"})
+                                 "formats/summaries.json", "video/frame50_clip.png", "video/frame50_synth.png",
+                                 "video/frame50_edit.png"})
         EXPECT_EQ(targets.count(expected), 1u) << expected << " not linked";
     for (const std::string& target : targets) EXPECT_TRUE(fs::exists(out / target)) << target;
     // Key figures, as the stages reported them.
