@@ -10,9 +10,12 @@
 #include "flowvid/flow/editing.hpp"
 #include "flowvid/flow/geometry.hpp"
 #include "flowvid/flow/quality.hpp"
+#include "flowvid/flow/stabilise.hpp"
+#include "flowvid/flow/synthesis_job.hpp"
 #include "flowvid/flow/synthesis.hpp"
 #include "flowvid/flow/synthetic.hpp"
 #include "flowvid/flow/tracking.hpp"
+#include "flowvid/formats/particle_bank.hpp"
 
 #include <benchmark/benchmark.h>
 
@@ -170,23 +173,30 @@ BENCHMARK(BM_DynamicProgramme100x20)->Unit(benchmark::kMicrosecond);
 
 // ---- tables -------------------------------------------------------------------------------------------
 
+// Rows of a speed table: wall-clock frames/s over `frames` frames, as a
+// ratio to the first row (the flow map), and the process's CPU time per frame
+// (all threads: on a loaded machine it shows whether the threads got their cores).
+struct SpeedRows {
+    int frames = 60;
+    double flow_map_fps = 0.0;  // the first row's
+    double row(const std::string& name, const std::function<void(int)>& render_range) {
+        const std::clock_t cpu_start = std::clock();
+        const auto start = std::chrono::steady_clock::now();
+        render_range(frames);
+        const double fps = frames / seconds_since(start);
+        const double cpu_ms = 1000.0 * static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC / frames;
+        if (flow_map_fps == 0.0) flow_map_fps = fps;
+        std::printf("%-58s %8.1f %10.2f %12.1f\n", name.c_str(), fps, fps / flow_map_fps, cpu_ms);
+        return fps;
+    }
+};
+
 void speed_table() {
     std::printf("\n== Speed at 1280 x 720, 24 x 24 patches (53 lines, 3180 patches per frame) ==\n");
     const Synthesizer synth(scene_streams(), {}, Background::plate(scene().plate), SynthesisSettings{});
     const Synthesizer edit(scene_streams(), bent_outputs(), Background::plate(scene().plate), SynthesisSettings{});
-    // Wall-clock frames/s, and the process's CPU time per frame (all threads):
-    // on a loaded machine the second shows whether the threads got their cores.
-    const int n = 60;
-    double flow_map_fps = 0.0;
-    const auto row = [&](const std::string& name, const std::function<void(int)>& render_range) {
-        const std::clock_t cpu_start = std::clock();
-        const auto start = std::chrono::steady_clock::now();
-        render_range(n);
-        const double fps = n / seconds_since(start);
-        const double cpu_ms = 1000.0 * static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC / n;
-        if (flow_map_fps == 0.0) flow_map_fps = fps;
-        std::printf("%-58s %8.1f %10.2f %12.1f\n", name.c_str(), fps, fps / flow_map_fps, cpu_ms);
-    };
+    SpeedRows rows{60};
+    const auto row = [&](const std::string& name, const std::function<void(int)>& render_range) { rows.row(name, render_range); };
     const auto frames_of = [](const Synthesizer& synthesizer, int threads) {
         return [&synthesizer, threads](int frames) {
             synthesizer.render_frames(1, frames, threads, [](int, const RgbImage&) { return true; });
@@ -267,18 +277,11 @@ void speed_table_1080p() {
     const FlowMapBaseline flow_map_1080p = make_flow_map(s);
     const Synthesizer synth(s.streams, {}, Background::plate(s.plate), SynthesisSettings{});
     const Synthesizer edit(s.streams, bent_outputs(s), Background::plate(s.plate), SynthesisSettings{});
-    const int n = 40;
-    double flow_map_fps = 0.0, synthesis_fps = 0.0;
+    SpeedRows rows{40};
+    double synthesis_fps = 0.0;
     std::printf("%-58s %8s %10s %12s\n", "", "fps", "vs flow map", "CPU ms/frame");
     const auto row = [&](const std::string& name, const std::function<void(int)>& render_range) {
-        const std::clock_t cpu_start = std::clock();
-        const auto start = std::chrono::steady_clock::now();
-        render_range(n);
-        const double fps = n / seconds_since(start);
-        const double cpu_ms = 1000.0 * static_cast<double>(std::clock() - cpu_start) / CLOCKS_PER_SEC / n;
-        if (flow_map_fps == 0.0) flow_map_fps = fps;
-        std::printf("%-58s %8.1f %10.2f %12.1f\n", name.c_str(), fps, fps / flow_map_fps, cpu_ms);
-        return fps;
+        return rows.row(name, render_range);
     };
     row("flow-map baseline (1 thread)", [&](int frames) {
         for (int f = 1; f <= frames; ++f) benchmark::DoNotOptimize(flow_map_1080p.render(f).rgb.data());
@@ -292,8 +295,8 @@ void speed_table_1080p() {
     row("edit (warped, bent lines), 2 thread(s)",
         [&](int frames) { edit.render_frames(1, frames, 2, [](int, const RgbImage&) { return true; }); });
     std::printf("goal (issue #30): synthesis >= 40 frames/s on 2 cores and >= 2x the flow map: %.1f frames/s, %.2fx -> %s\n",
-                synthesis_fps, synthesis_fps / flow_map_fps,
-                synthesis_fps >= 40.0 && synthesis_fps >= 2.0 * flow_map_fps ? "met" : "NOT met");
+                synthesis_fps, synthesis_fps / rows.flow_map_fps,
+                synthesis_fps >= 40.0 && synthesis_fps >= 2.0 * rows.flow_map_fps ? "met" : "NOT met");
 }
 
 void correspondence_table() {
@@ -405,7 +408,10 @@ void print_quality(const char* clip, const std::vector<QualityRow>& rows) {
     std::printf("clip's transitions span %.2f..%.2f x its p95\n", clip_itself.clip_min_ratio, clip_itself.clip_max_ratio);
 }
 
-void quality_on(const std::string& name, formats::ParticleDynamics dynamics, int patch_px, double densify_px) {
+// Tracks the clip as `flowvid track` does by default (the patch side from the
+// drawing, lines added two patches apart), then measures the synthesis that
+// flow::prepare_synthesis assembles, as `synth` and `quality` render it.
+void quality_on(const std::string& name, formats::ParticleDynamics dynamics) {
     const std::string capture_dir = std::string(FLOWVID_SHARED_DIR) + "/captures/" + name;
     if (!std::filesystem::exists(capture_dir)) {
         std::printf("(skipped: %s not found)\n", capture_dir.c_str());
@@ -413,48 +419,62 @@ void quality_on(const std::string& name, formats::ParticleDynamics dynamics, int
     }
     const formats::Capture capture = open_clip(capture_dir);
     const formats::FlowLineSet drawing = formats::import_flowlines_svg(capture.resolve(capture.flowlines));
+    const int patch_px = patch_size_from_lines(drawn_input_polylines(drawing)).patch_px;
+    const double densify_px = 2.0 * patch_px;
     CaptureFrames frames(capture);
+    const CameraMotion camera = estimate_camera_motion(frames, drawn_input_polylines(drawing));
+    CaptureFrames again(capture);
+    StabilisedFrames stabilised(again, camera);
     TrackingSettings tracking;
     tracking.dynamics = dynamics;
     tracking.patch_size_px = patch_px;
     const auto start = std::chrono::steady_clock::now();
     const TrackingResult tracked =
-        track_particles(frames, densify_input_lines(drawing, densify_px, 6.0 * patch_px), tracking);
+        track_particles(stabilised, densify_input_lines(drawing, densify_px, 6.0 * patch_px), tracking);
     const double track_seconds = seconds_since(start);
-    auto bank = std::make_shared<formats::ParticleBank>(tracked.bank);
-    CaptureFrames again(capture);
-    auto clip = std::make_shared<ClipFrames>(ClipFrames::read_all(again));
-    SynthesisSettings settings;
-    auto streams = std::make_shared<ParticleStreams>(bank, ParticleStreams::input_points_from_drawing(*bank, drawing, "svg"),
-                                                     settings, &drawing);
-    const RgbImage plate = median_plate(*clip);
-    const Synthesizer synth(streams, {}, Background::plate(plate), settings);
-    const Comparison comparison = compare_with_baselines(*clip, *streams, synth, plate);
+    const std::string bank_path =
+        (std::filesystem::temp_directory_path() / ("flowvid_bench_" + name + ".bank.exr")).string();
+    formats::ParticleBank bank = tracked.bank;
+    bank.source_clip = formats::source_clip_for_bank(bank_path, capture_dir);
+    formats::write_particle_bank(bank_path, bank);
+
+    SynthesisJob job;
+    job.bank_path = bank_path;
+    job.clip_path = capture_dir;
+    job.keep_clip = true;
+    const PreparedSynthesis prepared = prepare_synthesis(job);
+    const ClipFrames& clip = *prepared.clip;
+    const RgbImage plate = median_plate(clip);
+    const Comparison comparison = compare_with_baselines(clip, *prepared.streams, *prepared.synthesizer, plate);
     const int frames_out = comparison.output_frames;
+    const Schedule& schedule = prepared.streams->schedule();
     std::size_t substituted = 0, borrowed = 0;
-    for (const auto& l : streams->schedule().lines) {
+    for (const auto& l : schedule.lines) {
         substituted += static_cast<std::size_t>(l.substituted);
         borrowed += static_cast<std::size_t>(l.borrowed);
     }
-    char title[512];
+    char title[640];
     std::snprintf(title, sizeof title,
-                  "%s (%s, patch %d px, densify %.0f px): tracked %zu segments in %.1f s, %zu particles; K = %d, step %d, "
-                  "period %d frames, %zu of %zu slots without a particle (%zu borrowing a near one); %d output frames",
-                  name.c_str(), formats::to_string(dynamics), patch_px, densify_px, tracked.report.lines.size(), track_seconds,
-                  bank->particles.size(), streams->schedule().particles_per_line, streams->schedule().start_every,
-                  streams->schedule().period_frames, substituted,
-                  streams->schedule().lines.size() * static_cast<std::size_t>(streams->schedule().particles_per_line), borrowed,
-                  frames_out);
+                  "%s (%s, defaults: patch %d px, lines added %.0f px apart, background %s): tracked %zu segments in %.1f s, "
+                  "%zu particles; K = %d, step %d, period %d frames, %zu of %zu slots without a particle (%zu borrowing a "
+                  "near one); %d output frames",
+                  name.c_str(), formats::to_string(dynamics), patch_px, densify_px, to_string(prepared.background),
+                  tracked.report.lines.size(), track_seconds, bank.particles.size(), schedule.particles_per_line,
+                  schedule.start_every, schedule.period_frames, substituted,
+                  schedule.lines.size() * static_cast<std::size_t>(schedule.particles_per_line), borrowed, frames_out);
     std::vector<QualityRow> rows;
     for (const MethodQuality& m : comparison.methods) rows.push_back({m.method.c_str(), m.report});
     print_quality(title, rows);
     // The banded renderer against the whole-frame pass on this bank.
-    SynthesisSettings whole_frame = settings;
+    SynthesisSettings whole_frame = prepared.settings;
     whole_frame.reference_rendering = true;
-    const Synthesizer reference(streams, {}, Background::plate(plate), whole_frame);
+    job.settings = whole_frame;
+    job.keep_clip = false;
+    const PreparedSynthesis reference = prepare_synthesis(job);
+    std::filesystem::remove(bank_path);
     float worst = 0.0f;
     for (int f = 1; f <= frames_out; f += 7) {
-        const RgbImage a = synth.render(f), b = reference.render(f);
+        const RgbImage a = prepared.synthesizer->render(f), b = reference.synthesizer->render(f);
         for (std::size_t i = 0; i < a.rgb.size(); ++i) worst = std::max(worst, std::abs(a.rgb[i] - b.rgb[i]));
     }
     std::printf("banded vs whole-frame pass, every 7th output frame: largest difference %.2g\n", worst);
@@ -469,9 +489,9 @@ void quality_table() {
                 "(self d: the clip's patches to other frames >= 5 apart); HF ratio = output / clip HF energy;\n"
                 "complementary: spike = largest / own median transition, motion = output / clip median transition\n"
                 "(the same table as `flowvid quality --bank BANK`)\n");
-    // The recipes of docs/flow.md: flames need patches twice as large and lines between the drawn ones.
-    quality_on("video-waterfall-cascade", formats::ParticleDynamics::stationary, 24, 12.0);
-    quality_on("video-fire-pot", formats::ParticleDynamics::non_stationary, 48, 24.0);
+    // Defaults only, as a user runs them (flames: --dynamics non-stationary).
+    quality_on("video-waterfall-cascade", formats::ParticleDynamics::stationary);
+    quality_on("video-fire-pot", formats::ParticleDynamics::non_stationary);
 }
 
 }  // namespace
