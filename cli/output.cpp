@@ -78,7 +78,7 @@ void Progress::done() {
 
 namespace {
 bool is_output_option(const std::string& name) {
-    for (const char* output : {"--out", "--vat", "--report", "--dense-out", "--series", "OUT"})
+    for (const char* output : {"--out", "--vat", "--report", "--dense-out", "--series", "--auto-lines", "OUT"})
         if (name == output) return true;
     return false;
 }
@@ -135,6 +135,8 @@ bool outputs_spare_inputs(const CLI::App& command) {
     }
     return true;
 }
+
+bool same_file(const std::string& a, const std::string& b) { return identity(a) == identity(b); }
 
 void prepare_output_folder(const std::string& file_path) {
     const std::filesystem::path folder = std::filesystem::path(file_path).parent_path();

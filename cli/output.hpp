@@ -38,10 +38,14 @@ void prepare_output_folder(const std::string& file_path);
 // Refuses a command line whose outputs would destroy its inputs (--out equal
 // to --preset, or to a capture folder's capture.json) or write one file twice
 // (--out X --vat X). Looks at the parsed (sub)command's options: --out,
-// --vat, --report, --dense-out, --series and OUT are outputs; every other
-// value naming an existing file or folder is an input. Returns false after
-// printing the problem with its fix.
+// --vat, --report, --dense-out, --series, --auto-lines and OUT are outputs;
+// every other value naming an existing file or folder is an input. Returns
+// false after printing the problem with its fix.
 bool outputs_spare_inputs(const CLI::App& command);
+
+// Whether two paths name one file, whether or not it exists yet ("a/../x"
+// and "x", a symlink and its target).
+bool same_file(const std::string& a, const std::string& b);
 
 // A check for a file option (`->check(...)`): the name must end in one of
 // `endings` (any case), e.g. {".exr"}, so a bank is not written as an EXR

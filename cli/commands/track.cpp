@@ -157,6 +157,13 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
                     "propose them from the clip's motion");
         return kExitUsage;
     }
+    // The capture's own drawing is not an option's value, so the shared
+    // check (outputs_spare_inputs) cannot see it.
+    if (!options.auto_lines.empty() && !lines_path.empty() && same_file(options.auto_lines, lines_path)) {
+        log_message("error: --auto-lines " + options.auto_lines + " is the drawing " + lines_path +
+                    "; writing the proposal there would destroy it (fix: write it to another file)");
+        return kExitUsage;
+    }
     std::optional<formats::FlowLineSet> drawn;
     if (!lines_path.empty()) {
         std::vector<Problem> warnings;

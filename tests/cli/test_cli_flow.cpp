@@ -184,6 +184,19 @@ TEST(CliFlow, TrackProposesLinesAlongTheClipsMotionWhenAsked) {
     EXPECT_NE(file_bytes(dir + "/proposed.svg").find("proposed.frame1.png"), std::string::npos);
     ASSERT_FALSE(report.at("tracked_lines").empty());
     for (const auto& line : report.at("tracked_lines")) EXPECT_EQ(line.at("id").get<std::string>().rfind("auto-", 0), 0u);
+
+    // The proposal never overwrites a drawing: the capture's own, or one given.
+    const std::string drawing = tiny_capture() + "/flowlines.svg";
+    const std::string before = file_bytes(drawing);
+    const CliResult onto_capture = run_flowvid({"track", "--capture", tiny_capture(), "--auto-lines", drawing, "--frames",
+                                                "20", "--out", dir + "/x.bank.exr"});
+    EXPECT_EQ(onto_capture.exit_code, 2) << onto_capture.err;
+    EXPECT_TRUE(mentions(onto_capture.err, "would destroy it")) << onto_capture.err;
+    const CliResult onto_given = run_flowvid({"track", "--capture", tiny_capture(), "--flowlines", dir + "/proposed.svg",
+                                              "--auto-lines", dir + "/proposed.svg", "--out", dir + "/y.bank.exr"});
+    EXPECT_EQ(onto_given.exit_code, 2) << onto_given.err;
+    EXPECT_EQ(file_bytes(drawing), before);
+    EXPECT_FALSE(fs::exists(dir + "/x.bank.exr"));
 }
 
 // track says how sure its block matching was, and warns when most steps were
