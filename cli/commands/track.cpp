@@ -51,58 +51,39 @@ int track_with(const TrackOptions& options, const GlobalOptions& global, const f
                const nlohmann::json& auto_summary);
 
 // --auto-lines: input lines proposed from the clip's mean optical flow
-// (flow/auto_lines.hpp), in the first frame's view when the camera drifts,
-// written as an SVG over the first frame for the artist to correct. With a
-// drawing as well, says how far the two are apart (px, both ways).
+// (flow::propose_input_lines_steadied), in the first frame's view when the
+// camera drifts, written as an SVG over the first frame for the artist to
+// correct. With a drawing as well, says how far the two are apart (px, both ways).
 int propose_lines(const TrackOptions& options, const GlobalOptions& global, const formats::Capture& capture,
                   const formats::FlowLineSet* drawn, formats::FlowLineSet& proposed, nlohmann::json& summary) {
     InterruptWatch interrupt;
-    flow::CaptureFrames frames(capture, options.frames);
-    // Twice when the camera drifts: the drift is measured away from the
-    // flow (the frame's flowing part would pull the estimate along with it),
-    // so first the lines of the frames as filmed show where the flow is; then
-    // the lines are proposed again in the first frame's view, where the bank
-    // is tracked.
-    const auto propose = [&](flow::FrameSequence& source, const std::string& stage, flow::AutoLines& out) {
-        Progress progress(global, stage);
+    flow::CameraMotion camera;
+    flow::AutoLines lines;
+    {
+        std::unique_ptr<Progress> progress;  // one bar per stage
+        std::string shown;
         try {
-            out = flow::propose_input_lines(source, {}, [&](double f) {
-                progress.update(f);
-                return !interrupt.requested();
-            });
+            lines = flow::propose_input_lines_steadied(capture, options.frames, camera, {},
+                                                       [&](const std::string& stage, double fraction) {
+                                                           if (stage != shown) {
+                                                               if (progress) progress->done();
+                                                               progress = std::make_unique<Progress>(global, stage);
+                                                               shown = stage;
+                                                           }
+                                                           progress->update(fraction);
+                                                           return !interrupt.requested();
+                                                       });
         } catch (const flow::AutoLinesCancelled&) {
             log_message("interrupted: no lines written");
             return kExitInterrupted;
         } catch (const std::invalid_argument& e) {
-            log_message("error: " + frames.source() + ": " + e.what());
+            log_message("error: " + options.capture + ": " + e.what());
             return kExitInvalidInput;
         }
-        progress.done();
-        return kExitOk;
-    };
-    flow::AutoLines lines;
-    if (const int status = propose(frames, "optical flow", lines); status != kExitOk) return status;
-    flow::CameraMotion camera;
-    {
-        Progress measuring(global, "camera drift");
-        flow::CaptureFrames again(capture, options.frames);
-        camera = flow::estimate_camera_motion(again, flow::drawn_input_polylines(lines.drawing), {}, [&](double f) {
-            measuring.update(f);
-            return !interrupt.requested();
-        });
-        measuring.done();
-    }
-    if (interrupt.requested()) {
-        log_message("interrupted: no lines written");
-        return kExitInterrupted;
-    }
-    if (!camera.still()) {
-        flow::CaptureFrames again(capture, options.frames);
-        flow::StabilisedFrames stabilised(again, camera);
-        if (const int status = propose(stabilised, "optical flow, steadied", lines); status != kExitOk) return status;
+        if (progress) progress->done();
     }
     if (lines.drawing.inputs.empty()) {
-        log_message("error: " + frames.source() +
+        log_message("error: " + options.capture +
                     ": no flow found to propose lines along (nothing moves consistently faster than " +
                     std::to_string(lines.min_speed_px_per_frame) +
                     " px/frame; fix: draw the lines and give --flowlines, or use more --frames)");

@@ -279,6 +279,27 @@ std::vector<Eigen::Vector2d> simplify_polyline(const std::vector<Eigen::Vector2d
 
 // ---- the proposal -------------------------------------------------------------------
 
+AutoLines propose_input_lines_steadied(const formats::Capture& capture, int max_frames, CameraMotion& camera,
+                                       const AutoLineSettings& settings,
+                                       const std::function<bool(const std::string& stage, double fraction)>& progress) {
+    const auto stage = [&](const std::string& name) {
+        return [&progress, name](double fraction) { return !progress || progress(name, fraction); };
+    };
+    CaptureFrames filmed(capture, max_frames);
+    AutoLines lines = propose_input_lines(filmed, settings, stage("optical flow"));
+    CaptureFrames again(capture, max_frames);
+    bool cancelled = false;
+    camera = estimate_camera_motion(again, drawn_input_polylines(lines.drawing), {}, [&](double fraction) {
+        cancelled = !stage("camera drift")(fraction);
+        return !cancelled;
+    });
+    if (cancelled) throw AutoLinesCancelled();
+    if (camera.still()) return lines;
+    CaptureFrames source(capture, max_frames);
+    StabilisedFrames steadied(source, camera);
+    return propose_input_lines(steadied, settings, stage("optical flow, steadied"));
+}
+
 AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& settings,
                               const std::function<bool(double)>& progress) {
     check_settings(settings);

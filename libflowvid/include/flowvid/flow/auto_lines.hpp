@@ -15,6 +15,8 @@
 // clip at its full size. A line's first point is upstream.
 
 #include "flowvid/flow/frames.hpp"
+#include "flowvid/flow/stabilise.hpp"
+#include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/flowlines.hpp"
 
 #include <Eigen/Core>
@@ -71,6 +73,18 @@ struct AutoLinesCancelled : std::runtime_error {
 // clip with fewer than step_frames + 1 frames (of those used) or bad settings.
 AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& settings = {},
                               const std::function<bool(double)>& progress = {});
+
+// The lines `flowvid track --auto-lines` proposes for a clip (its first
+// max_frames frames; 0: all), in the view of its first frame, where the bank
+// is tracked: proposed once on the frames as filmed; when the camera drifts
+// (measured away from those lines: the flowing part of the frame would pull
+// the estimate along with it), proposed again on the steadied frames.
+// `camera` receives the drift. `progress` gets the stage ("optical flow",
+// "camera drift", "optical flow, steadied") and its fraction done; returning
+// false cancels (AutoLinesCancelled).
+AutoLines propose_input_lines_steadied(const formats::Capture& capture, int max_frames, CameraMotion& camera,
+                                       const AutoLineSettings& settings = {},
+                                       const std::function<bool(const std::string& stage, double fraction)>& progress = {});
 
 // Mean distance, px, from points sampled every `step_px` of arc along each
 // polyline of `from` (first and last points included) to the nearest point of
