@@ -1,6 +1,8 @@
 // Input flow lines proposed from dense optical flow (auto_lines.hpp).
 #include "flowvid/flow/auto_lines.hpp"
 
+#include "flowvid/flow/geometry.hpp"
+
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
@@ -249,15 +251,10 @@ std::vector<Eigen::Vector2d> simplify_polyline(const std::vector<Eigen::Vector2d
     while (!spans.empty()) {
         const auto [first, last] = spans.back();
         spans.pop_back();
-        const Eigen::Vector2d a = points[first];
-        const Eigen::Vector2d ab = points[last] - a;
-        const double length2 = ab.squaredNorm();
         double farthest = -1.0;
         std::size_t split = first;
         for (std::size_t i = first + 1; i < last; ++i) {
-            const Eigen::Vector2d ap = points[i] - a;
-            const double t = length2 > 0.0 ? std::clamp(ap.dot(ab) / length2, 0.0, 1.0) : 0.0;
-            const double d = (ap - t * ab).norm();
+            const double d = distance_to_segment(points[i], points[first], points[last]);
             if (d > farthest) {
                 farthest = d;
                 split = i;
@@ -478,17 +475,6 @@ AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& set
 }
 
 // ---- comparing line sets ---------------------------------------------------------------
-
-namespace {
-
-double distance_to_segment(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    const Eigen::Vector2d ab = b - a;
-    const double length2 = ab.squaredNorm();
-    const double t = length2 > 0.0 ? std::clamp((p - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
-    return (p - (a + t * ab)).norm();
-}
-
-}  // namespace
 
 double mean_distance_to_lines(const std::vector<std::vector<Eigen::Vector2d>>& from,
                               const std::vector<std::vector<Eigen::Vector2d>>& to, double step_px) {

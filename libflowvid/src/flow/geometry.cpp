@@ -222,18 +222,15 @@ std::vector<double> distance_to_polylines(const std::vector<std::vector<Eigen::V
     std::vector<double> distance(static_cast<std::size_t>(width) * height, std::numeric_limits<double>::infinity());
     for (const auto& line : lines)
         for (std::size_t i = 0; i + 1 < line.size(); ++i) {
-            const Eigen::Vector2d a = line[i], d = line[i + 1] - line[i];
-            const double len2 = d.squaredNorm();
+            const Eigen::Vector2d a = line[i];
             const int x0 = std::max(0, static_cast<int>(std::floor(std::min(a.x(), line[i + 1].x()) - reach_px)));
             const int x1 = std::min(width - 1, static_cast<int>(std::ceil(std::max(a.x(), line[i + 1].x()) + reach_px)));
             const int y0 = std::max(0, static_cast<int>(std::floor(std::min(a.y(), line[i + 1].y()) - reach_px)));
             const int y1 = std::min(height - 1, static_cast<int>(std::ceil(std::max(a.y(), line[i + 1].y()) + reach_px)));
             for (int y = y0; y <= y1; ++y)
                 for (int x = x0; x <= x1; ++x) {
-                    const Eigen::Vector2d q(x, y);
-                    const double t = len2 > 0.0 ? std::clamp((q - a).dot(d) / len2, 0.0, 1.0) : 0.0;
                     double& best = distance[static_cast<std::size_t>(y) * width + x];
-                    best = std::min(best, (q - (a + t * d)).norm());
+                    best = std::min(best, distance_to_segment(Eigen::Vector2d(x, y), a, line[i + 1]));
                 }
         }
     return distance;

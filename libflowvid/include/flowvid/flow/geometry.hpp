@@ -11,6 +11,7 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -49,6 +50,14 @@ private:
     double m_length = 0.0;
     std::vector<Eigen::Vector2d> m_tangents;  // smoothed, one per pixel of arc (index = round(s))
 };
+
+// Distance from `p` to the segment [a, b] (to `a` when the segment has no length).
+inline double distance_to_segment(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    const Eigen::Vector2d ab = b - a;
+    const double length2 = ab.squaredNorm();
+    const double t = length2 > 0.0 ? std::clamp((p - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
+    return (p - (a + t * ab)).norm();
+}
 
 // Length of the part of a polyline inside the frame [0, width] x [0, height]
 // (each segment clipped to the rectangle): 0 for a line drawn off the clip.
