@@ -6,6 +6,7 @@
 #include <future>
 #include <limits>
 #include <map>
+#include <optional>
 #include <set>
 #include <stdexcept>
 #include <thread>
@@ -230,10 +231,11 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
         return static_cast<int>(std::floor(fraction * streams.schedule().period_frames));
     };
     // Input lines ordered across the flow (their segments joined back into
-    // whole lines), for the inputs an interpolated line may take.
+    // whole lines), for the inputs an interpolated line may take and for
+    // stretches of the flow an edit leaves as filmed.
     std::map<int, std::pair<std::size_t, std::size_t>> input_place;  // candidate -> (chain, position)
     std::vector<std::vector<int>> input_chains;
-    if (settings.interpolated_inputs == EditSettings::InterpolatedInputs::between) {
+    {
         std::vector<std::vector<Eigen::Vector2d>> whole;
         for (const ParticleStreams::InputLine& in : streams.input_lines()) {
             std::vector<Eigen::Vector2d> points;
@@ -249,6 +251,7 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
     // Candidates (indices into `candidates`, which are input line indices) between two drawn lines' inputs.
     const auto inputs_between = [&](const std::string& from_a, const std::string& from_b) {
         std::vector<int> out;
+        if (settings.interpolated_inputs != EditSettings::InterpolatedInputs::between) return out;  // any
         const auto a = input_place.find(streams.input_line_index(from_a));
         const auto b = input_place.find(streams.input_line_index(from_b));
         if (a == input_place.end() || b == input_place.end() || a->second.first != b->second.first) return out;  // any
@@ -260,11 +263,51 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
         return out;
     };
 
+    // Two neighbouring drawn lines that lie on their own input lines, with
+    // only lines `track` added (densified, not drawn) between those inputs,
+    // leave that stretch of the flow as filmed: it is rendered as synthesis
+    // renders it (the input lines between, each at its own time, over the
+    // clip's own background) rather than interpolated, whose lines would
+    // show other moments over a replayed clip.
+    std::set<std::string> drawn_inputs;
+    for (const formats::FlowLine& line : drawing.inputs) drawn_inputs.insert(line.id);
+    const auto on_own_input = [&](const formats::FlowLine& line) {
+        const int input = streams.input_line_index(line.from);
+        if (line.is_time_varying() || input < 0) return false;
+        const std::vector<Eigen::Vector2d>& points = streams.input_lines()[static_cast<std::size_t>(input)].points;
+        if (points.size() != line.points.size()) return false;
+        for (std::size_t i = 0; i < points.size(); ++i)
+            if ((points[i] - line.points[i]).norm() > 1e-6) return false;
+        return true;
+    };
     // Drawn lines that carry an input an earlier drawn line already carries
     // (a particle system's lines, all from one input) show its particles at
     // their own offset in time: side by side at one time they would show the
-    // same texture shifted a few pixels, which blends into a flat blur.
+    // same texture shifted a few pixels, which blends into a flat blur. A
+    // drawn line lying on its input line keeps it as filmed (no offset, so a
+    // replayed clip follows it) wherever it comes in the drawing.
     std::set<std::string> carried_by_a_drawn_line;
+    for (const formats::FlowLine& line : drawing.outputs)
+        if (on_own_input(line)) carried_by_a_drawn_line.insert(line.from);
+    // The input lines strictly between two drawn lines' inputs when the
+    // stretch is as filmed (see above); nullopt otherwise.
+    const auto as_filmed_between = [&](const formats::FlowLine& a, const formats::FlowLine& b) -> std::optional<std::vector<int>> {
+        if (!on_own_input(a) || !on_own_input(b)) return std::nullopt;
+        const auto pa = input_place.find(streams.input_line_index(a.from));
+        const auto pb = input_place.find(streams.input_line_index(b.from));
+        if (pa == input_place.end() || pb == input_place.end() || pa->second.first != pb->second.first) return std::nullopt;
+        const std::vector<int>& inputs = input_chains[pa->second.first];
+        std::vector<int> between_inputs;
+        const std::size_t lo = std::min(pa->second.second, pb->second.second), hi = std::max(pa->second.second, pb->second.second);
+        if (lo == hi) return std::nullopt;
+        for (std::size_t k = lo + 1; k < hi; ++k) {
+            const ParticleStreams::InputLine& in = streams.input_lines()[static_cast<std::size_t>(inputs[k])];
+            if (drawn_inputs.count(in.id) || in.points.size() < 2) return std::nullopt;
+            between_inputs.push_back(inputs[k]);
+        }
+        if (pa->second.second > pb->second.second) std::reverse(between_inputs.begin(), between_inputs.end());
+        return between_inputs;
+    };
     for (const std::vector<int>& chain : sparse_chains) {
         // The dense chain: drawn lines with the interpolated ones between them.
         std::vector<DenseLine> dense;
@@ -275,10 +318,25 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
             d.output.line = line;
             d.output.from = line.from;
             d.drawn = true;
-            if (!carried_by_a_drawn_line.insert(line.from).second) d.output.line.time_offset_frames = next_time_offset();
+            if (!on_own_input(line) && !carried_by_a_drawn_line.insert(line.from).second)
+                d.output.line.time_offset_frames = next_time_offset();
             dense.push_back(std::move(d));
             interpolated_allowed.emplace_back();
             if (k + 1 == chain.size()) break;
+            if (const auto filmed = as_filmed_between(drawing.outputs[static_cast<std::size_t>(chain[k])],
+                                                      drawing.outputs[static_cast<std::size_t>(chain[k + 1])])) {
+                for (int input : *filmed) {
+                    const ParticleStreams::InputLine& in = streams.input_lines()[static_cast<std::size_t>(input)];
+                    DenseLine d2;
+                    d2.output.line.id = in.id;
+                    d2.output.line.points = in.points;
+                    d2.output.from = in.id;
+                    dense.push_back(std::move(d2));
+                    for (std::size_t c = 0; c < candidates.size(); ++c)
+                        if (candidates[c] == input) interpolated_allowed.push_back({static_cast<int>(c)});
+                }
+                continue;
+            }
             for (const InterpolatedLine& inter : between) {
                 if (inter.a != chain[k] || inter.b != chain[k + 1]) continue;
                 const formats::FlowLine& a = drawing.outputs[static_cast<std::size_t>(inter.a)];

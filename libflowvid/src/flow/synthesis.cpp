@@ -312,8 +312,12 @@ WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, 
             if (entry.fade <= 0.0f) continue;
             const double beyond = std::max(-s_out, s_out - length_out);  // > 0 past an end
             const double along = std::clamp(1.0 - std::max(0.0, beyond) / (0.5 * patch), 0.0, 1.0);
-            const double across = std::cos(M_PI * static_cast<double>(best_n[k]) / patch);
-            entry.carry = std::abs(best_n[k]) < 0.5 * patch ? static_cast<float>(along * across * across) : 0.0f;
+            // Carried background reaches three quarters of a patch across
+            // (cos^2): a new channel's outer edge fades like mist, where half
+            // a patch ended in a hard edge.
+            const double band_px = 0.75 * patch;
+            const double across = std::cos(0.5 * M_PI * static_cast<double>(best_n[k]) / band_px);
+            entry.carry = std::abs(best_n[k]) < band_px ? static_cast<float>(along * across * across) : 0.0f;
             entries.emplace_back(static_cast<float>(s_in), entry);
         }
     table.s_min = -table.reach_in - 1.0;

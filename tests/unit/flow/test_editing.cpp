@@ -478,6 +478,68 @@ TEST(FlowEditing, NeighbouringInterpolatedLinesShowDifferentParticles) {
     }
 }
 
+// Drawn lines lying on their own input lines leave the flow between them as
+// filmed: that stretch renders exactly as plain synthesis renders it (the
+// densified input line between, no interpolated lines at other times), and
+// those drawn lines keep the input's time even when a line drawn before them
+// carries the same input elsewhere (regression: the waterfall's edit offset
+// its own unmoved lines, and interpolated over them, so they no longer
+// matched the replayed clip behind them).
+TEST(FlowEditing, StretchesLeftAsFilmedRenderAsSynthesisDoes) {
+    const std::vector<double> xs = {20, 35, 50};
+    auto bank = vertical_bank(xs, 10.0, 110.0, 10, [](int l, double s, double row) {
+        return static_cast<float>(0.1 + 0.25 * l + 0.004 * s + 0.01 * row);
+    });
+    // The middle line is the one `track` added between the drawn in-0 and in-2.
+    const std::string densified = interpolated_line_id("in-0", "in-2", 0.5);
+    bank->lines[1].id = densified;
+    for (auto& particle : bank->particles)
+        if (particle.line_id == "in-1") particle.line_id = densified;
+    formats::FlowLineSet drawing;
+    drawing.width = drawing.height = 120;
+    drawing.inputs = {line("in-0", {{20.0, 10.0}, {20.0, 110.0}}), line("in-2", {{50.0, 10.0}, {50.0, 110.0}})};
+    // Listed first: a new line carrying in-0, 40 px right of in-2.
+    drawing.outputs = {line("new", {{90.0, 10.0}, {90.0, 110.0}}, "in-0"), line("kept-0", drawing.inputs[0].points, "in-0"),
+                       line("kept-2", drawing.inputs[1].points, "in-2")};
+    SynthesisSettings settings;
+    settings.fade_frames = 0;
+    const auto streams = std::make_shared<ParticleStreams>(
+        bank, ParticleStreams::input_points_from_drawing(*bank, drawing, "drawing.svg"), settings, &drawing);
+
+    EditSettings edit;
+    edit.correspondence_frames = 4;
+    const EditPlan plan = plan_edit(drawing, *streams, edit);
+    std::map<std::string, const DenseLine*> by_id;
+    for (const DenseLine& d : plan.lines) by_id[d.output.line.id] = &d;
+    ASSERT_TRUE(by_id.count("kept-0") && by_id.count("kept-2") && by_id.count("new"));
+    EXPECT_EQ(by_id["kept-0"]->output.line.time_offset_frames, 0);
+    EXPECT_EQ(by_id["kept-2"]->output.line.time_offset_frames, 0);
+    EXPECT_GT(by_id["new"]->output.line.time_offset_frames, 0);
+    // Between kept-0 and kept-2: the densified input line itself, at its time.
+    ASSERT_TRUE(by_id.count(densified));
+    EXPECT_EQ(by_id[densified]->output.from, densified);
+    EXPECT_EQ(by_id[densified]->output.line.time_offset_frames, 0);
+    int between_kept = 0, between_kept_and_new = 0;
+    for (const DenseLine& d : plan.lines) {
+        if (d.drawn) continue;
+        const double x = d.output.line.points.front().x();
+        (x < 50.0 ? between_kept : between_kept_and_new) += 1;
+    }
+    EXPECT_EQ(between_kept, 1);
+    EXPECT_GT(between_kept_and_new, 5);  // 40 px at half-patch spacing: interpolated as before
+
+    // Left of kept-2's patches (x < 46) the edit is the plain synthesis, pixel for pixel.
+    const Synthesizer edited(streams, output_lines(plan), Background(), settings);
+    const Synthesizer plain(streams, {}, Background(), settings);
+    for (int frame : {3, 17, 40}) {
+        const RgbImage a = edited.render(frame), b = plain.render(frame);
+        for (int y = 0; y < 120; ++y)
+            for (int x = 0; x < 46; ++x)
+                for (int k = 0; k < 3; ++k)
+                    ASSERT_EQ(a.pixel(x, y)[k], b.pixel(x, y)[k]) << "frame " << frame << " at " << x << ", " << y;
+    }
+}
+
 // An input line far to the side whose grey lies between the drawn lines'
 // greys lowers eq. 3.1 if any input may be taken; the default keeps the
 // interpolated lines to the inputs between the drawn lines' own.
@@ -562,7 +624,10 @@ TEST(FlowEditing, ANewLineCarriesTheBackgroundAroundItsInputLineWhereParticlesLe
             EXPECT_NEAR(on.pixel(70 + n, y)[0], (20.0 + n) / 120.0, 2e-3) << "y " << y << " n " << n;
             EXPECT_NEAR(on.pixel(70 + n, y)[1], y / 120.0, 2e-3) << "y " << y << " n " << n;
         }
-    // Off to the side (beyond half a patch) and past the line's end nothing is carried.
+    // Carried background fades out three quarters of a patch (6 px) to the
+    // side: a little shows 5 px off, none 7 px off or past the line's end.
+    EXPECT_GT(std::fabs(on.pixel(75, 72)[0] - off.pixel(75, 72)[0]), 1e-3);
+    EXPECT_NEAR(on.pixel(77, 72)[0], off.pixel(77, 72)[0], 1e-6);
     EXPECT_NEAR(on.pixel(80, 72)[0], 80.0 / 120.0, 1e-5);
     // Nor from the stretch of the input line no particle crossed (arc beyond
     // 70 + half a patch): its rock would stand in the new flow.
