@@ -9,10 +9,10 @@
 //                                       and evaluation counts (20 shifted
 //                                       instances), grid vs Halton starts.
 
-#include "flowvid/metrics/angle_map_metric.hpp"
 #include "flowvid/optim/annealing.hpp"
 #include "flowvid/optim/test_functions.hpp"
 #include "flowvid/video/angle_map.hpp"
+#include "flowvid/video/angle_map_metric.hpp"
 #include "flowvid/video/cloth_footage.hpp"
 #include "flowvid/video/stripe_render.hpp"
 
@@ -31,7 +31,7 @@ namespace {
 // One frame of the static cotton capture and its truth mesh, loaded once.
 struct FrameFixture {
     formats::Capture capture;
-    metrics::ReferenceFrame real;
+    video::ReferenceFrame real;
     std::vector<Eigen::Vector3d> vertices;
     std::vector<std::array<int, 3>> triangles;
     video::AngleMapSettings settings;
@@ -44,7 +44,7 @@ struct FrameFixture {
         video::AngleMapper mapper(settings);
         real.silhouette = frame.silhouette;
         mapper.compute(frame.gray, frame.silhouette, real.angles);
-        metrics::prepare_reference(real);
+        video::prepare_reference(real);
         const auto truth = formats::read_capture_truth_positions(capture);  // a mesh to render; not a fit
         vertices = video::vertices_of_frame(*truth, 0);
         triangles = video::grid_triangles(24, 24);
@@ -86,9 +86,9 @@ void BM_Metric(benchmark::State& state) {
     const video::StripeImage rendered = renderer.render(f.vertices, f.triangles);
     video::AngleMapper mapper(f.settings);
     const video::AngleMap map = mapper.compute(rendered.image, rendered.silhouette);
-    metrics::AngleMapMetricSettings settings;
-    settings.silhouette_term = state.range(0) ? metrics::SilhouetteTerm::edge_distance : metrics::SilhouetteTerm::pixel_xor;
-    for (auto _ : state) benchmark::DoNotOptimize(metrics::angle_map_frame_error(f.real, map, rendered.silhouette, settings));
+    video::AngleMapMetricSettings settings;
+    settings.silhouette_term = state.range(0) ? video::SilhouetteTerm::edge_distance : video::SilhouetteTerm::pixel_xor;
+    for (auto _ : state) benchmark::DoNotOptimize(video::angle_map_frame_error(f.real, map, rendered.silhouette, settings));
 }
 BENCHMARK(BM_Metric)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
@@ -102,7 +102,7 @@ void BM_FrameError(benchmark::State& state) {
     for (auto _ : state) {
         renderer.render(f.vertices, f.triangles, rendered);
         mapper.compute(rendered.image, rendered.silhouette, map);
-        benchmark::DoNotOptimize(metrics::angle_map_frame_error(f.real, map, rendered.silhouette));
+        benchmark::DoNotOptimize(video::angle_map_frame_error(f.real, map, rendered.silhouette));
     }
 }
 BENCHMARK(BM_FrameError)->Unit(benchmark::kMillisecond);

@@ -65,7 +65,7 @@ video::TrialLoadSettings load_settings(const TrialOptions& options) {
     load.waving_frames = options.frames;
     load.full_weight_frames = options.full_weight_frames;
     load.half_life_frames = options.half_life_frames;
-    load.silhouette_term = options.metric == "edge" ? metrics::SilhouetteTerm::edge_distance : metrics::SilhouetteTerm::pixel_xor;
+    load.silhouette_term = options.metric == "edge" ? video::SilhouetteTerm::edge_distance : video::SilhouetteTerm::pixel_xor;
     return load;
 }
 

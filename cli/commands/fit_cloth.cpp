@@ -92,7 +92,7 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
     request.min_bending_N_m = options.min_bending_N_m;
     request.problem.swatch = swatch;
     request.problem.metric.silhouette_term =
-        options.metric == "edge" ? metrics::SilhouetteTerm::edge_distance : metrics::SilhouetteTerm::pixel_xor;
+        options.metric == "edge" ? video::SilhouetteTerm::edge_distance : video::SilhouetteTerm::pixel_xor;
     request.load.silhouette_term = request.problem.metric.silhouette_term;
     request.drag = options.drag == "linear" ? video::DragModel::linear : video::DragModel::nonlinear;
     request.evaluations = options.evaluations;

@@ -162,9 +162,9 @@ video::StripeImage film_frame(const ClothScenario& scenario, const cloth::Swatch
     return sum;
 }
 
-std::vector<float> residual_image(const metrics::ReferenceFrame& reference, const video::AngleMap& simulated,
+std::vector<float> residual_image(const video::ReferenceFrame& reference, const video::AngleMap& simulated,
                                   const metrics::Silhouette& simulated_silhouette,
-                                  const metrics::AngleMapMetricSettings& metric) {
+                                  const video::AngleMapMetricSettings& metric) {
     const std::size_t n = reference.silhouette.pixels.size();
     std::vector<float> out(n, 0.0f);
     for (std::size_t i = 0; i < n; ++i) {
@@ -206,7 +206,7 @@ ClothGapModel::ClothGapModel(std::vector<video::ClothTrial> trials, cloth::Cloth
             const cloth::SwatchRun nominal = run_scenario(t, apply_cloth_effects(trial, m_base, fit.swatch, {}), threads);
             if (video::usable_frames(nominal) >= static_cast<int>(trial.frames.size())) {
                 const video::ClothTrial as_footage = video::simulated_trial(
-                    trial, nominal, fit.metric.silhouette_term == metrics::SilhouetteTerm::edge_distance);
+                    trial, nominal, fit.metric.silhouette_term == video::SilhouetteTerm::edge_distance);
                 cloth::SwatchOptions finer = fit.swatch;
                 finer.rows += m_settings.floor_resolution_step;
                 finer.cols += m_settings.floor_resolution_step;
@@ -216,7 +216,7 @@ ClothGapModel::ClothGapModel(std::vector<video::ClothTrial> trials, cloth::Cloth
                 const Eigen::VectorXd start = video::matching_equilibrium(trial, m_base, finer_fit);
                 if (start.size() > 0) finer.initial_positions = start;
                 const cloth::SwatchRun fine = cloth::simulate_swatch(trial.experiment, m_base, finer);
-                const std::vector<metrics::FrameError> errors = video::compare_run(as_footage, fine, fit.metric);
+                const std::vector<video::FrameError> errors = video::compare_run(as_footage, fine, fit.metric);
                 for (std::size_t k = 0; k < floor.size() && k < errors.size(); ++k) floor[k] = std::max(floor[k], errors[k].total);
             }
         }
@@ -225,7 +225,7 @@ ClothGapModel::ClothGapModel(std::vector<video::ClothTrial> trials, cloth::Cloth
         for (double f : floor) largest = std::max(largest, f);
         for (double& f : floor) f = std::max(f, std::max(1e-3 * largest, 1e-6));
         m_floors[t] = floor;
-        for (const metrics::ReferenceFrame& frame : trial.frames) {
+        for (const video::ReferenceFrame& frame : trial.frames) {
             double speed = 0.0;
             for (const cloth::PinTrajectory& pin : trial.experiment.pins) {
                 const int k = frame.number - 1;
@@ -316,7 +316,7 @@ Residuals ClothGapModel::evaluate_on(const cloth::ClothMaterial& material, const
         video::AngleMapper mapper(trial.angle_map);
         video::AngleMap angles;
         for (std::size_t k = 0; k < trial.frames.size(); ++k) {
-            const metrics::ReferenceFrame& reference = trial.frames[k];
+            const video::ReferenceFrame& reference = trial.frames[k];
             FrameResidual r;
             r.trial = static_cast<int>(t);
             r.frame = reference.number;
@@ -328,7 +328,7 @@ Residuals ClothGapModel::evaluate_on(const cloth::ClothMaterial& material, const
             if (index >= 0 && index < usable) {
                 const video::StripeImage filmed = film_frame(scenario, run, index, renderer);
                 mapper.compute(filmed.image, filmed.silhouette, angles);
-                const metrics::FrameError fe = metrics::angle_map_frame_error(reference, angles, filmed.silhouette, m_settings.fit.metric);
+                const video::FrameError fe = video::angle_map_frame_error(reference, angles, filmed.silhouette, m_settings.fit.metric);
                 r.error = fe.total;
                 // One orientation estimate spans a blur disc of radius 2 sigma.
                 const double sigma = trial.angle_map.blur_sigma_px;
@@ -464,7 +464,7 @@ std::vector<RegionMap> ClothGapModel::localise(const EffectValues& effects) cons
             lo = lo.cwiseMin(p);
             hi = hi.cwiseMax(p);
         }
-        for (const metrics::ReferenceFrame& reference : trial.frames) {
+        for (const video::ReferenceFrame& reference : trial.frames) {
             const int index = reference.number - 1;
             if (index < 0 || index >= usable) continue;
             const video::StripeImage filmed = film_frame(scenario, run, index, renderer);

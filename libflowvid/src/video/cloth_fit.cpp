@@ -125,7 +125,7 @@ int compared_frame_count(const ClothTrial& trial, const TrialLoadSettings& setti
 
 std::vector<double> frame_weights(const ClothTrial& trial, const TrialLoadSettings& settings, int count) {
     return trial.is_static ? std::vector<double>(static_cast<std::size_t>(count), settings.static_weight)
-                           : metrics::decaying_frame_weights(count, settings.full_weight_frames, settings.half_life_frames);
+                           : decaying_frame_weights(count, settings.full_weight_frames, settings.half_life_frames);
 }
 
 // A tracks trial: the capture's measured 3D points instead of its footage.
@@ -152,7 +152,7 @@ ClothTrial load_tracks_trial(const formats::Capture& capture, const TrialLoadSet
     const double diagonal_mm = 1000.0 * std::hypot(trial.experiment.width_m, trial.experiment.height_m);
     reference.missing_frame_error_mm2 = diagonal_mm * diagonal_mm;
     for (int k = 0; k < count; ++k) {
-        metrics::ReferenceFrame frame;
+        ReferenceFrame frame;
         frame.number = k + 1;
         frame.weight = weights[static_cast<std::size_t>(k)];
         trial.frames.push_back(std::move(frame));
@@ -214,7 +214,7 @@ ClothTrial load_scan_trial(const formats::Capture& capture, const TrialLoadSetti
             reference.height = scan.height;
             reference.first_frame_points_m = scan.points_m;
         }
-        metrics::ReferenceFrame compared;
+        ReferenceFrame compared;
         compared.number = k + 1;
         compared.weight = weights[static_cast<std::size_t>(k)];
         trial.frames.push_back(std::move(compared));
@@ -281,7 +281,7 @@ double track_frame_error_mm2(const Eigen::MatrixX3d& measured_m, const Eigen::Ma
 
 double tracks_rms_mm(const ClothTrial& trial, double weighted_error) {
     double weights = 0.0;
-    for (const metrics::ReferenceFrame& f : trial.frames) weights += f.weight;
+    for (const ReferenceFrame& f : trial.frames) weights += f.weight;
     return weights > 0.0 ? std::sqrt(std::max(0.0, weighted_error) / weights) : 0.0;
 }
 
@@ -297,12 +297,12 @@ ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& 
     AngleMapper mapper(trial.angle_map);
     for (int k = 0; k < count; ++k) {
         const ClothFrame frame = footage.frame(footage.first() + k);
-        metrics::ReferenceFrame reference;
+        ReferenceFrame reference;
         reference.number = k + 1;
         reference.weight = weights[static_cast<std::size_t>(k)];
         reference.silhouette = frame.silhouette;
         mapper.compute(frame.gray, frame.silhouette, reference.angles);
-        if (settings.silhouette_term == metrics::SilhouetteTerm::edge_distance) metrics::prepare_reference(reference);
+        if (settings.silhouette_term == SilhouetteTerm::edge_distance) prepare_reference(reference);
         trial.frames.push_back(std::move(reference));
     }
     truncate_experiment(trial, count);
@@ -319,14 +319,14 @@ int usable_frames(const cloth::SwatchRun& run) {
 
 namespace {
 
-std::vector<metrics::FrameError> compare_tracks(const ClothTrial& trial, const cloth::SwatchRun& run) {
+std::vector<FrameError> compare_tracks(const ClothTrial& trial, const cloth::SwatchRun& run) {
     const TrackReference& tracks = *trial.tracks;
     const int usable = usable_frames(run);
     const cloth::UvSampler sampler(run.swatch.mesh, tracks.rows, tracks.cols);
-    std::vector<metrics::FrameError> errors;
+    std::vector<FrameError> errors;
     for (std::size_t k = 0; k < trial.frames.size(); ++k) {
         const int index = trial.frames[k].number - 1;
-        metrics::FrameError fe;
+        FrameError fe;
         fe.total = index >= 0 && index < usable
                        ? track_frame_error_mm2(tracks.positions_m[k], sampler.sample(run.simulation.frames[static_cast<std::size_t>(index)]))
                        : tracks.missing_frame_error_mm2;
@@ -342,15 +342,15 @@ StripeRenderer scan_renderer(const ClothTrial& trial) {
     return StripeRenderer(trial.camera, trial.projector, settings);
 }
 
-std::vector<metrics::FrameError> compare_scan(const ClothTrial& trial, const cloth::SwatchRun& run) {
+std::vector<FrameError> compare_scan(const ClothTrial& trial, const cloth::SwatchRun& run) {
     const ScanReference& scan = *trial.scan;
     const int usable = usable_frames(run);
     StripeRenderer renderer = scan_renderer(trial);
     StripeImage rendered;
-    std::vector<metrics::FrameError> errors;
+    std::vector<FrameError> errors;
     for (std::size_t k = 0; k < trial.frames.size(); ++k) {
         const int index = trial.frames[k].number - 1;
-        metrics::FrameError fe;
+        FrameError fe;
         if (index >= 0 && index < usable) {
             renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
                             run.swatch.mesh.triangles, rendered);
@@ -369,8 +369,8 @@ std::vector<metrics::FrameError> compare_scan(const ClothTrial& trial, const clo
 
 }  // namespace
 
-std::vector<metrics::FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
-                                             const metrics::AngleMapMetricSettings& metric) {
+std::vector<FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
+                                             const AngleMapMetricSettings& metric) {
     if (trial.tracks) return compare_tracks(trial, run);
     if (trial.frames.empty()) return {};  // nothing compared (no camera needed)
     if (trial.scan) return compare_scan(trial, run);
@@ -379,15 +379,15 @@ std::vector<metrics::FrameError> compare_run(const ClothTrial& trial, const clot
     AngleMapper mapper(trial.angle_map);
     StripeImage rendered;
     AngleMap angles;
-    std::vector<metrics::FrameError> errors;
-    for (const metrics::ReferenceFrame& reference : trial.frames) {
+    std::vector<FrameError> errors;
+    for (const ReferenceFrame& reference : trial.frames) {
         const int index = reference.number - 1;
-        metrics::FrameError fe;
+        FrameError fe;
         if (index >= 0 && index < usable) {
             renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
                             run.swatch.mesh.triangles, rendered);
             mapper.compute(rendered.image, rendered.silhouette, angles);
-            fe = metrics::angle_map_frame_error(reference, angles, rendered.silhouette, metric);
+            fe = angle_map_frame_error(reference, angles, rendered.silhouette, metric);
         } else {
             fe.total = missing_frame_error(reference, metric);
         }
@@ -431,7 +431,7 @@ ClothTrial simulated_trial(const ClothTrial& trial, const cloth::SwatchRun& run,
     AngleMapper mapper(trial.angle_map);
     StripeImage rendered;
     const int usable = usable_frames(run);
-    for (metrics::ReferenceFrame& reference : out.frames) {
+    for (ReferenceFrame& reference : out.frames) {
         const int index = reference.number - 1;
         if (index < 0 || index >= usable) throw std::invalid_argument("simulated_trial: the run has no frame " + std::to_string(reference.number));
         renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
@@ -439,7 +439,7 @@ ClothTrial simulated_trial(const ClothTrial& trial, const cloth::SwatchRun& run,
         mapper.compute(rendered.image, rendered.silhouette, reference.angles);
         reference.silhouette = rendered.silhouette;
         reference.edge_distance = {};
-        if (edge_distance) metrics::prepare_reference(reference);
+        if (edge_distance) prepare_reference(reference);
     }
     return out;
 }
@@ -615,7 +615,7 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
         if (!run.equilibrium.converged || run.simulation.frames.empty()) continue;
         if (index < bows) bow_equilibria[index] = run.simulation.frames.front();
         double error = 0.0;
-        for (const metrics::FrameError& e : compare_run(first_frame, run, settings.metric)) error += e.total;
+        for (const FrameError& e : compare_run(first_frame, run, settings.metric)) error += e.total;
         if (!choose || candidates.size() == 1) error = 0.0;  // nothing to choose by
         if (error < best_error) {
             best_error = error;
@@ -626,11 +626,11 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
     return best;
 }
 
-double missing_frame_error(const metrics::ReferenceFrame& reference, const metrics::AngleMapMetricSettings& settings) {
+double missing_frame_error(const ReferenceFrame& reference, const AngleMapMetricSettings& settings) {
     const double quarter_turn = 0.5 * std::numbers::pi;
     const double fold = static_cast<double>(reference.angles.mask_count()) * quarter_turn * quarter_turn;
     double silhouette = 0.0;
-    if (settings.silhouette_term == metrics::SilhouetteTerm::pixel_xor) {
+    if (settings.silhouette_term == SilhouetteTerm::pixel_xor) {
         silhouette = static_cast<double>(reference.silhouette.area_px());
     } else {
         const double far = static_cast<double>(reference.silhouette.width + reference.silhouette.height);
@@ -829,7 +829,7 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
     prov.created_utc = stamp;
     for (const formats::Capture& c : captures)
         prov.captures.push_back({c.folder, c.capture_json_sha256, c.kind == "cloth.static" ? "static" : "waving"});
-    const metrics::AngleMapMetricSettings& metric = problem.settings().metric;
+    const AngleMapMetricSettings& metric = problem.settings().metric;
     if (problem.trials().front().tracks) {
         // E_k in mm^2: the mean squared distance of the seen track points.
         prov.metric = "tracks_mean_square_mm2";
@@ -842,7 +842,7 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
             prov.metric_weights["outside_max_px"] = scan->outside_band.max_px;
         }
     } else {
-        prov.metric = metric.silhouette_term == metrics::SilhouetteTerm::pixel_xor ? "angle_map+silhouette_xor"
+        prov.metric = metric.silhouette_term == SilhouetteTerm::pixel_xor ? "angle_map+silhouette_xor"
                                                                                      : "angle_map+silhouette_edge_distance";
         prov.metric_weights["alpha"] = metric.alpha;
         if (metric.planar_weight > 0.0) prov.metric_weights["planar_weight"] = metric.planar_weight;

@@ -206,7 +206,7 @@ TEST(ClothGap, TheDiagnosisMetricLetsTheTrueEffectCloseMoreOfAFinerMeshGap) {
     const video::ClothTrial footage = synthetic_trial(truth, fine);
 
     ClothGapSettings as_the_fit = small_settings();
-    as_the_fit.fit.metric.alpha = metrics::AngleMapMetricSettings{}.alpha;  // the fit's (thesis) weight
+    as_the_fit.fit.metric.alpha = video::AngleMapMetricSettings{}.alpha;  // the fit's (thesis) weight
     ASSERT_EQ(small_settings().fit.metric.alpha, kDiagnosisSilhouetteWeight);
     const double closed_fit_metric = true_effect_closes(footage, truth, as_the_fit);
     const double closed_diagnosis_metric = true_effect_closes(footage, truth, small_settings());

@@ -165,7 +165,7 @@ TEST(ClothFit, RecoversStretchAndBendFromSyntheticFootage) {
         std::mt19937 rng(5);
         std::normal_distribution<float> noise(0.0f, 0.02f);
         for (float& v : footage.image.pixels) v += noise(rng);
-        metrics::ReferenceFrame reference;
+        video::ReferenceFrame reference;
         reference.number = 1;
         reference.silhouette = footage.silhouette;
         AngleMapper(trial.angle_map).compute(footage.image, footage.silhouette, reference.angles);

@@ -4,8 +4,8 @@
 // stripe renderer applied to the capture's truth mesh reproducing the
 // captured stripes (truth is read here for evaluation only, never by a fit).
 
-#include "flowvid/metrics/angle_map_metric.hpp"
 #include "flowvid/video/angle_map.hpp"
+#include "flowvid/video/angle_map_metric.hpp"
 #include "flowvid/video/cloth_footage.hpp"
 #include "flowvid/video/stripe_render.hpp"
 
@@ -99,11 +99,11 @@ TEST(ClothFootage, RenderedTruthReproducesTheCapturedStripes) {
     const ClothFrame frame = footage.frame(1);
     AngleMapper mapper(AngleMapSettings::for_stripe_period(expected_stripe_period_px(capture)));
 
-    metrics::ReferenceFrame real;
+    video::ReferenceFrame real;
     real.number = 1;
     real.silhouette = frame.silhouette;
     mapper.compute(frame.gray, frame.silhouette, real.angles);
-    metrics::prepare_reference(real);
+    video::prepare_reference(real);
 
     std::vector<float> coherence;
     for (std::size_t i = 0; i < real.angles.valid.size(); ++i)
@@ -120,13 +120,13 @@ TEST(ClothFootage, RenderedTruthReproducesTheCapturedStripes) {
     const std::vector<std::array<int, 3>> triangles = grid_triangles(rows, cols);
     StripeRenderer renderer(*capture.camera, *capture.projector);
 
-    auto evaluate = [&](const std::vector<Eigen::Vector3d>& vertices, const char* name, metrics::FrameError* edge) {
+    auto evaluate = [&](const std::vector<Eigen::Vector3d>& vertices, const char* name, video::FrameError* edge) {
         const StripeImage rendered = renderer.render(vertices, triangles);
         const AngleMap sim = mapper.compute(rendered.image, rendered.silhouette);
-        metrics::AngleMapMetricSettings settings;
-        const metrics::FrameError e = metrics::angle_map_frame_error(real, sim, rendered.silhouette, settings);
-        settings.silhouette_term = metrics::SilhouetteTerm::edge_distance;
-        *edge = metrics::angle_map_frame_error(real, sim, rendered.silhouette, settings);
+        video::AngleMapMetricSettings settings;
+        const video::FrameError e = video::angle_map_frame_error(real, sim, rendered.silhouette, settings);
+        settings.silhouette_term = video::SilhouetteTerm::edge_distance;
+        *edge = video::angle_map_frame_error(real, sim, rendered.silhouette, settings);
         std::printf("[measured] %s: E_k %.1f (fold %.1f rad^2 over %lld masked px, RMS %.2f deg; xor %.0f px; "
                     "edge distance %.0f px^2), IoU %.3f\n",
                     name, e.total, e.fold_rad2, e.masked_px, e.rms_angle_rad * 180 / kPi, e.silhouette, edge->silhouette,
@@ -135,8 +135,8 @@ TEST(ClothFootage, RenderedTruthReproducesTheCapturedStripes) {
         figure(std::string("stripes_") + name + ".png", rendered.image);
         return e;
     };
-    metrics::FrameError truth_edge, flat_edge;
-    const metrics::FrameError e_truth = evaluate(vertices_of_frame(*truth, 0), "truth", &truth_edge);
+    video::FrameError truth_edge, flat_edge;
+    const video::FrameError e_truth = evaluate(vertices_of_frame(*truth, 0), "truth", &truth_edge);
 
     // A flat swatch hanging straight down between the pins' first positions.
     const Eigen::Vector3d left = capture.swatch->pins[0].positions_m.front();
@@ -147,7 +147,7 @@ TEST(ClothFootage, RenderedTruthReproducesTheCapturedStripes) {
             const double u = static_cast<double>(c) / (cols - 1), v = static_cast<double>(r) / (rows - 1);
             flat.push_back(left + u * (right - left) - (1.0 - v) * capture.swatch->height_m * Eigen::Vector3d::UnitZ());
         }
-    const metrics::FrameError e_flat = evaluate(flat, "flat", &flat_edge);
+    const video::FrameError e_flat = evaluate(flat, "flat", &flat_edge);
 
     figure("frame1.png", frame.gray);
     figure("angle_real.png", angle_map_image(real.angles));
@@ -167,10 +167,10 @@ TEST(ClothFootage, PrintsTheCostOfOneSimulatedFrame) {
     ClothFootage footage(capture);
     const ClothFrame frame = footage.frame(1);
     AngleMapper mapper(AngleMapSettings::for_stripe_period(expected_stripe_period_px(capture)));
-    metrics::ReferenceFrame real;
+    video::ReferenceFrame real;
     real.silhouette = frame.silhouette;
     mapper.compute(frame.gray, frame.silhouette, real.angles);
-    metrics::prepare_reference(real);
+    video::prepare_reference(real);
     const auto truth = formats::read_capture_truth_positions(capture);
     ASSERT_TRUE(truth.has_value());
     const std::vector<Eigen::Vector3d> vertices = vertices_of_frame(*truth, 0);
@@ -188,7 +188,7 @@ TEST(ClothFootage, PrintsTheCostOfOneSimulatedFrame) {
         const auto t1 = std::chrono::steady_clock::now();
         mapper.compute(rendered.image, rendered.silhouette, sim);
         const auto t2 = std::chrono::steady_clock::now();
-        const metrics::FrameError e = metrics::angle_map_frame_error(real, sim, rendered.silhouette);
+        const video::FrameError e = video::angle_map_frame_error(real, sim, rendered.silhouette);
         const auto t3 = std::chrono::steady_clock::now();
         EXPECT_GT(e.overlap_px, 0);
         render_s += std::chrono::duration<double>(t1 - t0).count();

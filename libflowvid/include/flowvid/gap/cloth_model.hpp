@@ -69,9 +69,9 @@ video::StripeImage film_frame(const ClothScenario& scenario, const cloth::Swatch
 
 // Per-pixel residual of one frame: squared orientation difference where the
 // gradient mask is set, alpha where the silhouettes differ (the terms of E_k).
-std::vector<float> residual_image(const metrics::ReferenceFrame& reference, const video::AngleMap& simulated,
+std::vector<float> residual_image(const video::ReferenceFrame& reference, const video::AngleMap& simulated,
                                   const metrics::Silhouette& simulated_silhouette,
-                                  const metrics::AngleMapMetricSettings& metric);
+                                  const video::AngleMapMetricSettings& metric);
 
 class ClothGapModel : public GapModel {
 public:

@@ -97,7 +97,7 @@ struct TrialAssessment {
     bool is_static = false;
     cloth::SimulationReport report;
     std::vector<int> frame_numbers;            // compared frames (1-based)
-    std::vector<metrics::FrameError> frames;   // E_k per compared frame
+    std::vector<FrameError> frames;   // E_k per compared frame
     std::vector<double> weights;               // w_k used by the fit
     double weighted_error = 0.0;               // sum w_k E_k
     cloth::GridFrames predicted;               // the run at the truth's grid (or the mesh's), per simulated frame

@@ -3,7 +3,7 @@
 // minimises. For a set of trials (static drapes and waving tests, fitted
 // jointly), a fabric material is simulated with each trial's pins, rendered
 // through its camera with its projector's stripes, turned into angle maps and
-// compared with the footage's (metrics/angle_map_metric.hpp):
+// compared with the footage's (video/angle_map_metric.hpp):
 //
 //   E(material) = sum over trials, sum over compared frames k of w_k E_k
 //
@@ -16,10 +16,10 @@
 #include "flowvid/cloth/swatch.hpp"
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
-#include "flowvid/metrics/angle_map_metric.hpp"
 #include "flowvid/optim/annealing.hpp"
 #include "flowvid/optim/objective.hpp"
 #include "flowvid/video/angle_map.hpp"
+#include "flowvid/video/angle_map_metric.hpp"
 #include "flowvid/video/cloth_footage.hpp"
 #include "flowvid/video/stripe_render.hpp"
 
@@ -159,7 +159,7 @@ struct ClothTrial {
     // Compared frames; `number` is 1-based from the experiment's first frame
     // (the equilibrium is 1), `weight` is w_k. A tracks trial keeps only
     // their numbers and weights here (no angle maps).
-    std::vector<metrics::ReferenceFrame> frames;
+    std::vector<ReferenceFrame> frames;
     // Set for a tracks trial: compared with these instead of the footage.
     std::optional<TrackReference> tracks;
     // Set for a scan trial: compared with the footage's scanned shape.
@@ -185,7 +185,7 @@ struct TrialLoadSettings {
     int scan_stride_px = 2;       // scan fits: every this many pixels in x and y is a sample
     double scan_cap_m = 0.03;     // scan fits: ScanReference::cap_m
     ScanOutsideBand scan_outside;  // scan fits: where ScanReference::outside samples lie
-    metrics::SilhouetteTerm silhouette_term = metrics::SilhouetteTerm::pixel_xor;  // prepares edge distances when needed
+    SilhouetteTerm silhouette_term = SilhouetteTerm::pixel_xor;  // prepares edge distances when needed
 };
 
 // Reads a cloth capture's footage (or, for FitTarget::tracks, its tracks)
@@ -196,7 +196,7 @@ ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& 
 
 struct ClothFitSettings {
     cloth::SwatchOptions swatch;              // mesh resolution, integrator, equilibrium options
-    metrics::AngleMapMetricSettings metric;
+    AngleMapMetricSettings metric;
     cloth::ClothMaterial base;                // values of the parameters that are not fitted
     bool warm_start = true;                   // equilibria start from the base material's (computed once)
     // Hung cloth has several equilibria (the slack between the pins bows to
@@ -209,7 +209,7 @@ struct ClothFitSettings {
 struct TrialEvaluation {
     std::string name;
     double error = 0.0;                       // sum_k w_k E_k
-    std::vector<metrics::FrameError> frames;  // per compared frame (a missing frame: the largest error)
+    std::vector<FrameError> frames;  // per compared frame (a missing frame: the largest error)
     cloth::SimulationReport report;
     int simulated_frames = 0;                 // good frames (before a blow-up)
 };
@@ -290,8 +290,8 @@ int usable_frames(const cloth::SwatchRun& run);
 
 // E_k of each of the trial's compared frames (in order) for one simulation
 // run of it; a frame the run did not reach costs missing_frame_error.
-std::vector<metrics::FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
-                                             const metrics::AngleMapMetricSettings& metric);
+std::vector<FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
+                                             const AngleMapMetricSettings& metric);
 
 // The trial with its reference frames replaced by a simulation's own renders
 // (same frames, weights, camera): a run as the "footage" another run is
@@ -307,7 +307,7 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
 
 // E_k when a simulation produced no frame k (it blew up): every masked pixel
 // off by pi/2 and the silhouette term as if the swatch were missing.
-double missing_frame_error(const metrics::ReferenceFrame& reference, const metrics::AngleMapMetricSettings& settings);
+double missing_frame_error(const ReferenceFrame& reference, const AngleMapMetricSettings& settings);
 
 // E_k of a tracks frame: the mean squared distance (mm^2) between the seen
 // points (finite rows of `measured_m`) and `simulated_m` (same grid); 0 when

@@ -1,4 +1,4 @@
-#include "flowvid/metrics/angle_map_metric.hpp"
+#include "flowvid/video/angle_map_metric.hpp"
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -7,7 +7,7 @@
 #include <cmath>
 #include <stdexcept>
 
-namespace flowvid::metrics {
+namespace flowvid::video {
 
 namespace {
 
@@ -55,10 +55,10 @@ double sum_squared_distances(const std::vector<Eigen::Vector2i>& from, const std
 }  // namespace
 
 void prepare_reference(ReferenceFrame& reference) {
-    reference.edge_distance = edge_distance_field(reference.silhouette);
+    reference.edge_distance = metrics::edge_distance_field(reference.silhouette);
 }
 
-FrameError angle_map_frame_error(const ReferenceFrame& real, const video::AngleMap& sim, const Silhouette& sim_silhouette,
+FrameError angle_map_frame_error(const ReferenceFrame& real, const AngleMap& sim, const metrics::Silhouette& sim_silhouette,
                                  const AngleMapMetricSettings& settings) {
     const int w = real.silhouette.width, h = real.silhouette.height;
     require_size(w, h, real.angles.width, real.angles.height, "the real angle map");
@@ -93,10 +93,10 @@ FrameError angle_map_frame_error(const ReferenceFrame& real, const video::AngleM
     e.rms_angle_rad = e.masked_px > 0 ? std::sqrt(masked_sum / static_cast<double>(e.masked_px)) : 0.0;
 
     if (settings.silhouette_term == SilhouetteTerm::pixel_xor) {
-        e.silhouette = static_cast<double>(silhouette_xor(real.silhouette, sim_silhouette));
+        e.silhouette = static_cast<double>(metrics::silhouette_xor(real.silhouette, sim_silhouette));
     } else {
-        const std::vector<Eigen::Vector2i> real_edges = silhouette_edge_pixels(real.silhouette);
-        const std::vector<Eigen::Vector2i> sim_edges = silhouette_edge_pixels(sim_silhouette);
+        const std::vector<Eigen::Vector2i> real_edges = metrics::silhouette_edge_pixels(real.silhouette);
+        const std::vector<Eigen::Vector2i> sim_edges = metrics::silhouette_edge_pixels(sim_silhouette);
         double sim_to_real = 0.0;
         if (!real.edge_distance.values.empty()) {
             for (const Eigen::Vector2i& p : sim_edges) {
@@ -130,4 +130,4 @@ std::vector<double> decaying_frame_weights(int count, int full_weight_frames, do
     return weights;
 }
 
-}  // namespace flowvid::metrics
+}  // namespace flowvid::video

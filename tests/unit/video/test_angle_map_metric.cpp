@@ -2,7 +2,7 @@
 // with misorientation and misplacement, orientation differences wrapped mod
 // pi, both silhouette terms, per-frame weights.
 
-#include "flowvid/metrics/angle_map_metric.hpp"
+#include "flowvid/video/angle_map_metric.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,6 +11,7 @@
 
 using namespace flowvid;
 using namespace flowvid::metrics;
+using namespace flowvid::video;
 
 namespace {
 

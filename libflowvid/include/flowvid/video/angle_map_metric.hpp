@@ -20,7 +20,7 @@
 
 #include <vector>
 
-namespace flowvid::metrics {
+namespace flowvid::video {
 
 enum class SilhouetteTerm {
     pixel_xor,      // eq. 2.21: mismatched pixels
@@ -44,11 +44,11 @@ struct AngleMapMetricSettings {
 // The real side of one frame, prepared once per fit.
 struct ReferenceFrame {
     int number = 0;                 // capture frame number (1-based)
-    video::AngleMap angles;
-    Silhouette silhouette;
+    AngleMap angles;
+    metrics::Silhouette silhouette;
     double weight = 1.0;            // w_k
     // Distance to the real silhouette edge (edge_distance term); filled by prepare_reference().
-    DistanceField edge_distance;
+    metrics::DistanceField edge_distance;
 };
 
 // Fills `reference.edge_distance` (once, when the edge-distance term is used).
@@ -68,8 +68,8 @@ struct FrameError {
 // (std::invalid_argument otherwise). For the edge-distance term, call
 // prepare_reference() on `real` once; without it the real side's distance
 // field is recomputed on every call (correct, slower).
-FrameError angle_map_frame_error(const ReferenceFrame& real, const video::AngleMap& simulated_angles,
-                                 const Silhouette& simulated_silhouette, const AngleMapMetricSettings& settings = {});
+FrameError angle_map_frame_error(const ReferenceFrame& real, const AngleMap& simulated_angles,
+                                 const metrics::Silhouette& simulated_silhouette, const AngleMapMetricSettings& settings = {});
 
 struct SequenceError {
     double total = 0.0;               // sum_k w_k E_k
@@ -82,4 +82,4 @@ SequenceError combine_frames(const std::vector<FrameError>& frames, const std::v
 // every `half_life_frames` (<= 0: all 1).
 std::vector<double> decaying_frame_weights(int count, int full_weight_frames, double half_life_frames);
 
-}  // namespace flowvid::metrics
+}  // namespace flowvid::video
