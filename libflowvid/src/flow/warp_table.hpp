@@ -1,0 +1,66 @@
+#pragma once
+// Warp tables: every output pixel near a warped output line, mapped into the
+// input frame through the lines' tangent frames (thesis fig. 3.17), with the
+// weight of the background carried from around the input line
+// (SynthesisSettings::carry_background). Shared by the synthesizer's two
+// renderers; not part of the public interface.
+
+#include "synthesis_kernels.hpp"
+
+#include "flowvid/flow/geometry.hpp"
+#include "flowvid/flow/synthesis.hpp"
+
+#include <utility>
+#include <vector>
+
+namespace flowvid::flow::detail {
+
+// Output pixels near an output line, mapped into the input frame.
+struct WarpEntry {
+    int pixel = 0;
+    int row = 0;                 // pixel / width, kept: rendering reads it per sample
+    float qx = 0.0f, qy = 0.0f;  // input-frame position
+    float fade = 1.0f;
+    // Weight of the background carried from around the input line: cos^2
+    // across the line (zero three quarters of a patch to the side), falling
+    // to zero over half a patch beyond either end.
+    float carry = 0.0f;
+};
+struct WarpTable {
+    double s_min = 0.0;                  // arc of bucket 0 (input line)
+    std::vector<int> bucket_start;       // entries of bucket b: [bucket_start[b], bucket_start[b+1])
+    std::vector<WarpEntry> entries;      // by bucket, then by pixel
+    std::vector<int> bucket_row_lo;      // image rows a bucket's entries span (lo > hi: none)
+    std::vector<int> bucket_row_hi;
+    double reach_in = 0.0;               // input-space reach of a patch around its centre
+};
+
+// The table of `out_line` carrying `in_line`'s texture (a frame of `width` x `height`).
+WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, ArcMapping mapping, int patch, int width,
+                     int height);
+
+// Carried background comes only from where the flow is: entries whose input
+// arc lies outside every range of `arcs_px` (stretches of the input line no
+// particle crossed, such as a rock ledge it runs over) lose their carry,
+// fading over `fade_px` beyond each range. Empty `arcs_px`: unchanged.
+void keep_carry_on_flowing_arcs(WarpTable& table, const std::vector<std::pair<double, double>>& arcs_px, double fade_px);
+
+// One particle's patch added through a warp table (the whole-frame pass).
+void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStreams::Visible& particle, int patch);
+
+// `image` smoothed by a box of (2 radius + 1)^2 pixels, twice (a tent),
+// shrinking the box at the borders.
+RgbImage smoothed(const RgbImage& image, int radius);
+
+// The background around each table's input line, composited over `out`
+// where the tables' carry weights reach `full`, times `allowed` per pixel.
+void carry_background(const std::vector<const WarpTable*>& tables, const RgbImage& source, float full,
+                      const std::vector<float>& allowed, std::vector<float>& sums, RgbImage& out);
+
+// SynthesisSettings::carry_background: per pixel, how much carried background
+// may show: 0 within half a patch of the flow's own region (its input lines
+// and lines interpolated between neighbouring ones, as edits interpolate
+// output lines), rising to 1 a patch away.
+std::vector<float> carry_allowed_map(const ParticleStreams& streams, int w, int h, int patch);
+
+}  // namespace flowvid::flow::detail
