@@ -128,11 +128,7 @@ void splat_patch_rows(RenderBuffers& s, bool groups, const Splat& p, int patch, 
         for (int j = 0; j < n; ++j) {
             const float w = fy * feather[j_lo + j];
             const float* t = src + static_cast<std::size_t>(j) * 4;
-            float* d = dst + static_cast<std::size_t>(j) * 4;
-            d[0] += w * t[0];
-            d[1] += w * t[1];
-            d[2] += w * t[2];
-            d[3] += w * t[3];
+            add_weighted_texel(dst + static_cast<std::size_t>(j) * 4, t, w);
         }
         if (!groups) continue;
         float wa[64], wrgb[64 * 3];  // alpha weight and weighted colour per column, in chunks

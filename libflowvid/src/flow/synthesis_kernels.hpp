@@ -186,6 +186,14 @@ inline void row_box_sums(const std::vector<float>& values, int width, int y0, in
     }
 }
 
+// d += w t for one premultiplied RGBA texel.
+inline void add_weighted_texel(float* d, const float* t, float w) {
+    d[0] += w * t[0];
+    d[1] += w * t[1];
+    d[2] += w * t[2];
+    d[3] += w * t[3];
+}
+
 // Splats a feathered patch back on the whole pixels it was cut from
 // (patch_origin of its centre): an exact copy, weighted.
 inline void splat_patch(Accumulator& acc, const ParticleStreams::Visible& v, int patch, const std::vector<float>& feather) {
@@ -201,11 +209,7 @@ inline void splat_patch(Accumulator& acc, const ParticleStreams::Visible& v, int
         for (int j = j_lo; j < j_hi; ++j) {
             const float w = fy * feather[static_cast<std::size_t>(j)];
             const float* t = src + static_cast<std::size_t>(j) * 4;
-            float* d = dst + static_cast<std::size_t>(j) * 4;
-            d[0] += w * t[0];
-            d[1] += w * t[1];
-            d[2] += w * t[2];
-            d[3] += w * t[3];
+            add_weighted_texel(dst + static_cast<std::size_t>(j) * 4, t, w);
         }
         if (acc.groups)
             for (int j = j_lo; j < j_hi; ++j) {
