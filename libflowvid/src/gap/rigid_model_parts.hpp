@@ -1,0 +1,77 @@
+#pragma once
+// Helpers the rigid gap model (rigid_model.cpp) and its bench cases
+// (rigid_bench.cpp) share. Not part of the public interface.
+
+#include "flowvid/formats/capture.hpp"
+#include "flowvid/render/rasterizer.hpp"
+#include "flowvid/rigid/dynamics.hpp"
+
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <random>
+#include <thread>
+#include <vector>
+
+namespace flowvid::gap::rigid_parts {
+
+inline int thread_count(int threads) {
+    return threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
+// Random numbers from mt19937_64's output, which the standard specifies
+// exactly, so a seed gives the same case with any standard library.
+class Random {
+public:
+    explicit Random(std::uint64_t seed) : m_engine(seed) {}
+    double uniform() { return static_cast<double>(m_engine() >> 11) * 0x1.0p-53; }
+    double uniform(double a, double b) { return a + (b - a) * uniform(); }
+    double normal() {
+        if (m_has_spare) {
+            m_has_spare = false;
+            return m_spare;
+        }
+        double u = 0.0;
+        while (u <= 0.0) u = uniform();
+        const double v = uniform();
+        const double r = std::sqrt(-2.0 * std::log(u));
+        m_spare = r * std::sin(2.0 * M_PI * v);
+        m_has_spare = true;
+        return r * std::cos(2.0 * M_PI * v);
+    }
+
+private:
+    std::mt19937_64 m_engine;
+    bool m_has_spare = false;
+    double m_spare = 0.0;
+};
+
+inline bool finite_state(const rigid::RigidState& s) {
+    return s.com_m.allFinite() && s.orientation.coeffs().allFinite() && s.com_velocity_m_per_s.allFinite() &&
+           s.angular_velocity_body_rad_per_s.allFinite();
+}
+
+inline render::PixelRect projected_region(const formats::CameraModel& camera, const std::vector<Eigen::Vector3d>& points) {
+    const render::PixelRect image = render::PixelRect::image(camera.width, camera.height);
+    std::vector<Eigen::Vector2d> pixels;
+    render::project_camera_points(camera, points, pixels);
+    Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (const Eigen::Vector2d& p : pixels) {
+        if (!p.allFinite()) return image;
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+    }
+    return render::PixelRect::around(lo, hi).expanded(2).intersected(image);
+}
+
+inline std::vector<Eigen::Vector3d> camera_points(const rigid::RigidBody& body, const rigid::RigidState& state) {
+    std::vector<Eigen::Vector3d> out;
+    out.reserve(body.mesh.vertices_m.size());
+    for (const Eigen::Vector3d& v : body.mesh.vertices_m) out.push_back(state.to_camera(body, v));
+    return out;
+}
+
+}  // namespace flowvid::gap::rigid_parts
