@@ -1,5 +1,6 @@
 #include "commands/cloth_options.hpp"
 #include "output.hpp"
+#include "flowvid/threads.hpp"
 
 #include "flowvid/cloth/material.hpp"
 
@@ -72,10 +73,7 @@ void apply_shape_target_frame_defaults(video::FitTarget target, const CLI::Optio
     if (half_life_option->count() == 0) half_life_frames = video::kTracksHalfLifeFrames;
 }
 
-int thread_count(int requested) {
-    if (requested > 0) return requested;
-    return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-}
+int thread_count(int requested) { return resolve_thread_count(requested); }
 
 formats::FabricPreset read_preset_for_simulation(const std::string& path) {
     std::vector<Problem> warnings;

@@ -1,4 +1,5 @@
 #include "flowvid/flow/editing.hpp"
+#include "flowvid/threads.hpp"
 
 #include <algorithm>
 #include <array>
@@ -158,7 +159,7 @@ Eigen::MatrixXd pair_error(const ParticleStreams& streams, const formats::FlowLi
 }
 
 int worker_count(int threads) {
-    return std::max(1, threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
+    return resolve_thread_count(threads);
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // in synthesis.cpp.
 
 #include "flowvid/flow/synthesis.hpp"
+#include "flowvid/threads.hpp"
 
 #include "synthesis_kernels.hpp"
 #include "synthesis_plan.hpp"
@@ -415,7 +416,7 @@ int Synthesizer::render_frames(int first, int last, int threads, const std::func
     if (last < first) return 0;
     const int count = last - first + 1;
     const int workers =
-        std::min(count, std::max(1, threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))));
+        std::min(count, resolve_thread_count(threads));
     const auto render_one = [&](int frame, RgbImage& image, Scratch& scratch) {
         if (m_settings.reference_rendering) image = render_reference(frame, nullptr);
         else render_into(frame, image, nullptr, scratch);

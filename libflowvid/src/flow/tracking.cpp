@@ -1,4 +1,5 @@
 #include "flowvid/flow/tracking.hpp"
+#include "flowvid/threads.hpp"
 
 #include "flowvid/flow/geometry.hpp"
 #include "flowvid/flow/sampling.hpp"
@@ -378,9 +379,7 @@ bool run_pass(FrameSequence& frames, std::vector<LineState>& states, const RgbIm
     const int patch = settings.patch_size_px;
     const bool stationary = settings.dynamics == formats::ParticleDynamics::stationary;
     const std::size_t patch_values = static_cast<std::size_t>(patch) * patch * 4;
-    const int thread_count = std::max(1, std::min<int>(static_cast<int>(states.size()),
-                                                       settings.threads > 0 ? settings.threads
-                                                                            : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))));
+    const int thread_count = std::max(1, std::min<int>(static_cast<int>(states.size()), resolve_thread_count(settings.threads)));
     const auto profile_at = [](const LineState& st, double s, double& value) {
         const std::size_t bin = static_cast<std::size_t>(std::clamp(s / kProfileBinPx, 0.0, static_cast<double>(st.bin_count.size() - 1)));
         if (st.bin_count[bin] < 2) return false;

@@ -5,6 +5,7 @@
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/render/rasterizer.hpp"
 #include "flowvid/rigid/dynamics.hpp"
+#include "flowvid/threads.hpp"
 
 #include <Eigen/Core>
 
@@ -13,13 +14,12 @@
 #include <cstdint>
 #include <limits>
 #include <random>
-#include <thread>
 #include <vector>
 
 namespace flowvid::gap::rigid_parts {
 
 inline int thread_count(int threads) {
-    return threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    return resolve_thread_count(threads);
 }
 
 // Random numbers from mt19937_64's output, which the standard specifies

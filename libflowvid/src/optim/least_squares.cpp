@@ -1,4 +1,5 @@
 #include "flowvid/optim/least_squares.hpp"
+#include "flowvid/threads.hpp"
 
 #include "flowvid/optim/thread_pool.hpp"
 
@@ -36,7 +37,7 @@ LeastSquaresResult levenberg_marquardt(const ResidualFunction& residuals, const 
     const Clock::time_point started = Clock::now();
     const int n = space.size();
     const int threads =
-        settings.threads > 0 ? settings.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+        resolve_thread_count(settings.threads);
     ThreadPool pool(threads);
     LeastSquaresResult result;
     auto elapsed = [&] { return std::chrono::duration<double>(Clock::now() - started).count(); };

@@ -4,11 +4,6 @@
 
 namespace flowvid::optim {
 
-int resolve_thread_count(int requested) {
-    if (requested > 0) return requested;
-    return std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-}
-
 ThreadPool::ThreadPool(int threads) : m_threads(resolve_thread_count(threads)) {
     for (int w = 1; w < m_threads; ++w) m_workers.emplace_back([this, w] { work(w); });
 }

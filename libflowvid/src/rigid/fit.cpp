@@ -1,4 +1,5 @@
 #include "flowvid/rigid/fit.hpp"
+#include "flowvid/threads.hpp"
 
 #include "flowvid/metrics/silhouette.hpp"
 
@@ -320,7 +321,7 @@ FitResult fit_rigid_once(const RigidBody& body, const formats::CameraModel& came
         result.report.reason = "at least 3 frames are needed, got " + std::to_string(frames.size());
         return finish();
     }
-    const int threads = settings.threads > 0 ? settings.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    const int threads = resolve_thread_count(settings.threads);
     std::vector<Scratch> scratches(static_cast<std::size_t>(threads));
     SilhouetteModel model(body, camera);
     model.set_corner_radius(settings.corner_radius_px);
@@ -629,7 +630,7 @@ std::vector<FrameObservation> load_observations(const formats::Capture& capture,
     std::vector<FrameObservation> out(numbers.size());
     if (!capture.masks.empty()) {
         std::vector<std::unique_ptr<formats::FrameSource>> sources(
-            static_cast<std::size_t>(threads > 0 ? threads : std::max(1u, std::thread::hardware_concurrency())));
+            static_cast<std::size_t>(resolve_thread_count(threads)));
         parallel_for(numbers.size(), static_cast<int>(sources.size()), [&](std::size_t i, int t) {
             auto& source = sources[static_cast<std::size_t>(t)];
             if (!source) source = std::make_unique<formats::FrameSource>(capture);

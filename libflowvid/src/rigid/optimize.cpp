@@ -1,4 +1,5 @@
 #include "flowvid/rigid/optimize.hpp"
+#include "flowvid/threads.hpp"
 
 #include <Eigen/Cholesky>
 
@@ -14,7 +15,7 @@ namespace flowvid::rigid {
 // ---- Threads -------------------------------------------------------------------------
 
 void parallel_for(std::size_t count, int threads, const std::function<void(std::size_t, int)>& task) {
-    int n = threads > 0 ? threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    int n = resolve_thread_count(threads);
     n = static_cast<int>(std::min<std::size_t>(static_cast<std::size_t>(n), count));
     if (n <= 1) {
         for (std::size_t i = 0; i < count; ++i) task(i, 0);

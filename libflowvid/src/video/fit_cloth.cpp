@@ -1,4 +1,5 @@
 #include "flowvid/video/fit_cloth.hpp"
+#include "flowvid/threads.hpp"
 
 #include "flowvid/optim/design.hpp"
 #include "flowvid/optim/thread_pool.hpp"
@@ -107,7 +108,7 @@ ClothFitProblem make_problem(const ClothFitRequest& request, std::vector<ClothTr
 }
 
 int fit_threads(const ClothFitRequest& request) {
-    return request.threads > 0 ? request.threads : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    return resolve_thread_count(request.threads);
 }
 
 // How every fit ends, whole or merged from shards: variability restarts from

@@ -12,6 +12,8 @@
 #include <cstddef>
 #include <exception>
 #include <functional>
+#include "flowvid/threads.hpp"
+
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -51,7 +53,7 @@ private:
     std::exception_ptr m_error;
 };
 
-// Number of threads `requested` means (<= 0: all cores).
-int resolve_thread_count(int requested);
+// Number of threads `requested` means (<= 0: all cores; flowvid/threads.hpp).
+using flowvid::resolve_thread_count;
 
 }  // namespace flowvid::optim
