@@ -158,10 +158,6 @@ Eigen::MatrixXd pair_error(const ParticleStreams& streams, const formats::FlowLi
     return e;
 }
 
-int worker_count(int threads) {
-    return resolve_thread_count(threads);
-}
-
 }  // namespace
 
 std::vector<Eigen::MatrixXd> overlap_errors(const ParticleStreams& streams, const std::vector<formats::FlowLine>& chain,
@@ -189,7 +185,7 @@ std::vector<Eigen::MatrixXd> overlap_errors(const ParticleStreams& streams, cons
             shifted_a = std::move(shifted_b);
         }
     };
-    const std::size_t workers = std::min<std::size_t>(static_cast<std::size_t>(worker_count(settings.threads)), out.size());
+    const std::size_t workers = std::min<std::size_t>(static_cast<std::size_t>(resolve_thread_count(settings.threads)), out.size());
     std::vector<std::future<void>> jobs;
     for (std::size_t w = 0; w < workers; ++w)
         jobs.push_back(std::async(std::launch::async, work, w * out.size() / workers, (w + 1) * out.size() / workers));

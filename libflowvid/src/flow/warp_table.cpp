@@ -109,10 +109,6 @@ WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, 
     return table;
 }
 
-// Carried background comes only from where the flow is: entries whose input
-// arc lies outside every range of `arcs_px` (stretches of the input line no
-// particle crossed, such as a rock ledge it runs over) lose their carry,
-// fading over `fade_px` beyond each range. Empty `arcs_px`: unchanged.
 void keep_carry_on_flowing_arcs(WarpTable& table, const std::vector<std::pair<double, double>>& arcs_px, double fade_px) {
     if (arcs_px.empty()) return;
     for (std::size_t b = 0; b + 1 < table.bucket_start.size(); ++b) {
@@ -155,8 +151,6 @@ void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStream
     }
 }
 
-// `image` smoothed by a box of (2 radius + 1)^2 pixels, twice (a tent),
-// shrinking the box at the borders.
 RgbImage smoothed(const RgbImage& image, int radius) {
     RgbImage a = image, b(image.width, image.height);
     const auto pass = [radius](const RgbImage& in, RgbImage& out, bool along_x) {
@@ -189,11 +183,6 @@ RgbImage smoothed(const RgbImage& image, int radius) {
     return a;
 }
 
-// Composites over `out` the background found around each warped line's
-// input line: `source` (the frame's background) sampled at the warp's input
-// positions, weighted by WarpEntry::carry and shown fully where the weights
-// reach `full` (smoothstep, as particles), times `allowed` per pixel. `sums`
-// is scratch (4 per pixel).
 void carry_background(const std::vector<const WarpTable*>& tables, const RgbImage& source, float full,
                       const std::vector<float>& allowed, std::vector<float>& sums, RgbImage& out) {
     if (tables.empty()) return;

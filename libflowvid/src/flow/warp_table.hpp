@@ -52,8 +52,11 @@ void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStream
 // shrinking the box at the borders.
 RgbImage smoothed(const RgbImage& image, int radius);
 
-// The background around each table's input line, composited over `out`
-// where the tables' carry weights reach `full`, times `allowed` per pixel.
+// Composites over `out` the background found around each warped line's
+// input line: `source` (the frame's background) sampled at the warp's input
+// positions, weighted by WarpEntry::carry and shown fully where the weights
+// reach `full` (smoothstep, as particles), times `allowed` per pixel. `sums`
+// is scratch (4 per pixel).
 void carry_background(const std::vector<const WarpTable*>& tables, const RgbImage& source, float full,
                       const std::vector<float>& allowed, std::vector<float>& sums, RgbImage& out);
 

@@ -9,6 +9,7 @@
 #include "flowvid/metrics/silhouette.hpp"
 #include "flowvid/render/rasterizer.hpp"
 #include "flowvid/rigid/rectify.hpp"
+#include "flowvid/threads.hpp"
 
 #include "rigid_model_parts.hpp"
 
@@ -202,7 +203,7 @@ RigidCase write_rigid_case(const std::string& folder, const formats::Capture& te
         const std::vector<float> noise = correlated_noise(width, height, settings.noise_sigma, noise_random);
         write_rgb((fs::path(folder) / "background.png").string(), std::vector<Eigen::Vector3f>(pixel_count, backdrop.cast<float>()), noise);
     }
-    const int threads = thread_count(settings.threads);
+    const int threads = resolve_thread_count(settings.threads);
     rigid::parallel_for(times.size(), threads, [&](std::size_t i, int) {
         const RigidState& state = motion.states[i];
         const std::vector<Eigen::Vector3d> points = camera_points(body, state);

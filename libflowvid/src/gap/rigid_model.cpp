@@ -10,6 +10,7 @@
 #include "flowvid/render/rasterizer.hpp"
 #include "flowvid/rigid/optimize.hpp"
 #include "flowvid/rigid/rectify.hpp"
+#include "flowvid/threads.hpp"
 
 #include "rigid_model_parts.hpp"
 
@@ -182,7 +183,7 @@ std::vector<double> estimate_floors(const rigid::SilhouetteModel& model, const R
     rigid::SimulationSettings simulation;
     simulation.max_step_s = settings.max_step_s;
     std::vector<std::vector<double>> per_copy(offsets_px.size());
-    const int threads = thread_count(settings.threads);
+    const int threads = resolve_thread_count(settings.threads);
     std::vector<Scratch> scratches(static_cast<std::size_t>(threads));
     rigid::parallel_for(offsets_px.size(), threads, [&](std::size_t r, int t) {
         Scratch& scratch = scratches[static_cast<std::size_t>(t)];
@@ -222,7 +223,7 @@ RigidGapModel::RigidGapModel(std::vector<RigidTrial> trials, RigidGapSettings se
     auto log = [&](const std::string& line) {
         if (m_settings.log) m_settings.log(line);
     };
-    const int threads = thread_count(m_settings.threads);
+    const int threads = resolve_thread_count(m_settings.threads);
     for (std::size_t index = 0; index < trials.size(); ++index) {
         RigidTrial& given = trials[index];
         auto trial = std::make_unique<Trial>();
@@ -400,7 +401,7 @@ std::vector<RigidGapModel::Profile> RigidGapModel::profiles(const std::vector<Fl
         std::string reason;
     };
     std::vector<std::vector<Fit>> fits(effects.size(), std::vector<Fit>(trials));
-    const int threads = thread_count(m_settings.threads);
+    const int threads = resolve_thread_count(m_settings.threads);
     std::vector<Scratch> scratches(static_cast<std::size_t>(threads));
     // One task per (effect point, trial): each a pure function of its inputs.
     rigid::parallel_for(effects.size() * trials, threads, [&](std::size_t task, int t) {
@@ -474,7 +475,7 @@ Residuals RigidGapModel::residuals_of(const FlightEffects& effects, const std::v
         for (std::size_t k = 0; k < trial.order.size(); ++k) tasks.push_back({i, k, motion.states[k]});
     }
     out.frames.resize(tasks.size());
-    const int threads = thread_count(m_settings.threads);
+    const int threads = resolve_thread_count(m_settings.threads);
     std::vector<Scratch> scratches(static_cast<std::size_t>(threads));
     rigid::parallel_for(tasks.size(), threads, [&](std::size_t n, int t) {
         const Task& task = tasks[n];
@@ -733,7 +734,7 @@ std::vector<RegionMap> RigidGapModel::localise(const EffectValues& effects) cons
         for (std::size_t k = 0; k < m_trials[i]->order.size(); ++k) tasks.push_back({i, k, motion.states[k]});
     }
     std::vector<FrameMaps> maps(tasks.size());
-    const int threads = thread_count(m_settings.threads);
+    const int threads = resolve_thread_count(m_settings.threads);
     std::vector<Scratch> scratches(static_cast<std::size_t>(threads));
     rigid::parallel_for(tasks.size(), threads, [&](std::size_t n, int t) {
         Scratch& scratch = scratches[static_cast<std::size_t>(t)];

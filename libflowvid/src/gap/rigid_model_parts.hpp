@@ -5,7 +5,6 @@
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/render/rasterizer.hpp"
 #include "flowvid/rigid/dynamics.hpp"
-#include "flowvid/threads.hpp"
 
 #include <Eigen/Core>
 
@@ -17,10 +16,6 @@
 #include <vector>
 
 namespace flowvid::gap::rigid_parts {
-
-inline int thread_count(int threads) {
-    return resolve_thread_count(threads);
-}
 
 // Random numbers from mt19937_64's output, which the standard specifies
 // exactly, so a seed gives the same case with any standard library.
