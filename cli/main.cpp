@@ -117,6 +117,9 @@ int main(int argc, char** argv) {
     using namespace flowvid::cli;
     try {
         return run(argc, argv);
+    } catch (const flowvid::Cancelled&) {  // Ctrl-C through a command's flowvid::Progress
+        log_message("interrupted");
+        return kExitInterrupted;
     } catch (const flowvid::ValidationError& error) {
         print_problems(error.problems());
         return kExitInvalidInput;

@@ -49,13 +49,13 @@ std::string human_readable(const nlohmann::json& value, int indent) {
     return text.str();
 }
 
-Progress::Progress(const GlobalOptions& options, std::string task) : m_task(std::move(task)) {
+ProgressBar::ProgressBar(const GlobalOptions& options, std::string task) : m_task(std::move(task)) {
     m_mode = options.progress;
     if (options.quiet) m_mode = "none";
     if (m_mode == "auto") m_mode = ::isatty(STDERR_FILENO) ? "bar" : "none";
 }
 
-void Progress::update(double fraction, const std::string& detail) {
+void ProgressBar::update(double fraction, const std::string& detail) {
     const int percent = static_cast<int>(fraction * 100.0 + 0.5);
     if (percent == m_last_percent) return;
     m_last_percent = percent;
@@ -71,7 +71,7 @@ void Progress::update(double fraction, const std::string& detail) {
     }
 }
 
-void Progress::done() {
+void ProgressBar::done() {
     if (m_mode == "json") std::cerr << nlohmann::json{{"event", "done"}, {"task", m_task}}.dump() << std::endl;
     else if (m_mode == "bar") std::cerr << '\n';
 }
@@ -138,16 +138,6 @@ bool outputs_spare_inputs(const CLI::App& command) {
 
 bool same_file(const std::string& a, const std::string& b) { return identity(a) == identity(b); }
 
-void prepare_output_folder(const std::string& file_path) {
-    const std::filesystem::path folder = std::filesystem::path(file_path).parent_path();
-    if (folder.empty()) return;
-    std::error_code error;
-    std::filesystem::create_directories(folder, error);
-    if (error || !std::filesystem::is_directory(folder))
-        throw IoError(file_path, "", "cannot create the folder " + folder.string() + ": " + error.message(),
-                      "choose a writable location");
-}
-
 CLI::Validator file_name_ending(std::vector<std::string> endings, const std::string& what, const std::string& example) {
     std::string listed;
     for (const std::string& ending : endings) listed += (listed.empty() ? "" : " or ") + ending;
@@ -177,5 +167,33 @@ InterruptWatch::InterruptWatch() {
 InterruptWatch::~InterruptWatch() { std::signal(SIGINT, g_previous_handler); }
 bool InterruptWatch::requested() const { return g_interrupt_requested.load(); }
 const std::atomic<bool>* InterruptWatch::flag() const { return &g_interrupt_requested; }
+
+TerminalProgress::TerminalProgress(const GlobalOptions& options, std::string task)
+    : m_options(options), m_task(std::move(task)) {}
+
+TerminalProgress::~TerminalProgress() { finish(); }
+
+void TerminalProgress::finish() {
+    if (m_bar) m_bar->done();
+    m_bar.reset();
+    m_stage.clear();
+}
+
+flowvid::Progress TerminalProgress::callback() {
+    return [this](const ProgressReport& report) {
+        if (report.fraction < 0.0) {  // a line for the log ends the bar it interrupts
+            finish();
+            log_message(report.message);
+            return true;
+        }
+        if (!m_bar || report.stage != m_stage) {
+            if (m_bar) m_bar->done();
+            m_bar = std::make_unique<ProgressBar>(m_options, m_task + ": " + report.stage);
+            m_stage = report.stage;
+        }
+        m_bar->update(report.fraction, report.message);
+        return !m_interrupt.requested();
+    };
+}
 
 }  // namespace flowvid::cli

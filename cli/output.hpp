@@ -3,10 +3,12 @@
 
 #include "command.hpp"
 #include "flowvid/error.hpp"
+#include "flowvid/progress.hpp"
 
 #include <atomic>
 #include <nlohmann/json.hpp>
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -18,9 +20,9 @@ void print_problems(const std::vector<Problem>& problems);  // stderr, one line 
 std::string human_readable(const nlohmann::json& value, int indent = 0);
 
 // Progress on stderr: a bar on a terminal, JSON lines with --progress=json.
-class Progress {
+class ProgressBar {
 public:
-    Progress(const GlobalOptions& options, std::string task);
+    ProgressBar(const GlobalOptions& options, std::string task);
     void update(double fraction, const std::string& detail = {});
     void done();
 
@@ -29,11 +31,6 @@ private:
     std::string m_mode;
     int m_last_percent = -1;
 };
-
-// Creates the folder a result file will go into, before long work starts, so
-// a typo in --out fails at once instead of after the work. Throws IoError
-// naming the option's path when it cannot.
-void prepare_output_folder(const std::string& file_path);
 
 // Refuses a command line whose outputs would destroy its inputs (--out equal
 // to --preset, or to a capture folder's capture.json) or write one file twice
@@ -65,6 +62,29 @@ public:
     bool requested() const;
     // For solvers that poll a flag inside long steps (cloth::SimulationSettings::cancel).
     const std::atomic<bool>* flag() const;
+};
+
+// The library's flowvid::Progress on the terminal: a ProgressBar per stage
+// ("synth: render"), log lines in the log (each ends the bar it
+// interrupts), and Ctrl-C as cancel while the object lives.
+class TerminalProgress {
+public:
+    TerminalProgress(const GlobalOptions& options, std::string task);
+    ~TerminalProgress();  // finish()
+    // Ends the open bar (before a summary goes to stdout).
+    void finish();
+    TerminalProgress(const TerminalProgress&) = delete;
+    TerminalProgress& operator=(const TerminalProgress&) = delete;
+    // Valid while this object lives.
+    flowvid::Progress callback();
+    bool interrupted() const { return m_interrupt.requested(); }
+
+private:
+    const GlobalOptions& m_options;
+    std::string m_task;
+    std::string m_stage;
+    std::unique_ptr<ProgressBar> m_bar;
+    InterruptWatch m_interrupt;
 };
 
 }  // namespace flowvid::cli

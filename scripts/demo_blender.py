@@ -193,7 +193,7 @@ def video(options):
     baked = api.bake_flowlines(emitter, camera, 1, options.frames, lines, inputs=options.inputs, scene=scene)
     # Defaults: an edit's texture fades with its feather where the clip had none.
     first = api.synthesize(options.bank, lines, 1, options.frames, os.path.join(out, "synthesized"),
-                           extra=("--capture", options.clip))
+                           capture=options.clip)
     image = api.load_image_sequence(first, 1, options.frames)
     api.show_on_camera_plane(camera, image, 1, options.frames, scene=scene)
     started = time.monotonic()

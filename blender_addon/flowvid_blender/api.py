@@ -26,23 +26,32 @@ class FlowvidError(RuntimeError):
 _BACKEND = None
 
 
+def _checkout_build(pattern):
+    """In a development checkout: the most recently built file matching build*/PATTERN, else None."""
+    import glob
+
+    repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    built = sorted(glob.glob(os.path.join(repo, "build*", pattern)), key=os.path.getmtime)
+    return built[-1] if built else None
+
+
 def get_backend():
     """The flowvid library (native module, else CLI); cached."""
     global _BACKEND
     if _BACKEND is None:
         candidates = []
         if not os.environ.get("FLOWVID_PYTHON_DIR"):
-            # A development checkout: the most recently built module of its build folders.
-            import glob
-
-            repo = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-            built = sorted(glob.glob(os.path.join(repo, "build*", "python", "flowvid*.so")), key=os.path.getmtime)
-            candidates = [os.path.dirname(built[-1])] if built else []
+            module = _checkout_build(os.path.join("python", "flowvid*.so"))
+            candidates = [os.path.dirname(module)] if module else []
         try:
-            _BACKEND = backend_module.find_backend(module_paths=candidates)
+            _BACKEND = backend_module.find_backend(module_paths=candidates, executable=_checkout_tool())
         except BackendError as error:
             raise FlowvidError(str(error)) from None
     return _BACKEND
+
+
+def _checkout_tool():
+    return None if backend_module.find_tool() else _checkout_build(os.path.join("cli", "flowvid"))
 
 
 # ---- mesh and scene -------------------------------------------------------------
@@ -689,37 +698,32 @@ def grease_pencil_flowlines(gpencil, camera, path, scene=None, frame=None):
 
 
 def run_flowvid_tool(*arguments):
-    """Runs the flowvid command-line tool (synth/edit/track); raises FlowvidError with its message."""
-    import shutil
-    import subprocess
-
-    executable = os.environ.get("FLOWVID_CLI") or shutil.which("flowvid")
-    if not executable:
-        here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-        for name in sorted(os.listdir(here)):
-            candidate = os.path.join(here, name, "cli", "flowvid")
-            if name.startswith("build") and os.path.isfile(candidate):
-                executable = candidate
-                break
+    """Runs the flowvid command-line tool (e.g. track, which has no binding); raises FlowvidError with its message."""
+    executable = backend_module.find_tool(_checkout_tool())
     if not executable:
         raise FlowvidError("the flowvid tool was not found: set FLOWVID_CLI to build/cli/flowvid")
-    completed = subprocess.run([executable, *[str(a) for a in arguments]], capture_output=True, text=True)
-    if completed.returncode != 0:
-        raise FlowvidError("flowvid %s failed (exit %d): %s" % (arguments[0], completed.returncode,
-                                                               completed.stderr.strip()[-2000:]))
-    return completed.stdout
+    try:
+        return backend_module.CliBackend(executable).run(*arguments)
+    except BackendError as error:
+        raise FlowvidError("flowvid %s failed: %s" % (arguments[0], str(error)[-2000:])) from None
 
 
-def synthesize(bank, flowlines, frame_start, frame_end, out_dir, extra=(), background=None, texture=None):
-    """flowvid edit for the frame range: PNG frames out_dir/%06d.png; returns the first frame's path.
-    background: median, loop, replay, relit or none (flowvid edit --background; None: the tool's default).
-    texture: whole or moving (flowvid edit --texture: moving keeps only the light flames or smoke add to
-    the scene, screened over its dark plate or over black; None: the tool's default, whole)."""
+def synthesize(bank, flowlines, frame_start, frame_end, out_dir, background=None, texture=None, capture=None,
+               progress=None):
+    """flowvid edit for the frame range, in process where the module is there (else through the tool): PNG
+    frames out_dir/%06d.png; returns the first frame's path.
+    background: auto, median, loop, replay, relit or none (None: auto). texture: auto, whole or moving
+    (moving keeps only the light flames or smoke add to the scene, screened over its dark plate or over
+    black; None: auto). capture: the source clip (None: the one the bank records).
+    progress(stage, fraction, message) -> False cancels."""
     os.makedirs(out_dir, exist_ok=True)
     pattern = os.path.join(out_dir, "%06d.png")
-    chosen = (("--background", background) if background else ()) + (("--texture", texture) if texture else ())
-    run_flowvid_tool("edit", "--bank", bank, "--flowlines", flowlines, "--frames", "%d:%d" % (frame_start, frame_end),
-                     "--out", pattern, *chosen, *extra)
+    try:
+        get_backend().synthesize(bank, pattern, (frame_start, frame_end), edit=True, flowlines=flowlines,
+                                 capture=capture or "", background=background or "auto", texture=texture or "auto",
+                                 progress=progress)
+    except BackendError as error:
+        raise FlowvidError("synthesis failed: %s" % error) from None
     return pattern % frame_start
 
 

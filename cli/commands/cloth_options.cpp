@@ -11,20 +11,12 @@
 
 namespace flowvid::cli {
 
-const std::map<std::string, cloth::Integrator>& integrators() {
-    static const std::map<std::string, cloth::Integrator> table = {
-        {"rk4", cloth::Integrator::rk4_adaptive},     {"dopri54", cloth::Integrator::dopri54},
-        {"bs32", cloth::Integrator::bogacki_shampine32}, {"implicit", cloth::Integrator::implicit_euler},
-        {"bdf2", cloth::Integrator::bdf2}};
-    return table;
-}
-
 void add_cloth_run_options(CLI::App& app, ClothRunOptions& options) {
     app.add_option("--resolution", options.resolution,
                    "simulation mesh, RxC vertices (parameters are per area: any resolution shows the same fabric)")
         ->capture_default_str();
     std::vector<std::string> names;
-    for (const auto& [name, value] : integrators()) names.push_back(name);
+    for (const auto& [name, value] : cloth::integrators_by_short_name()) names.push_back(name);
     app.add_option("--integrator", options.integrator,
                    "rk4: adaptive Runge-Kutta (accurate, keeps folds; the thesis's choice); implicit: backward Euler "
                    "(fast, damps); bdf2: implicit, damps less; dopri54, bs32: other adaptive Runge-Kutta pairs")
@@ -53,17 +45,8 @@ std::optional<std::pair<int, int>> parse_grid(const std::string& text, const std
 std::optional<cloth::SwatchOptions> swatch_options(const ClothRunOptions& options) {
     const auto grid = parse_grid(options.resolution, "--resolution");
     if (!grid) return std::nullopt;
-    cloth::SwatchOptions swatch;
-    swatch.rows = grid->first;
-    swatch.cols = grid->second;
-    swatch.simulation.integrator = integrators().at(options.integrator);
-    swatch.simulation.threads = thread_count(options.threads);
-    swatch.initial_bow = options.initial_bow;
-    if (swatch.simulation.integrator == cloth::Integrator::rk4_adaptive ||
-        swatch.simulation.integrator == cloth::Integrator::dopri54 ||
-        swatch.simulation.integrator == cloth::Integrator::bogacki_shampine32)
-        swatch.simulation.position_tolerance_m = 1e-4;
-    return swatch;
+    return cloth::run_swatch_options(grid->first, grid->second, cloth::integrators_by_short_name().at(options.integrator),
+                                     options.initial_bow, options.threads);
 }
 
 void apply_shape_target_frame_defaults(video::FitTarget target, const CLI::Option* frames_option,
@@ -77,14 +60,8 @@ int thread_count(int requested) { return resolve_thread_count(requested); }
 
 formats::FabricPreset read_preset_for_simulation(const std::string& path) {
     std::vector<Problem> warnings;
-    formats::FabricPreset preset = formats::read_fabric_preset(path, &warnings);
+    formats::FabricPreset preset = cloth::read_preset_for_simulation(path, &warnings);
     print_problems(warnings);
-    const std::vector<Problem> problems = cloth::check_material(cloth::material_from_fabric(preset.parameters));
-    if (!problems.empty()) {
-        std::vector<Problem> named = problems;
-        for (Problem& problem : named) problem.file = path;
-        throw ValidationError(named);
-    }
     return preset;
 }
 

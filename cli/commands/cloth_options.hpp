@@ -24,9 +24,6 @@ struct ClothRunOptions {
     double initial_bow = 1.0;          // which way the slack between the pins bows at the start
 };
 
-// The integrators by their command-line names (rk4, implicit, ...).
-const std::map<std::string, cloth::Integrator>& integrators();
-
 // Adds --resolution, --integrator and --threads to a command.
 void add_cloth_run_options(CLI::App& app, ClothRunOptions& options);
 
@@ -46,8 +43,7 @@ void apply_shape_target_frame_defaults(video::FitTarget target, const CLI::Optio
 // Threads to use: the option, or every core for 0.
 int thread_count(int requested);
 
-// A preset's material (throws ValidationError naming the file for a preset
-// the simulator cannot use).
+// cloth::read_preset_for_simulation with its warnings in the log.
 formats::FabricPreset read_preset_for_simulation(const std::string& path);
 
 }  // namespace flowvid::cli

@@ -300,7 +300,7 @@ int run_formats_stage(const DemoOptions& options, const GlobalOptions& global) {
         if (entry.is_regular_file()) files.push_back(entry.path());
     std::sort(files.begin(), files.end());
 
-    Progress progress(global, "formats");
+    ProgressBar progress(global, "formats");
     int invalid = 0;
     nlohmann::json summaries = nlohmann::json::array();
     for (std::size_t i = 0; i < files.size(); ++i) {

@@ -10,127 +10,20 @@
 
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/formats/diagnosis.hpp"
-#include "flowvid/gap/cloth_model.hpp"
-#include "flowvid/gap/diagnose.hpp"
-#include "flowvid/gap/rigid_model.hpp"
-#include "flowvid/rigid/fit_file.hpp"
+#include "flowvid/gap/open_model.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <filesystem>
 #include <iostream>
-#include <memory>
+#include <optional>
 
 namespace flowvid::cli {
 
 namespace {
-
 nlohmann::json number(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
-
-nlohmann::json effect_values_json(const gap::EffectValues& values) {
-    nlohmann::json out = nlohmann::json::object();
-    for (const auto& [name, v] : values) {
-        const gap::Effect& effect = gap::find_effect(name);
-        for (std::size_t i = 0; i < effect.parameters.size() && i < static_cast<std::size_t>(v.size()); ++i)
-            out[name + "." + effect.parameters[i].key] = v(static_cast<Eigen::Index>(i));
-    }
-    return out;
-}
-
-nlohmann::json base_changes_json(const std::vector<gap::BaseParameterChange>& changes) {
-    nlohmann::json out = nlohmann::json::array();
-    for (const gap::BaseParameterChange& c : changes) out.push_back({{"key", c.key}, {"before", c.before}, {"after", c.after}});
-    return out;
-}
-
 }  // namespace
-
-nlohmann::json diagnosis_to_json(const gap::Diagnosis& d, const nlohmann::json& model) {
-    nlohmann::json out;
-    out["format"] = formats::kDiagnosisFormatName;
-    out["version"] = formats::kDiagnosisFormatVersion;
-    out["kind"] = d.kind;
-    out["trials"] = d.trials;
-    out["model"] = model;
-    out["gap"] = {{"detected", d.gap_detected},
-                  {"held_out_error", d.held_out_error},
-                  {"held_out_floor", d.held_out_floor},
-                  {"ratio", number(d.ratio)},
-                  {"threshold", d.threshold},
-                  {"held_out_frames", d.held_out_frames}};
-    out["verdict"] = {{"status", d.status},
-                      {"effects", d.named},
-                      {"class", d.named_class},
-                      {"message", d.message},
-                      {"gap_closed", d.gap_closed ? number(*d.gap_closed) : nlohmann::json()}};
-    if (!d.control_description.empty())
-        out["discretisation_control"] = {{"refinement", d.control_description},
-                                         {"gap_closed", d.control_gap_closed ? number(*d.control_gap_closed) : nlohmann::json()},
-                                         {"discounted_effects", d.discounted},
-                                         {"failure", d.control_failure.empty() ? nlohmann::json() : nlohmann::json(d.control_failure)}};
-    if (d.named_refit) {
-        out["verdict"]["parameters"] = effect_values_json(d.named_refit->effects);
-        out["verdict"]["base_changes"] = base_changes_json(d.named_refit->base);
-    }
-    nlohmann::json candidates = nlohmann::json::array();
-    for (const gap::CandidateEvidence& c : d.candidates) {
-        nlohmann::json j = {{"name", c.name},
-                            {"domain", c.domain},
-                            {"screen_score", c.screen_score},
-                            {"refitted", c.refitted},
-                            {"equivalence_class", c.equivalence_class},
-                            {"passes", c.passes}};
-        if (c.refitted) {
-            j["parameters"] = effect_values_json(c.refit.effects);
-            j["base_changes"] = base_changes_json(c.refit.base);
-            j["held_out_error"] = c.held_out_score;
-            j["gap_closed"] = number(c.gap_closed);
-            j["effect_share"] = number(c.effect_share);
-            j["delta_bic"] = number(c.delta_bic);
-            j["bootstrap_stability"] = c.bootstrap_stability;
-        } else {
-            j["parameters"] = effect_values_json(c.screened);
-            j["held_out_error"] = nullptr;
-            j["gap_closed"] = nullptr;
-            j["delta_bic"] = nullptr;
-            j["bootstrap_stability"] = nullptr;
-        }
-        candidates.push_back(j);
-    }
-    out["candidates"] = candidates;
-    out["null_refit"] = {{"base_changes", base_changes_json(d.null_refit.base)},
-                         {"held_out_score", gap::held_out_score(d.null_refit.residuals)}};
-    nlohmann::json frames = nlohmann::json::array();
-    for (std::size_t i = 0; i < d.base.frames.size(); ++i) {
-        const gap::FrameResidual& f = d.base.frames[i];
-        nlohmann::json j = {{"trial", f.trial}, {"frame", f.frame}, {"time_s", f.time_s}, {"error", f.error},
-                            {"floor", f.floor}, {"held_out", f.held_out}, {"driver", f.driver}};
-        j["error_with_effect"] = d.named_refit && i < d.named_refit->residuals.frames.size()
-                                     ? number(d.named_refit->residuals.frames[i].error)
-                                     : nlohmann::json();
-        frames.push_back(j);
-    }
-    out["frames"] = frames;
-    nlohmann::json maps = nlohmann::json::array();
-    for (const gap::RegionMap& m : d.maps) {
-        nlohmann::json values = nlohmann::json::array();
-        for (double v : m.values) values.push_back(number(v));
-        maps.push_back({{"name", m.name}, {"units", m.units}, {"rows", m.rows}, {"cols", m.cols}, {"values", values}});
-    }
-    out["maps"] = maps;
-    out["spectrum"] = {{"frequency_hz", d.spectrum.frequency_hz},
-                       {"residual_power", d.spectrum.residual_power},
-                       {"floor_power", d.spectrum.floor_power}};
-    // What one camera cannot tell apart, whatever the verdict.
-    nlohmann::json classes = nlohmann::json::array();
-    for (const gap::EquivalenceClass& c : gap::equivalence_classes())
-        classes.push_back({{"name", c.name}, {"members", c.members}, {"why", c.why}});
-    out["equivalence_classes"] = classes;
-    out["evaluations"] = d.evaluations;
-    out["seconds"] = d.seconds;
-    return out;
-}
 
 void write_diagnosis(const std::string& folder, const nlohmann::json& diagnosis) {
     std::filesystem::create_directories(folder);
@@ -140,61 +33,24 @@ void write_diagnosis(const std::string& folder, const nlohmann::json& diagnosis)
                                    [&](std::ostream& out) { out << diagnosis_report_html(diagnosis); });
 }
 
-std::unique_ptr<gap::GapModel> cloth_gap_model(const std::vector<std::string>& capture_paths, const std::string& preset_path,
-                                               const DiagnoseClothOptions& options, nlohmann::json& model_summary) {
-    const formats::FabricPreset preset = read_preset_for_simulation(preset_path);
-    const std::optional<cloth::SwatchOptions> swatch = swatch_options(options.run);
-    if (!swatch) return nullptr;
-    video::TrialLoadSettings load;
-    load.waving_frames = options.frames;
-    load.full_weight_frames = options.frames;  // every frame counts; the floors do the weighting
-    std::vector<video::ClothTrial> trials;
-    for (const std::string& path : capture_paths) {
-        const formats::Capture capture = read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid diagnose");
-        trials.push_back(video::load_trial(capture, load));
-    }
-    gap::ClothGapSettings settings;
-    settings.fit.swatch = *swatch;
-    settings.fit.swatch.simulation.implicit_substeps_per_frame = options.substeps_per_frame;
-    settings.fit.metric.alpha = options.silhouette_weight;
-    settings.threads = thread_count(options.run.threads);
-    settings.floor_resolution_step = options.floor_resolution_step;
-    settings.control_resolution_step = options.control_resolution_step;
-    if (options.floor == "chaos") {  // the model's own steps, a 0.5 mm start jitter
-        video::FloorSettings chaos;
-        chaos.members = settings.floor.members;
-        chaos.jitter_m = 5e-4;
-        settings.floor = chaos;
-    }
-    model_summary = {{"preset", preset_path},
-                     {"resolution", options.run.resolution},
-                     {"integrator", options.run.integrator},
-                     {"substeps_per_frame", options.substeps_per_frame},
-                     {"frames", options.frames},
-                     {"floor", options.floor},
-                     {"floor_members", settings.floor.members},
-                     {"floor_resolution_step", settings.floor_resolution_step},
-                     {"control_resolution_step", settings.control_resolution_step},
-                     {"silhouette_weight", options.silhouette_weight}};
-    return std::make_unique<gap::ClothGapModel>(std::move(trials), cloth::material_from_fabric(preset.parameters), settings);
-}
+std::string diagnoser_resolution() { return std::to_string(gap::kDiagnoserRows) + "x" + std::to_string(gap::kDiagnoserCols); }
 
-// With --fit, the first capture starts from that fit (flowvid fit rigid's
-// fit.json); a fit that saw the held-out frames makes them look better.
-std::unique_ptr<gap::GapModel> rigid_gap_model(const std::vector<std::string>& capture_paths, const std::string& fit_path,
-                                               int threads, nlohmann::json& model_summary) {
-    std::vector<gap::RigidTrial> trials;
-    for (const std::string& path : capture_paths) {
-        gap::RigidTrial trial;
-        trial.capture = read_capture_of_kind(path, {"rigid.toss"}, "flowvid diagnose");
-        if (!fit_path.empty() && trials.empty()) trial.fit = rigid::read_rigid_fit(fit_path).as_fit_result();
-        trials.push_back(std::move(trial));
-    }
-    gap::RigidGapSettings settings;
-    settings.threads = thread_count(threads);
-    model_summary = {{"model", "rigid free flight fitted on the training frames of each toss"},
-                     {"floor", "re-fits to masks rendered from the fitted motion (quantisation)"}};
-    return std::make_unique<gap::RigidGapModel>(std::move(trials), settings);
+std::optional<gap::ClothGapRequest> cloth_gap_request(const std::vector<std::string>& capture_paths,
+                                                      const std::string& preset_path, const DiagnoseClothOptions& options) {
+    const std::optional<cloth::SwatchOptions> swatch = swatch_options(options.run);
+    if (!swatch) return std::nullopt;
+    gap::ClothGapRequest request;
+    request.capture_paths = capture_paths;
+    request.preset_path = preset_path;
+    request.swatch = *swatch;
+    request.frames = options.frames;
+    request.substeps_per_frame = options.substeps_per_frame;
+    request.floor_resolution_step = options.floor_resolution_step;
+    request.control_resolution_step = options.control_resolution_step;
+    request.floor = options.floor == "chaos" ? gap::ClothFloorKind::chaos : gap::ClothFloorKind::repeatability;
+    request.silhouette_weight = options.silhouette_weight;
+    request.threads = options.run.threads;
+    return request;
 }
 
 namespace {
@@ -219,31 +75,35 @@ int run_diagnose(DiagnoseOptions& options, const GlobalOptions& global) {
         return kExitUsage;
     }
     for (const std::string& name : options.effects) gap::find_effect(name);  // unknown names fail before the work
-    prepare_output_folder((std::filesystem::path(options.out) / "diagnosis.json").string());  // the report folder
-    Progress progress(global, "diagnose");
-    const InterruptWatch interrupt;
-    progress.update(0.0, "floors");
-    nlohmann::json model_summary;
-    const std::unique_ptr<gap::GapModel> model =
-        rigid ? rigid_gap_model(options.captures, options.fit, options.cloth.run.threads, model_summary)
-              : cloth_gap_model(options.captures, options.preset, options.cloth, model_summary);
-    if (!model) return kExitUsage;
+    formats::create_parent_folder((std::filesystem::path(options.out) / "diagnosis.json").string());  // the report folder
+    gap::OpenedGapModel opened;
+    if (rigid) {
+        gap::RigidGapRequest request;
+        request.capture_paths = options.captures;
+        request.fit_path = options.fit;
+        request.threads = options.cloth.run.threads;
+        opened = gap::open_rigid_model(request);
+    } else {
+        const std::optional<gap::ClothGapRequest> request = cloth_gap_request(options.captures, options.preset, options.cloth);
+        if (!request) return kExitUsage;
+        ProgressBar floors(global, "diagnose");
+        floors.update(0.0, "floors");
+        opened = gap::open_cloth_model(*request);
+    }
+    print_problems(opened.warnings);
     options.settings.effects = options.effects;
-    options.settings.progress = [&](const std::string& stage, double fraction) {
-        progress.update(fraction, stage);
-        return !interrupt.requested();
-    };
+    TerminalProgress progress(global, "diagnose");
+    options.settings.progress = progress.callback();
     gap::Diagnosis diagnosis;
     try {
-        diagnosis = gap::diagnose(*model, options.settings);
-    } catch (const gap::Cancelled&) {
-        progress.done();
+        diagnosis = gap::diagnose(*opened.model, options.settings);
+    } catch (const flowvid::Cancelled&) {
+        progress.finish();
         log_message("interrupted: nothing written");
         return kExitInterrupted;
     }
-    progress.done();
-    const nlohmann::json document = diagnosis_to_json(diagnosis, model_summary);
-    write_diagnosis(options.out, document);
+    progress.finish();
+    write_diagnosis(options.out, gap::diagnosis_document(diagnosis, opened.description));
     nlohmann::json summary = {{"out", options.out},
                               {"gap_detected", diagnosis.gap_detected},
                               {"held_out_over_floor", number(diagnosis.ratio)},
@@ -262,7 +122,7 @@ const RegisterCommand registration{Command{
     "diagnose", "where a fitted simulation departs from footage, which unmodelled effect causes it, how far it shrinks",
     [](CLI::App& app) -> CommandRunner {
         auto options = std::make_shared<DiagnoseOptions>();
-        options->cloth.run.resolution = kDiagnoserResolution;
+        options->cloth.run.resolution = diagnoser_resolution();
         app.footer(
             "Cloth: simulates the fitted fabric in each capture's experiment and compares every frame with the\n"
             "footage in units of its floor (how far repeated takes of the experiment spread: what even a\n"

@@ -127,8 +127,8 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
     if (!settings) return kExitUsage;
     std::vector<formats::Capture> captures;
     for (const std::string& path : options.captures)
-        captures.push_back(read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid eval cloth"));
-    if (!options.report.empty()) prepare_output_folder(options.report + "/eval.json");
+        captures.push_back(formats::read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid eval cloth"));
+    if (!options.report.empty()) formats::create_parent_folder(options.report + "/eval.json");
     const cloth::ClothMaterial material = cloth::material_from_fabric(preset.parameters);
     video::FloorSettings floor = video::reported_floor(options.floor_members);
     if (options.floor_kind == "full") floor.parameter_sigma = video::preset_uncertainty(preset.parameters);
@@ -136,7 +136,7 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
         floor.integrator.reset();
         floor.implicit_substeps_per_frame.reset();
     } else {
-        floor.integrator = integrators().at(options.floor_integrator);
+        floor.integrator = cloth::integrators_by_short_name().at(options.floor_integrator);
         floor.implicit_substeps_per_frame = options.floor_substeps;
     }
     const bool floor_has_uncertainty = !floor.parameter_sigma.empty();
@@ -144,7 +144,7 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
         log_message("the preset carries no uncertainty: its floor is the chaos alone");
     const int threads = thread_count(options.run.threads);
 
-    Progress progress(global, "eval cloth");
+    ProgressBar progress(global, "eval cloth");
     nlohmann::json results = nlohmann::json::array();
     std::ostringstream body;
     body << html::element("h1", preset.name) << html::element("p", "preset " + options.preset);
@@ -251,7 +251,7 @@ const RegisterEvalKind eval_registration{FitKind{
             ->check(CLI::IsMember({"full", "chaos"}))
             ->capture_default_str();
         std::vector<std::string> floor_integrators = {"same"};
-        for (const auto& [name, value] : integrators()) floor_integrators.push_back(name);
+        for (const auto& [name, value] : cloth::integrators_by_short_name()) floor_integrators.push_back(name);
         app.add_option("--floor-integrator", options->floor_integrator,
                        "integrator of the floor's runs: implicit at --floor-substeps (default) or rk4 keep the folds "
                        "whose instability makes cloth chaotic (rk4 is the reference, but slow on stiff fabrics); "
@@ -293,13 +293,13 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
     std::vector<video::ClothTrial> trials;
     std::vector<std::optional<formats::VertexAnimation>> truths;
     for (const std::string& path : options.captures) {
-        const formats::Capture capture = read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid recognize");
+        const formats::Capture capture = formats::read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid recognize");
         trials.push_back(video::load_trial(capture, load_settings(options.trial)));
         truths.push_back(formats::read_capture_truth_positions(capture));
     }
     const std::size_t cells = presets.size() * trials.size();
     std::vector<video::TrialAssessment> assessments(cells);
-    Progress progress(global, "recognize");
+    ProgressBar progress(global, "recognize");
     const InterruptWatch interrupt;
     std::atomic<std::size_t> done{0};
     optim::ThreadPool pool(thread_count(options.run.threads));

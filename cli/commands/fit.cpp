@@ -43,19 +43,6 @@ std::optional<std::pair<std::optional<int>, std::optional<int>>> parse_frame_ran
     return range;
 }
 
-formats::Capture read_capture_of_kind(const std::string& path, const std::vector<std::string>& kinds,
-                                      const std::string& command) {
-    formats::Capture capture = formats::read_capture(path);
-    if (std::find(kinds.begin(), kinds.end(), capture.kind) == kinds.end()) {
-        std::string wanted;
-        for (const std::string& k : kinds) wanted += (wanted.empty() ? "" : " or ") + k;
-        throw ValidationError({Problem{Problem::Severity::error, capture.json_path, "/kind",
-                                       "the capture is a " + capture.kind + " capture; `" + command + "` needs " + wanted,
-                                       "give a " + wanted + " capture folder"}});
-    }
-    return capture;
-}
-
 std::optional<std::pair<int, int>> resolve_frames(const std::string& text, const formats::Capture& capture) {
     int first = capture.frames.first, last = capture.frames.last();
     if (!text.empty()) {

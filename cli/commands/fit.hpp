@@ -44,11 +44,6 @@ struct RegisterEvalKind {
     explicit RegisterEvalKind(FitKind kind);
 };
 
-// Reads a capture folder and checks its kind: throws ValidationError naming
-// capture.json and /kind when the kind is not one of `kinds`.
-formats::Capture read_capture_of_kind(const std::string& path, const std::vector<std::string>& kinds,
-                                      const std::string& command);
-
 // Frames A:B of --frames resolved against the capture (defaults: its first
 // and last frame). nullopt, after logging why, when the text is malformed or
 // outside the capture.

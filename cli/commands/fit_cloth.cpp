@@ -13,6 +13,7 @@
 #include "flowvid/version.hpp"
 #include "flowvid/video/cloth_eval.hpp"
 #include "flowvid/video/fit_cloth.hpp"
+#include "flowvid/video/fit_cloth_shards.hpp"
 
 #include <chrono>
 #include <filesystem>
@@ -103,6 +104,7 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
     request.budget_seconds = options.budget_seconds;
     request.seed = options.seed;
     request.threads = thread_count(options.run.threads);
+    request.floor_members = kFloorMembers;
     return request;
 }
 
@@ -114,32 +116,22 @@ std::string reported_floor_integrator() {
            std::to_string(video::kFloorSubstepsPerFrame) + " substeps a frame";
 }
 
-// Each trial's final error next to its predictability floor (a small
-// ensemble at the fitted fabric, with its uncertainty, at the steps the
-// commands report floors with, inside the budget): an error near the floor is
-// as good as it gets. `total_floor` gets the sum of the trials' weighted floors.
-nlohmann::json trials_with_floors(const video::ClothFitOutcome& outcome, const video::ClothFitRequest& request,
-                                  double& total_floor) {
-    video::FloorSettings floor = video::reported_floor(kFloorMembers);
-    if (outcome.preset) floor.parameter_sigma = video::preset_uncertainty(outcome.preset->parameters);
+// Each trial's final error next to its predictability floor (the fit's
+// ClothFitRequest::floor_members): an error near the floor is as good as it gets.
+nlohmann::json trials_with_floors(const video::ClothFitOutcome& outcome) {
     nlohmann::json trials = nlohmann::json::array();
-    total_floor = 0.0;
     for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i) {
         nlohmann::json trial = {{"capture", outcome.trial_names[i]}, {"final_error", outcome.final_evaluation.trials[i].error}};
-        if (outcome.trials[i].measures_shape())
+        const bool shape = outcome.trials[i].measures_shape();
+        if (shape)
             // A tracks or scan fit's error is a weighted mean square (mm^2): its root reads as a distance.
             trial["final_rms_mm"] = video::tracks_rms_mm(outcome.trials[i], outcome.final_evaluation.trials[i].error);
-        // The floor re-solves the fitted fabric's equilibrium from scratch;
-        // when that fails the fit is still good: report it without a floor.
-        try {
-            const video::PredictabilityFloor f =
-                video::estimate_floor(outcome.trials[i], outcome.fitted, request.problem, floor, request.threads);
-            const double trial_floor = video::weighted_floor(outcome.trials[i], f);
-            total_floor += trial_floor;
-            trial["floor"] = trial_floor;
-            if (outcome.trials[i].measures_shape()) trial["floor_rms_mm"] = video::tracks_rms_mm(outcome.trials[i], trial_floor);
-        } catch (const std::runtime_error& error) {
-            log_message("warning: no predictability floor for " + outcome.trial_names[i] + ": " + error.what());
+        const video::ReportedFloor& floor = outcome.floors.at(i);
+        if (floor.weighted) {
+            trial["floor"] = *floor.weighted;
+            if (shape) trial["floor_rms_mm"] = video::tracks_rms_mm(outcome.trials[i], *floor.weighted);
+        } else {
+            log_message("warning: no predictability floor for " + outcome.trial_names[i] + ": " + floor.failure);
             trial["floor"] = nullptr;
         }
         trials.push_back(trial);
@@ -157,18 +149,12 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     const bool sharded = !options.shard.empty() || options.shards > 0;
     std::vector<formats::Capture> captures;
     for (const std::string& path : options.captures)
-        captures.push_back(read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid fit cloth"));
-    prepare_output_folder(options.out);
+        captures.push_back(formats::read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid fit cloth"));
+    formats::create_parent_folder(options.out);
     video::ClothFitRequest request = make_request(options, *swatch, std::move(captures), options.out);
     if (!options.start.empty()) request.start = cloth::material_from_fabric(formats::read_fabric_preset(options.start).parameters);
     if (sharded) return run_shards(options, global, std::move(request));
-    // The floor ensembles below run inside the same budget: each member and
-    // its reference run cost the floor's substeps over the fit's times a fit
-    // simulation of each trial; + the members' equilibrium searches.
-    const int fit_substeps = std::max(1, request.problem.swatch.simulation.implicit_substeps_per_frame);
-    request.evaluations_after_fit = (kFloorMembers + 1) * video::kFloorSubstepsPerFrame / fit_substeps + 2;
-
-    Progress progress(global, "fit cloth");
+    ProgressBar progress(global, "fit cloth");
     const InterruptWatch interrupt;
     request.progress = [&](const video::ClothFitProgress& p) {
         char detail[160];
@@ -189,8 +175,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
                     std::to_string(request.variability_runs) + " variability restarts" +
                     (outcome.variability_runs_planned == 0 ? ": the preset has no uncertainty (raise --budget-seconds)" : ""));
     const optim::VariabilityReport* variability = outcome.variability ? &*outcome.variability : nullptr;
-    double total_floor = 0.0;
-    nlohmann::json trials = trials_with_floors(outcome, request, total_floor);
+    nlohmann::json trials = trials_with_floors(outcome);
     for (std::size_t i = 0; i < trials.size(); ++i) trials[i]["start_error"] = outcome.start_evaluation.trials[i].error;
     nlohmann::json summary = {{"out", options.out},
                               {"fit_to", video::fit_target_name(request.load.target)},
@@ -204,7 +189,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
                               {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
                               {"start_error", outcome.start_evaluation.total},
                               {"final_error", outcome.final_evaluation.total},
-                              {"final_error_floor", total_floor},
+                              {"final_error_floor", outcome.total_floor},
                               {"floor_integrator", reported_floor_integrator()},
                               {"trials", trials},
                               {"evaluations", outcome.evaluations},
@@ -243,92 +228,6 @@ std::optional<video::ClothFitShard> parse_shard(const std::string& text) {
     return std::nullopt;
 }
 
-// The options that change a fit's result, named as on the command line:
-// the shards of one fit must agree on every one (threads, names and the
-// variability restarts, which the merge runs, are not among them).
-nlohmann::json result_options(const FitClothOptions& o) {
-    nlohmann::json options = {{"drag", o.drag},
-            {"metric", o.metric},
-            {"seed", o.seed},
-            {"evaluations", o.evaluations},
-            {"budget-seconds", o.budget_seconds},
-            {"frames", o.frames},
-            {"full-weight-frames", o.full_weight_frames},
-            {"half-life-frames", o.half_life_frames},
-            {"resolution", o.run.resolution},
-            {"integrator", o.run.integrator},
-            {"initial-bow", o.run.initial_bow}};
-    // Only tracks fits say what they fitted to, so footage shards keep the bytes older ones had.
-    if (o.fit_to != "footage") options["fit-to"] = o.fit_to;
-    if (o.static_weight != 1.0) options["static-weight"] = o.static_weight;
-    if (o.min_bending_N_m > 0.0) options["min-bending"] = o.min_bending_N_m;
-    // Written only when not the thesis's annealing, which shards written
-    // before the search could be chosen used (and have no "search").
-    if (o.search != "annealing") options["search"] = o.search;
-    return options;
-}
-
-// The options back from a shard's request; every malformed one is reported
-// with the shard's file and field.
-FitClothOptions options_from_shard(const formats::FitShardFile& file) {
-    Diagnostics diagnostics(file.path);
-    const formats::JsonView view(file.shard.options, "/request/options", diagnostics);
-    FitClothOptions o;
-    const auto one_of = [&](const char* key, std::initializer_list<const char*> allowed, std::string& into) {
-        const std::optional<std::string> value = view.string(key);
-        if (!value) return;
-        for (const char* a : allowed)
-            if (*value == a) {
-                into = *value;
-                return;
-            }
-        diagnostics.error(std::string("/request/options/") + key, "\"" + *value + "\" is not a choice of this flowvid",
-                          "run the shard with this flowvid's options");
-    };
-    one_of("drag", {"nonlinear", "linear"}, o.drag);
-    one_of("metric", {"xor", "edge"}, o.metric);
-    if (view.has("fit-to")) one_of("fit-to", {"footage", "scan", "tracks"}, o.fit_to);  // shards older than tracks fits: footage
-    o.search = "annealing";  // shards without "search" ran the annealing
-    if (view.has("search")) one_of("search", {"annealing", "cmaes"}, o.search);
-    one_of("integrator", {"rk4", "dopri54", "bs32", "implicit", "bdf2"}, o.run.integrator);
-    if (view.has("seed") && view.json().at("seed").is_number_unsigned()) o.seed = view.json().at("seed").get<std::uint64_t>();
-    else o.seed = static_cast<std::uint64_t>(view.integer("seed", 0, std::numeric_limits<std::int64_t>::max()).value_or(1));
-    o.evaluations = view.integer("evaluations", 10, 1000000).value_or(o.evaluations);
-    o.budget_seconds = view.number("budget-seconds", formats::NumberRange::non_negative("s")).value_or(0.0);
-    o.frames = static_cast<int>(view.integer("frames", 2, 100000).value_or(o.frames));
-    o.full_weight_frames = static_cast<int>(view.integer("full-weight-frames", 1, 100000).value_or(o.full_weight_frames));
-    o.half_life_frames = view.number("half-life-frames", formats::NumberRange::non_negative("frames")).value_or(0.0);
-    if (view.has("static-weight"))  // written only when not 1 (older shards have none)
-        o.static_weight = view.number("static-weight", formats::NumberRange::non_negative("")).value_or(1.0);
-    if (view.has("min-bending"))  // written only when set
-        o.min_bending_N_m = view.number("min-bending", formats::NumberRange::non_negative("N m")).value_or(0.0);
-    o.run.resolution = view.string("resolution").value_or(o.run.resolution);
-    o.run.initial_bow = view.number("initial-bow", formats::NumberRange::closed(-2.0, 2.0)).value_or(o.run.initial_bow);
-    view.check_known_keys({"drag", "metric", "fit-to", "seed", "evaluations", "budget-seconds", "frames", "full-weight-frames",
-                           "half-life-frames", "static-weight", "min-bending", "search", "resolution", "integrator", "initial-bow"});
-    diagnostics.throw_if_errors();
-    return o;
-}
-
-// A finished shard's partial result.
-formats::FitShard shard_result(const FitClothOptions& options, const video::ClothFitRequest& request,
-                               const video::ClothFitOutcome& outcome) {
-    formats::FitShard shard;
-    shard.kind = "cloth";
-    shard.software = "flowvid " + flowvid::version();
-    for (const formats::Capture& c : request.captures) shard.captures.push_back({c.folder, c.capture_json_sha256});
-    shard.options = result_options(options);
-    shard.index = request.shard->index;
-    shard.count = request.shard->count;
-    const Eigen::VectorXd& best = outcome.search.annealing.best_values;
-    for (std::size_t i = 0; i < outcome.parameters.size() && static_cast<Eigen::Index>(i) < best.size(); ++i)
-        shard.best.push_back({outcome.parameters[i].key, best(static_cast<Eigen::Index>(i))});
-    shard.best_error = outcome.search.annealing.best_value;
-    shard.evaluations = outcome.evaluations;
-    shard.status = optim::status_name(outcome.search.annealing.status);
-    return shard;
-}
-
 // The reproducible-builds convention: SOURCE_DATE_EPOCH (seconds since
 // 1970, UTC) replaces the preset's creation time, so that a fit run twice,
 // or split and merged, gives the same bytes.
@@ -349,88 +248,46 @@ void apply_source_date_epoch(formats::FabricPreset& preset) {
     preset.provenance.created_utc = stamp;
 }
 
-// The last step of a split cloth fit: the winner simulated once more (and
-// the variability restarts when asked for), written exactly as fit cloth
-// writes. Used by `flowvid merge` and by `fit cloth --shards n`.
+// The last step of a split cloth fit (video::merge_cloth_fit_shards), written
+// exactly as fit cloth writes. Used by `flowvid merge` and by `fit cloth --shards n`.
 int merge_cloth(const MergeRequest& merge, const GlobalOptions& global) {
-    const formats::FitShardFile& winner = merge.shards.at(merge.winner);
-    FitClothOptions options = options_from_shard(winner);
-    options.name = merge.name;
-    options.variability_runs = merge.variability_runs;
-    options.variability_evaluations = merge.variability_evaluations;
-    options.run.threads = merge.threads;
-    std::optional<cloth::SwatchOptions> swatch = swatch_options(options.run);
-    if (!swatch) throw ValidationError({Problem{Problem::Severity::error, winner.path, "/request/options/resolution",
-                                                "\"" + options.run.resolution + "\" is not ROWSxCOLS", "run the shard again"}});
-    // The captures again, from the paths the shards recorded: they must be
-    // the very experiments the shards fitted.
-    std::vector<formats::Capture> captures;
-    std::vector<Problem> changed;
-    for (std::size_t i = 0; i < winner.shard.captures.size(); ++i) {
-        const formats::FitShardCapture& recorded = winner.shard.captures[i];
-        captures.push_back(read_capture_of_kind(recorded.path, {"cloth.static", "cloth.waving"}, "flowvid merge"));
-        if (captures.back().capture_json_sha256 != recorded.capture_json_sha256)
-            changed.push_back({Problem::Severity::error, winner.path, "/request/captures/" + std::to_string(i) + "/capture_json_sha256",
-                               captures.back().json_path + " has changed since the shard ran (its SHA-256 is now " +
-                                   captures.back().capture_json_sha256 + ")",
-                               "restore that capture.json, or run the shards again on the capture as it is"});
-    }
-    if (!changed.empty()) throw ValidationError(changed);
-    video::ClothFitRequest request = make_request(options, *swatch, std::move(captures), merge.out);
-
-    std::vector<std::string> names;
-    Eigen::VectorXd values(static_cast<Eigen::Index>(winner.shard.best.size()));
-    for (std::size_t i = 0; i < winner.shard.best.size(); ++i) {
-        names.push_back(winner.shard.best[i].name);
-        values(static_cast<Eigen::Index>(i)) = winner.shard.best[i].value;
-    }
-    Progress progress(global, "merge cloth");
+    video::ClothMergeRequest request;
+    request.shards = merge.shards;
+    request.name = merge.name.empty() ? std::filesystem::path(merge.out).stem().stem().string() : merge.name;
+    request.variability_runs = merge.variability_runs;
+    request.variability_evaluations = merge.variability_evaluations;
+    request.floor_members = kFloorMembers;
+    request.threads = merge.threads;
+    ProgressBar progress(global, "merge cloth");
     const InterruptWatch interrupt;
     request.progress = [&](const video::ClothFitProgress& p) {
         progress.update(p.fraction, p.phase);
         return !interrupt.requested();
     };
-    video::ClothFitOutcome outcome;
-    try {
-        outcome = video::finish_cloth_fit(request, names, values, winner.shard.best_error);
-    } catch (const std::invalid_argument& error) {
-        throw ValidationError({Problem{Problem::Severity::error, winner.path, "/result/parameters", error.what(),
-                                       "run the shard again with this flowvid"}});
-    }
+    const video::ClothMergeOutcome merged = video::merge_cloth_fit_shards(request);
+    const video::ClothFitOutcome& outcome = merged.fit;
     progress.done();
     if (outcome.status == video::ClothFitOutcome::Status::cancelled) {
         log_message("interrupted: nothing written");
         return kExitInterrupted;
     }
-
-    long long evaluations = outcome.evaluations;
-    nlohmann::json shard_errors = nlohmann::json::array();
-    std::vector<const formats::FitShardFile*> by_index(merge.shards.size());
-    for (const formats::FitShardFile& file : merge.shards) by_index.at(static_cast<std::size_t>(file.shard.index - 1)) = &file;
-    for (const formats::FitShardFile* file : by_index) {
-        evaluations += file->shard.evaluations;
-        shard_errors.push_back(file->shard.best_error);
-    }
+    const formats::FitShardFile& winner = merge.shards.at(merged.winner);
     const optim::VariabilityReport* variability = outcome.variability ? &*outcome.variability : nullptr;
-    double total_floor = 0.0;
-    const nlohmann::json trials = trials_with_floors(outcome, request, total_floor);
     const std::string split = std::to_string(winner.shard.index) + "/" + std::to_string(winner.shard.count);
     const nlohmann::json summary = {{"out", merge.out},
-                                    {"drag", video::drag_model_name(request.drag)},
+                                    {"drag", winner.shard.options.value("drag", "nonlinear")},
                                     {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
                                     {"winner", {{"shard", split}, {"file", winner.path}, {"error", winner.shard.best_error}}},
-                                    {"shard_errors", shard_errors},
+                                    {"shard_errors", merged.shard_errors},
                                     {"final_error", outcome.final_evaluation.total},
-                                    {"final_error_floor", total_floor},
+                                    {"final_error_floor", outcome.total_floor},
                                     {"floor_integrator", reported_floor_integrator()},
-                                    {"trials", trials},
-                                    {"evaluations", evaluations},
+                                    {"trials", trials_with_floors(outcome)},
+                                    {"evaluations", merged.evaluations},
                                     {"variability_runs", outcome.variability_runs_planned},
                                     {"seconds", outcome.seconds}};
     if (outcome.preset) {
         formats::FabricPreset preset = *outcome.preset;
-        preset.provenance.notes = "main search split into " + std::to_string(winner.shard.count) + " shards (flowvid merge); shard " +
-                                  split + " had the lowest error";
         apply_source_date_epoch(preset);
         formats::write_fabric_preset(merge.out, preset);
     } else {
@@ -461,7 +318,7 @@ int run_shards(const FitClothOptions& options, const GlobalOptions& global, vide
         const InterruptWatch interrupt;
         for (const video::ClothFitShard& shard : todo) {
             const std::string split = std::to_string(shard.index) + "/" + std::to_string(shard.count);
-            Progress progress(global, "fit cloth shard " + split);
+            ProgressBar progress(global, "fit cloth shard " + split);
             request.shard = shard;
             request.progress = [&](const video::ClothFitProgress& p) {
                 progress.update(p.fraction, p.phase + ", " + std::to_string(p.evaluations) + " evaluations");
@@ -480,7 +337,7 @@ int run_shards(const FitClothOptions& options, const GlobalOptions& global, vide
                 log_message("interrupted: nothing written");
                 return kExitInterrupted;
             }
-            results.push_back({"shard " + split + " (this run)", shard_result(options, request, outcome)});
+            results.push_back({"shard " + split + " (this run)", video::cloth_fit_shard(request, outcome)});
             if (!global.quiet && options.shards > 0)
                 log_message("shard " + split + ": error " + std::to_string(outcome.search.annealing.best_value) + " after " +
                             std::to_string(outcome.evaluations) + " evaluations");
@@ -498,7 +355,6 @@ int run_shards(const FitClothOptions& options, const GlobalOptions& global, vide
     }
     MergeRequest merge;
     merge.shards = std::move(results);
-    merge.winner = formats::check_fit_shard_set(merge.shards);
     merge.out = options.out;
     merge.name = options.name;
     merge.variability_runs = options.variability_runs_given ? options.variability_runs : 0;

@@ -3,6 +3,7 @@
 #include "commands/fit.hpp"
 #include "output.hpp"
 
+#include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/rigid/fit.hpp"
 #include "flowvid/rigid/fit_file.hpp"
 
@@ -38,8 +39,8 @@ nlohmann::json summary_of(const rigid::RigidFitRecord& record, const rigid::Rigi
 }
 
 int run_fit_rigid(const FitRigidOptions& options, const GlobalOptions& global) {
-    prepare_output_folder(options.out);
-    const formats::Capture capture = read_capture_of_kind(options.capture, {"rigid.toss"}, "flowvid fit rigid");
+    formats::create_parent_folder(options.out);
+    const formats::Capture capture = formats::read_capture_of_kind(options.capture, {"rigid.toss"}, "flowvid fit rigid");
     const std::optional<std::pair<int, int>> frames = resolve_frames(options.frames, capture);
     if (!frames) return kExitUsage;
     if (frames->second - frames->first + 1 < 3) {
@@ -66,7 +67,7 @@ int run_fit_rigid(const FitRigidOptions& options, const GlobalOptions& global) {
                                            "give all of position_cam, orientation_cam_wxyz, com_velocity_cam and "
                                            "angular_velocity_cam, or set \"initial_frame\": " + std::to_string(frames->first)}});
     }
-    Progress progress(global, "fit rigid");
+    ProgressBar progress(global, "fit rigid");
     settings.progress = [&](const rigid::FitProgress& p) {
         progress.update(p.fraction, p.stage);
         return true;

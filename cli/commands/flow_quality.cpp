@@ -130,13 +130,12 @@ void print_region_table(const std::vector<std::pair<std::string, flow::RegionQua
 // An edit has no baselines (they follow the input lines): it is measured over
 // its own flow region, the output lines' (at every frame for moving lines),
 // against the clip's.
-int run_edit_quality(const QualityOptions& options, const GlobalOptions& global, const flow::PreparedSynthesis& prepared) {
+int run_edit_quality(const QualityOptions& options, const flow::PreparedSynthesis& prepared, TerminalProgress& terminal) {
+    const flowvid::Progress progress = terminal.callback();
     const flow::ClipFrames& clip = *prepared.clip;
     const flow::Synthesizer& synth = *prepared.synthesizer;
     const int width = clip.width(), height = clip.height();
     const int frames = options.frames > 0 ? options.frames : 2 * clip.count();
-    Progress progress(global, "measure");
-    InterruptWatch interrupt;
     std::vector<std::vector<float>> clip_luma, output_luma;
     for (int i = 0; i < clip.count(); ++i) clip_luma.push_back(clip.luma(i));
     bool moving_lines = false;
@@ -146,13 +145,9 @@ int run_edit_quality(const QualityOptions& options, const GlobalOptions& global,
         output_luma.push_back(flow::luma(flow::to_display(image)));
         if (moving_lines || regions.empty())
             regions.push_back(flow::line_band_mask(prepared.drawn_lines_at(frame), width, height, options.region_px));
-        progress.update(0.8 * frame / frames, "frame " + std::to_string(frame));
-        return !interrupt.requested();
+        return progress({"measure", 0.8 * frame / frames, "frame " + std::to_string(frame)});
     });
-    if (rendered < frames) {
-        log_message("interrupted");
-        return kExitInterrupted;
-    }
+    if (rendered < frames) throw flowvid::Cancelled();
     flow::RegionSettings region_settings;
     region_settings.region_px = options.region_px;
     const flow::RegionMeter meter(clip_luma, width, height,
@@ -160,7 +155,8 @@ int run_edit_quality(const QualityOptions& options, const GlobalOptions& global,
                                                        options.region_px),
                                   region_settings);
     const flow::RegionQuality edit = meter.measure(output_luma, regions);
-    progress.done();
+    report_progress(progress, "measure", 1.0);
+    terminal.finish();
     nlohmann::json summary = {{"bank", options.bank},
                               {"clip", clip_frames_name(prepared)},
                               {"clip_frames", clip.count()},
@@ -186,13 +182,14 @@ int run_edit_quality(const QualityOptions& options, const GlobalOptions& global,
 }
 
 int run_quality(const QualityOptions& options, const GlobalOptions& global) {
-    if (!options.series_csv.empty()) prepare_output_folder(options.series_csv);
+    if (!options.series_csv.empty()) formats::create_parent_folder(options.series_csv);
     flow::SynthesisJob job = synthesis_job(options.bank, options.capture, options.flowlines, options.background,
                                            options.texture, options.synthesis);
     job.keep_clip = true;  // the measures compare with it
     if (options.edit) apply_edit_options(options.edit_options, options.threads, job);
-    const flow::PreparedSynthesis prepared = prepare_synthesis_logged(job, global);
-    if (options.edit) return run_edit_quality(options, global, prepared);
+    TerminalProgress progress(global, "quality");
+    const flow::PreparedSynthesis prepared = flow::prepare_synthesis(job, progress.callback());
+    if (options.edit) return run_edit_quality(options, prepared, progress);
     const flow::ClipFrames& clip = *prepared.clip;
     const flow::RgbImage plate = flow::median_plate(clip);  // the flow map's background
 
@@ -203,20 +200,10 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     compare.threads = options.threads;
     compare.region_lines = flow::drawn_input_polylines(prepared.drawing);
     compare.region.region_px = options.region_px;
-    Progress progress(global, "measure");
-    InterruptWatch interrupt;
-    flow::Comparison result;
-    try {
-        result = flow::compare_with_baselines(clip, *prepared.streams, *prepared.synthesizer, plate, compare, [&](double f) {
-            progress.update(f);
-            return !interrupt.requested();
-        });
-    } catch (const std::runtime_error& e) {
-        if (std::string(e.what()) != "cancelled") throw;
-        log_message("interrupted");
-        return kExitInterrupted;
-    }
-    progress.done();
+    const flowvid::Progress report = progress.callback();
+    const flow::Comparison result = flow::compare_with_baselines(
+        clip, *prepared.streams, *prepared.synthesizer, plate, compare, [&](double f) { return report({"measure", f, {}}); });
+    progress.finish();
     if (!options.series_csv.empty()) write_series_csv(options.series_csv, result);
 
     const flow::Schedule& schedule = prepared.streams->schedule();
@@ -247,7 +234,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                                 {"wrap_fade_frames", options.synthesis.wrap_fade_frames},
                                 {"borrow_within_frames", options.synthesis.borrow_within_frames},
                                 {"first_start_frame", schedule.first_start_frame}}}};
-    summary.update(window_summary(schedule));
+    summary.update(flow::window_summary(schedule));
     nlohmann::json methods = nlohmann::json::object(), region = nlohmann::json::object();
     std::vector<std::pair<std::string, flow::RegionQuality>> region_rows;
     for (const flow::MethodQuality& m : result.methods) {

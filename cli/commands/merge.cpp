@@ -5,6 +5,8 @@
 #include "commands/merge.hpp"
 #include "output.hpp"
 
+#include "flowvid/formats/atomic_file.hpp"
+
 #include <memory>
 
 namespace flowvid::cli {
@@ -45,7 +47,7 @@ int run_merge(MergeOptions& options, const GlobalOptions& global) {
     }
     if (!problems.empty()) throw ValidationError(problems);
     options.request.winner = formats::check_fit_shard_set(options.request.shards);
-    prepare_output_folder(options.request.out);
+    formats::create_parent_folder(options.request.out);
     return run_merge_kind(options.request, global);
 }
 

@@ -32,7 +32,7 @@ std::string numbered(const std::string& folder, int frame) {
 
 int run_predict_rigid(const PredictRigidOptions& options, const GlobalOptions& global) {
     const rigid::RigidFitRecord record = rigid::read_rigid_fit(options.fit);
-    const formats::Capture capture = read_capture_of_kind(options.capture, {"rigid.toss"}, "flowvid predict rigid");
+    const formats::Capture capture = formats::read_capture_of_kind(options.capture, {"rigid.toss"}, "flowvid predict rigid");
     if (!record.capture_json_sha256.empty() && record.capture_json_sha256 != capture.capture_json_sha256 && !global.quiet)
         log_message("warning: " + options.fit + ": fitted to a capture.json with other content than " + capture.json_path);
     const std::optional<std::pair<int, int>> frames = resolve_frames(options.frames, capture);
@@ -47,7 +47,7 @@ int run_predict_rigid(const PredictRigidOptions& options, const GlobalOptions& g
     const std::vector<metrics::Silhouette> predicted =
         rigid::predict_silhouettes(body, *capture.camera, record.as_fit_result(), numbers);
 
-    Progress progress(global, "predict rigid");
+    ProgressBar progress(global, "predict rigid");
     std::unique_ptr<formats::FrameSource> source;
     if (!capture.masks.empty()) source = std::make_unique<formats::FrameSource>(capture);
     nlohmann::json per_frame = nlohmann::json::array();

@@ -65,7 +65,7 @@ int run_rectify(const RectifyOptions& options, const GlobalOptions& global) {
     make_folder(out / "frames");
     formats::FrameSource source(capture);
     if (source.has_masks()) make_folder(out / "masks");
-    Progress progress(global, "rectify");
+    ProgressBar progress(global, "rectify");
     const int count = frames->second - frames->first + 1;
     for (int f = frames->first; f <= frames->second; ++f) {
         rigid::write_png(numbered(out / "frames", f), rigid::rectify_image(source.frame(f), rectification));

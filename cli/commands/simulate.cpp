@@ -5,6 +5,7 @@
 #include "commands/fit.hpp"
 #include "output.hpp"
 
+#include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/cloth/swatch_output.hpp"
 #include "flowvid/video/cloth_fit.hpp"
@@ -37,7 +38,7 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
     }
     const formats::FabricPreset preset = read_preset_for_simulation(options.preset);
     const formats::Capture capture =
-        read_capture_of_kind(options.capture, {"cloth.static", "cloth.waving"}, "flowvid simulate");
+        formats::read_capture_of_kind(options.capture, {"cloth.static", "cloth.waving"}, "flowvid simulate");
     std::optional<cloth::SwatchOptions> swatch = swatch_options(options.run);
     if (!swatch) return kExitUsage;
     std::pair<int, int> grid{swatch->rows, swatch->cols};
@@ -58,7 +59,7 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
     }
 
     for (const std::string& path : {options.out, options.vat})
-        if (!path.empty()) prepare_output_folder(path);
+        if (!path.empty()) formats::create_parent_folder(path);
     const cloth::ClothMaterial material = cloth::material_from_fabric(preset.parameters);
     // Ctrl-C is polled inside the equilibrium and every step, so it stops a
     // fine mesh within a step rather than after its frame.
@@ -72,7 +73,7 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
         if (start.size() > 0) swatch->initial_positions = start;
     }
 
-    Progress progress(global, "simulate");
+    ProgressBar progress(global, "simulate");
     const cloth::SwatchRun run = cloth::simulate_swatch(
         experiment, material, *swatch, [&](const cloth::SimulationProgress& p) {
             progress.update(static_cast<double>(p.frame) / std::max(1, p.frame_count),

@@ -7,23 +7,8 @@
 
 #include <cmath>
 #include <cstdio>
-#include <optional>
 
 namespace flowvid::cli {
-
-namespace {
-nlohmann::json number_or_null(double value) { return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value); }
-}  // namespace
-
-nlohmann::json window_summary(const flow::Schedule& schedule) {
-    nlohmann::json out = {{"wrap_join_error", number_or_null(schedule.wrap_join_error)}};
-    const flow::Schedule::Window& longest = schedule.longest_window;
-    if (longest.particles_per_line > 0)
-        out["longest_window"] = {{"particles_per_line", longest.particles_per_line},
-                                 {"first_start_frame", longest.first_start_frame},
-                                 {"wrap_join_error", number_or_null(longest.wrap_join_error)}};
-    return out;
-}
 
 void add_synthesis_options(CLI::App& app, SynthesisOptions& o) {
     app.add_option("--particles", o.particles, "K particles per line in the diagonal order (0 = as many as fit)");
@@ -116,30 +101,6 @@ flow::SynthesisJob synthesis_job(const std::string& bank, const std::string& cap
     if (!job.texture_auto) job.settings.texture_layer = flow::texture_layer_from_string(texture);
     job.coverage_auto = options.coverage < 0.0;
     return job;
-}
-
-flow::PreparedSynthesis prepare_synthesis_logged(const flow::SynthesisJob& job, const GlobalOptions& global) {
-    std::optional<Progress> stage;
-    std::string stage_name;
-    flow::PreparedSynthesis prepared = flow::prepare_synthesis(
-        job,
-        [&](const std::string& name, double fraction) {
-            if (name != stage_name) {
-                if (stage) stage->done();
-                stage.emplace(global, name);
-                stage_name = name;
-            }
-            stage->update(fraction);
-            return true;
-        },
-        [&](const std::string& line) {
-            if (stage) stage->done();  // a message ends the progress line it interrupts
-            stage.reset();
-            stage_name.clear();
-            log_message(line);
-        });
-    if (stage) stage->done();
-    return prepared;
 }
 
 }  // namespace flowvid::cli

@@ -54,16 +54,8 @@ void add_synthesis_options(CLI::App& app, SynthesisOptions& options);
 // The library settings those options give (the rest at their defaults).
 flow::SynthesisSettings synthesis_settings(const SynthesisOptions& options);
 
-// The window's wrap join for a command's summary: {"wrap_join_error": x or
-// null, "longest_window": {...} when a shorter window was taken}.
-nlohmann::json window_summary(const flow::Schedule& schedule);
-
 // The job the synthesis options describe (the rest at the library's defaults).
 flow::SynthesisJob synthesis_job(const std::string& bank, const std::string& capture, const std::string& flowlines,
                                  const std::string& background, const std::string& texture, const SynthesisOptions& options);
-
-// flow::prepare_synthesis with its progress on the terminal (--progress) and
-// its messages in the log.
-flow::PreparedSynthesis prepare_synthesis_logged(const flow::SynthesisJob& job, const GlobalOptions& global);
 
 }  // namespace flowvid::cli

@@ -10,12 +10,9 @@
 #include "flowvid/flow/editing.hpp"
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/synthesis_job.hpp"
-#include "flowvid/formats/flowlines.hpp"
 
-#include <filesystem>
 #include <iostream>
 #include <memory>
-#include <optional>
 
 namespace flowvid::cli {
 namespace {
@@ -58,73 +55,27 @@ bool parse_frames(const std::string& text, int& first, int& last) {
 }
 
 int render(const RenderOptions& options, const GlobalOptions& global, bool edit) {
-    int first = 1, last = 1;
-    if (!options.loop && !parse_frames(options.frames, first, last)) {
+    flow::SynthesisOutput output;
+    output.path = options.out;
+    output.loop = options.loop;
+    output.threads = options.threads;
+    output.dense_lines_path = options.dense_out;
+    if (!options.loop && !parse_frames(options.frames, output.first_frame, output.last_frame)) {
         log_message("error: --frames " + options.frames + ": give N (frames 1..N) or A:B (frames A..B, A >= 1)");
         return kExitUsage;
     }
-    // Said before any work: an output the name alone rules out, or a folder that cannot be made.
-    flow::FrameWriter::check_target(options.out, options.loop ? 0 : last - first + 1);
-    prepare_output_folder(options.out);  // out/%06d.png or a video: its folder, made when missing
-    if (!options.dense_out.empty()) prepare_output_folder(options.dense_out);
-
     flow::SynthesisJob job = synthesis_job(options.bank, options.capture, options.flowlines, options.background,
                                            options.texture, options.synthesis);
     if (edit) apply_edit_options(options.edit, options.threads, job);
-    const flow::PreparedSynthesis prepared = prepare_synthesis_logged(job, global);
-    const flow::Synthesizer& synthesizer = *prepared.synthesizer;
+    TerminalProgress progress(global, edit ? "edit" : "synth");
+    const flow::SynthesisOutcome outcome = flow::render_synthesis(job, output, progress.callback());
+    progress.finish();
 
-    nlohmann::json summary;
-    if (prepared.plan) {
-        int interpolated = 0;
-        for (const flow::DenseLine& d : prepared.plan->lines) interpolated += d.drawn ? 0 : 1;
-        summary["dense_lines"] = prepared.plan->lines.size();
-        summary["interpolated_lines"] = interpolated;
-        summary["correspondence_cost"] = prepared.plan->total_cost;
-        if (!options.dense_out.empty())
-            formats::write_flowline_set(options.dense_out, flow::plan_to_flowlines(prepared.drawing, *prepared.plan));
-    }
-    if (options.loop) {
-        first = 1;
-        last = synthesizer.period_frames();
-    }
-
-    flow::FrameWriter writer(options.out, synthesizer.width(), synthesizer.height(), prepared.bank->fps, last - first + 1);
-    Progress progress(global, edit ? "edit" : "synth");
-    std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs
-    interrupt.emplace();
-    const int total = last - first + 1;
-    const int written = synthesizer.render_frames(first, last, options.threads, [&](int frame, const flow::RgbImage& image) {
-        writer.write(frame, image);
-        progress.update(static_cast<double>(frame - first + 1) / total, "frame " + std::to_string(frame));
-        return !interrupt->requested();
-    });
-    interrupt.reset();
-    if (written == total) writer.close();
-    else writer.discard();  // an interrupted video is not published as if it were whole
-    progress.done();
-
-    const flow::Schedule& schedule = prepared.streams->schedule();
-    summary["output"] = options.out;
-    summary["frames"] = {first, first + written - 1};
-    summary["frames_written"] = written;
-    summary["period_frames"] = schedule.period_frames;
-    summary["particles_per_line"] = schedule.particles_per_line;
-    summary["start_every"] = schedule.start_every;
-    summary["first_start_frame"] = schedule.first_start_frame;
-    summary.update(window_summary(schedule));
-    summary["lines"] = schedule.lines.size();
-    summary["background"] = flow::to_string(prepared.background);
-    summary["texture"] = flow::to_string(prepared.settings.texture_layer);
-    summary["coverage"] = prepared.settings.coverage_weight;
-    if (edit) {
-        summary["mapping"] = options.edit.mapping;
-        summary["carry_background"] = prepared.settings.carry_background;
-    }
+    const nlohmann::json summary = flow::outcome_summary(outcome, job, output);
     if (options.json) std::cout << summary.dump(2) << '\n';
     else std::cout << human_readable(summary);
-    if (written < total) {
-        log_message("interrupted after " + std::to_string(written) + " frames");
+    if (!outcome.complete()) {
+        log_message("interrupted after " + std::to_string(outcome.frames_written) + " frames");
         return kExitInterrupted;
     }
     return kExitOk;

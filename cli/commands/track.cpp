@@ -4,6 +4,7 @@
 #include "command.hpp"
 #include "output.hpp"
 
+#include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/flow/auto_lines.hpp"
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/geometry.hpp"
@@ -60,20 +61,20 @@ int propose_lines(const TrackOptions& options, const GlobalOptions& global, cons
     flow::CameraMotion camera;
     flow::AutoLines lines;
     {
-        std::unique_ptr<Progress> progress;  // one bar per stage
+        std::unique_ptr<ProgressBar> progress;  // one bar per stage
         std::string shown;
         try {
             lines = flow::propose_input_lines_steadied(capture, options.frames, camera, {},
                                                        [&](const std::string& stage, double fraction) {
                                                            if (stage != shown) {
                                                                if (progress) progress->done();
-                                                               progress = std::make_unique<Progress>(global, stage);
+                                                               progress = std::make_unique<ProgressBar>(global, stage);
                                                                shown = stage;
                                                            }
                                                            progress->update(fraction);
                                                            return !interrupt.requested();
                                                        });
-        } catch (const flow::AutoLinesCancelled&) {
+        } catch (const flowvid::Cancelled&) {
             log_message("interrupted: no lines written");
             return kExitInterrupted;
         } catch (const std::invalid_argument& e) {
@@ -126,9 +127,9 @@ int propose_lines(const TrackOptions& options, const GlobalOptions& global, cons
 }
 
 int run_track(const TrackOptions& options, const GlobalOptions& global) {
-    prepare_output_folder(options.out);
-    if (!options.dense_out.empty()) prepare_output_folder(options.dense_out);
-    if (!options.auto_lines.empty()) prepare_output_folder(options.auto_lines);
+    formats::create_parent_folder(options.out);
+    if (!options.dense_out.empty()) formats::create_parent_folder(options.dense_out);
+    if (!options.auto_lines.empty()) formats::create_parent_folder(options.auto_lines);
     const formats::Capture capture = flow::open_clip(options.capture, options.fps);
     std::string lines_path = options.flowlines;
     if (lines_path.empty() && !capture.flowlines.empty()) lines_path = capture.resolve(capture.flowlines);
@@ -229,7 +230,7 @@ int track_with(const TrackOptions& options, const GlobalOptions& global, const f
     // A drifting camera is tracked in the first frame's view (stabilise.hpp).
     flow::CameraMotion camera;
     {
-        Progress measuring(global, "camera drift");
+        ProgressBar measuring(global, "camera drift");
         camera = flow::estimate_camera_motion(frames, flow::drawn_input_polylines(drawing), {}, [&](double f) {
             measuring.update(f);
             return !interrupt->requested();
@@ -242,7 +243,7 @@ int track_with(const TrackOptions& options, const GlobalOptions& global, const f
     }
     log_message(flow::describe(camera));
     flow::StabilisedFrames stabilised(frames, camera);
-    Progress progress(global, "track");
+    ProgressBar progress(global, "track");
     flow::TrackingResult result;
     try {
         result = flow::track_particles(stabilised, lines, settings, [&](const flow::TrackingProgress& p) {

@@ -102,6 +102,16 @@ void PendingFile::discard() {
     fs::remove(m_temp_path, ec);
 }
 
+void create_parent_folder(const std::string& file_path) {
+    const fs::path folder = fs::path(file_path).parent_path();
+    if (folder.empty()) return;
+    std::error_code error;
+    fs::create_directories(folder, error);
+    if (error || !fs::is_directory(folder))
+        throw IoError(file_path, "", "cannot create the folder " + folder.string() + ": " + error.message(),
+                      "choose a writable location");
+}
+
 std::string read_text_file(const std::string& path) {
     std::error_code ec;
     if (!fs::exists(path, ec)) throw IoError(path, "", "no such file", "check the path");

@@ -792,6 +792,19 @@ std::optional<Capture> parse_capture(const nlohmann::json& document, const std::
     return parser.parse(document);
 }
 
+Capture read_capture_of_kind(const std::string& path, const std::vector<std::string>& kinds, const std::string& needed_by,
+                             std::vector<Problem>* warnings) {
+    Capture capture = read_capture(path, warnings);
+    if (std::find(kinds.begin(), kinds.end(), capture.kind) == kinds.end()) {
+        std::string wanted;
+        for (const std::string& k : kinds) wanted += (wanted.empty() ? "" : " or ") + k;
+        throw ValidationError({Problem{Problem::Severity::error, capture.json_path, "/kind",
+                                       "the capture is a " + capture.kind + " capture; `" + needed_by + "` needs " + wanted,
+                                       "give a " + wanted + " capture folder"}});
+    }
+    return capture;
+}
+
 Capture read_capture(const std::string& path, std::vector<Problem>* warnings) {
     const CaptureLocation location = locate_capture(path);
     const std::string text = read_text_file(location.json_path);

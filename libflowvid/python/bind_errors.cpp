@@ -1,6 +1,7 @@
 #include "bindings.hpp"
 
 #include "flowvid/error.hpp"
+#include "flowvid/progress.hpp"
 
 namespace flowvid::python {
 
@@ -22,9 +23,13 @@ void bind_errors(pybind11::module_& module) {
     static pybind11::exception<flowvid::Error> error(module, "Error", PyExc_RuntimeError);
     static pybind11::exception<flowvid::IoError> io_error(module, "IoError", error.ptr());
     static pybind11::exception<flowvid::ValidationError> validation_error(module, "ValidationError", error.ptr());
+    // Raised when a progress callback returned False.
+    static pybind11::exception<flowvid::Cancelled> cancelled(module, "Cancelled", error.ptr());
     pybind11::register_exception_translator([](std::exception_ptr pointer) {
         try {
             if (pointer) std::rethrow_exception(pointer);
+        } catch (const flowvid::Cancelled& e) {
+            set_python_error(cancelled.ptr(), e.what());
         } catch (const flowvid::ValidationError& e) {
             set_python_error(validation_error.ptr(), e.what());
         } catch (const flowvid::IoError& e) {

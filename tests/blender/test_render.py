@@ -120,7 +120,7 @@ def test_end_to_end_render():
         summary = api.bake_flowlines(emitter, camera, 1, 8, lines_path, inputs=drawn)
         assert summary["lines"] == 6, summary
         first = api.synthesize(bank, lines_path, 1, 5, os.path.join(folder, "synth"), background="none",
-                               extra=("--capture", clip))
+                               capture=clip)
         image = api.load_image_sequence(first, 1, 5)
         api.show_on_camera_plane(camera, image, 1, 5, scene=scene)
         rendered = api.render_frames(os.path.join(folder, "render"), 1, 5, scene=scene)
@@ -167,7 +167,7 @@ def test_end_to_end_render():
         # flow adds to the clip's dark plate, (pixel - plate) / (1 - plate) <= pixel: never brighter than
         # the whole patches on the same pixels, and darker on the whole (the same frame without it).
         moving_first = api.synthesize(bank, lines_path, 1, 1, os.path.join(folder, "moving"), background="none",
-                                      texture="moving", extra=("--capture", clip))
+                                      texture="moving", capture=clip)
         covered = [(sum(w), sum(m)) for rw, rm in zip(synth_first, read_pixels(moving_first))
                    for w, m in zip(rw, rm) if sum(w) > 0.15]
         share = sum(m for _, m in covered) / sum(w for w, _ in covered)

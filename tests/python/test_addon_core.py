@@ -165,5 +165,71 @@ class CliBackendTest(unittest.TestCase):
             self.assertEqual(cli.read_flowline_set(path), drawn)
 
 
+def write_falling_clip(folder, frames=24, width=64, height=48, speed_px=2):
+    """A textured band falling down the middle at speed_px per frame, as binary PPM frames; returns the pattern."""
+    os.makedirs(folder, exist_ok=True)
+    for t in range(frames):
+        pixels = bytearray()
+        for y in range(height):
+            yy = y - speed_px * t
+            for x in range(width):
+                if abs(x - width // 2) < 12:
+                    pixels += bytes((int(127 + 100 * math.sin(x / 2.3 + yy / 3.1)), int(127 + 100 * math.cos(yy / 2.2)),
+                                     int(127 + 100 * math.sin((x - 2 * yy) / 3.7))))
+                else:
+                    pixels += b"\x20\x20\x20"
+        with open(os.path.join(folder, "%06d.ppm" % (t + 1)), "wb") as handle:
+            handle.write(b"P6 %d %d 255\n" % (width, height) + bytes(pixels))
+    return os.path.join(folder, "%06d.ppm")
+
+
+@unittest.skipUnless(os.environ.get("FLOWVID_CLI"), "the flowvid tool's path is given by ctest")
+class SynthesisEntryPointTest(unittest.TestCase):
+    """The module and the tool render through one library entry point (flow::render_synthesis)."""
+
+    def test_module_and_tool_render_the_same_frames(self):
+        import flowvid
+
+        native = backend.NativeBackend(flowvid)
+        cli = backend.CliBackend(os.environ["FLOWVID_CLI"])
+        with tempfile.TemporaryDirectory() as folder:
+            clip = write_falling_clip(os.path.join(folder, "clip"))
+            drawn = os.path.join(folder, "drawn.flowlines.json")
+            with open(drawn, "w") as handle:
+                json.dump({"format": "flowvid.flowlines", "version": "1.0",
+                           "image": {"width": 64, "height": 48, "pixel_convention": "opencv"},
+                           "inputs": [{"id": "in-1", "points": [[32, -4], [32, 51]]}]}, handle)
+            bank = os.path.join(folder, "fall.bank.exr")
+            cli.run("track", "--clip", clip, "--fps", "25", "--flowlines", drawn, "--out", bank, "--patch", "12")
+            outputs = {}
+            for name, chosen in (("module", native), ("tool", cli)):
+                stages = []
+                summary = chosen.synthesize(bank, os.path.join(folder, name, "%06d.png"), (3, 6), flowlines=drawn,
+                                            capture=clip, progress=lambda stage, f, m: stages.append((stage, f)))
+                self.assertEqual(summary["frames"], [3, 6])
+                self.assertEqual(summary["frames_written"], 4)
+                self.assertEqual(stages[-1], ("render", 1.0), name)
+                outputs[name] = summary
+            for frame in range(3, 7):
+                with open(os.path.join(folder, "module", "%06d.png" % frame), "rb") as a, \
+                        open(os.path.join(folder, "tool", "%06d.png" % frame), "rb") as b:
+                    self.assertEqual(a.read(), b.read(), "frame %d differs between the module and the tool" % frame)
+            self.assertEqual(outputs["module"]["period_frames"], outputs["tool"]["period_frames"])
+            self.assertEqual(outputs["module"]["background"], outputs["tool"]["background"])
+
+            # Cancelling from the progress callback keeps the frames written, and says how many.
+            def stop_after_two(stage, fraction, message):
+                return not (stage == "render" and fraction >= 0.5)
+
+            summary = native.synthesize(bank, os.path.join(folder, "cancelled", "%06d.png"), (1, 4), flowlines=drawn,
+                                        capture=clip, progress=stop_after_two)
+            self.assertEqual(summary["frames_written"], 2)
+            self.assertEqual(sorted(os.listdir(os.path.join(folder, "cancelled"))), ["000001.png", "000002.png"])
+            # Before rendering starts, a cancel raises flowvid.Cancelled (a flowvid.Error).
+            with self.assertRaises(flowvid.Cancelled):
+                flowvid.flow.synthesize(bank, os.path.join(folder, "never", "%06d.png"), frames=(1, 2),
+                                        flowlines=drawn, capture=clip, progress=lambda stage, f, m: False)
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)

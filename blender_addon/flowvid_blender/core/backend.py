@@ -3,11 +3,14 @@
 Preferred: the native pybind11 module `flowvid`, when one built for this
 Python's ABI is importable (Debian's Blender uses /usr/bin/python3, which the
 build targets). Otherwise (e.g. an official Blender build with its own bundled
-Python) the `flowvid` command-line tool is run with `--progress=json`.
+Python) the `flowvid` command-line tool is run with `--progress=json`. Both
+reach the same library entry points: a render through either gives the same
+frames.
 """
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -52,6 +55,13 @@ class NativeBackend:
     def read_flowline_set(self, path):
         return self._call(self.module.flow.read_flowline_set, path)
 
+    def synthesize(self, bank, out, frames, edit=False, flowlines="", capture="", background="auto", texture="auto",
+                   progress=None):
+        """flowvid synth (edit=False) or edit, in process; returns the summary `flowvid synth --json` prints.
+        progress(stage, fraction, message) -> False cancels (frames written so far stay)."""
+        return self._call(self.module.flow.synthesize, bank, out, frames=tuple(frames), edit=edit, flowlines=flowlines,
+                          capture=capture, background=background, texture=texture, progress=progress)
+
     def simulate_swatch(self, experiment, parameters, **options):
         """The library's swatch experiment (flowvid.cloth.simulate_swatch); raises BackendError unless ok."""
         result = self._call(self.module.cloth.simulate_swatch, experiment, parameters, **options)
@@ -60,17 +70,42 @@ class NativeBackend:
         return result
 
 
+def _progress_event(line):
+    """A --progress=json event ({"event": ...}) as a dict, or None for a line meant for people."""
+    try:
+        event = json.loads(line)
+    except ValueError:
+        return None
+    return event if isinstance(event, dict) and "event" in event else None
+
+
 class CliBackend:
     name = "cli"
 
     def __init__(self, executable):
         self.executable = executable
 
-    def run(self, *arguments):
-        completed = subprocess.run([self.executable, "--progress=json", *arguments], capture_output=True, text=True)
-        if completed.returncode != 0:
-            raise BackendError(completed.stderr.strip() or "flowvid exited with %d" % completed.returncode)
-        return completed.stdout
+    def run(self, *arguments, progress=None):
+        """Runs `flowvid ARGUMENTS`; returns its stdout. progress(stage, fraction, message) gets the tool's
+        --progress=json events as the module's progress gets them; returning False stops the tool as Ctrl-C
+        does (it keeps what is whole) and raises BackendError."""
+        command = [self.executable, "--progress=json", *[str(a) for a in arguments]]
+        with tempfile.TemporaryFile("w+") as stdout:
+            process = subprocess.Popen(command, stdout=stdout, stderr=subprocess.PIPE, text=True)
+            messages = []  # what the tool says for people: its errors and its log
+            for line in process.stderr:
+                event = _progress_event(line)
+                if event is None:
+                    messages.append(line.rstrip("\n"))
+                elif progress is not None and event.get("event") == "progress":
+                    stage = event.get("task", "").split(": ", 1)[-1]
+                    if progress(stage, float(event.get("fraction", 0.0)), event.get("detail", "")) is False:
+                        process.send_signal(signal.SIGINT)
+            code = process.wait()
+            if code != 0:
+                raise BackendError("\n".join(messages).strip() or "flowvid exited with %d" % code)
+            stdout.seek(0)
+            return stdout.read()
 
     def read_fabric_preset(self, path):
         # `validate` first so errors name the field; then the file itself is plain JSON.
@@ -107,9 +142,23 @@ class CliBackend:
     def write_flowline_set(self, path, flowlines):
         self._write_json(path, flowlines)
 
+    def synthesize(self, bank, out, frames, edit=False, flowlines="", capture="", background="auto", texture="auto",
+                   progress=None):
+        """As NativeBackend.synthesize, through `flowvid synth|edit --json`."""
+        arguments = ["edit" if edit else "synth", "--bank", bank, "--out", out, "--frames", "%d:%d" % tuple(frames),
+                     "--background", background, "--texture", texture, "--json"]
+        arguments += ["--flowlines", flowlines] if flowlines else []
+        arguments += ["--capture", capture] if capture else []
+        return json.loads(self.run(*arguments, progress=progress))
+
     def simulate_swatch(self, experiment, parameters, **options):
         raise BackendError("the swatch simulation needs the native flowvid module built for this Python "
                            "(set FLOWVID_PYTHON_DIR); the flowvid tool cannot run it yet")
+
+
+def find_tool(executable=None):
+    """The flowvid command-line tool: `executable`, else $FLOWVID_CLI, else `flowvid` on the PATH; None if none."""
+    return executable or os.environ.get("FLOWVID_CLI") or shutil.which("flowvid")
 
 
 def find_backend(module_paths=(), executable=None):
@@ -118,7 +167,7 @@ def find_backend(module_paths=(), executable=None):
     module = _import_native(module_paths)
     if module is not None:
         return NativeBackend(module)
-    executable = executable or os.environ.get("FLOWVID_CLI") or shutil.which("flowvid")
+    executable = find_tool(executable)
     if executable:
         return CliBackend(executable)
     raise BackendError(

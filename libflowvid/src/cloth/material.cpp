@@ -86,4 +86,14 @@ std::vector<Problem> check_material(const ClothMaterial& material) {
     return problems;
 }
 
+formats::FabricPreset read_preset_for_simulation(const std::string& path, std::vector<Problem>* warnings) {
+    formats::FabricPreset preset = formats::read_fabric_preset(path, warnings);
+    std::vector<Problem> problems = check_material(material_from_fabric(preset.parameters));
+    if (!problems.empty()) {
+        for (Problem& problem : problems) problem.file = path;
+        throw ValidationError(problems);
+    }
+    return preset;
+}
+
 }  // namespace flowvid::cloth

@@ -81,6 +81,19 @@ const char* integrator_name(Integrator integrator) {
     return "?";
 }
 
+const std::map<std::string, Integrator>& integrators_by_short_name() {
+    static const std::map<std::string, Integrator> table = {
+        {"rk4", Integrator::rk4_adaptive},     {"dopri54", Integrator::dopri54}, {"bs32", Integrator::bogacki_shampine32},
+        {"implicit", Integrator::implicit_euler}, {"bdf2", Integrator::bdf2}};
+    return table;
+}
+
+const char* integrator_short_name(Integrator integrator) {
+    for (const auto& [name, value] : integrators_by_short_name())
+        if (value == integrator) return name.c_str();
+    return "?";
+}
+
 const char* status_name(SimulationReport::Status status) {
     switch (status) {
         case SimulationReport::Status::ok: return "ok";

@@ -1,6 +1,7 @@
 #include "flowvid/cloth/swatch.hpp"
 
 #include "flowvid/error.hpp"
+#include "flowvid/threads.hpp"
 
 #include <Eigen/Geometry>
 
@@ -235,6 +236,19 @@ Eigen::VectorXd smooth_normal_jitter(const Swatch& swatch, const Eigen::VectorXd
 }
 
 }  // namespace
+
+SwatchOptions run_swatch_options(int rows, int cols, Integrator integrator, double initial_bow, int threads) {
+    SwatchOptions swatch;
+    swatch.rows = rows;
+    swatch.cols = cols;
+    swatch.simulation.integrator = integrator;
+    swatch.simulation.threads = resolve_thread_count(threads);
+    swatch.initial_bow = initial_bow;
+    if (integrator == Integrator::rk4_adaptive || integrator == Integrator::dopri54 ||
+        integrator == Integrator::bogacki_shampine32)
+        swatch.simulation.position_tolerance_m = 1e-4;
+    return swatch;
+}
 
 SwatchRun simulate_swatch(const SwatchExperiment& experiment, const ClothMaterial& material, const SwatchOptions& options,
                           const ProgressCallback& progress) {

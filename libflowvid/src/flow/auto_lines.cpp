@@ -290,7 +290,7 @@ AutoLines propose_input_lines_steadied(const formats::Capture& capture, int max_
         cancelled = !stage("camera drift")(fraction);
         return !cancelled;
     });
-    if (cancelled) throw AutoLinesCancelled();
+    if (cancelled) throw Cancelled();
     if (camera.still()) return lines;
     CaptureFrames source(capture, max_frames);
     StabilisedFrames steadied(source, camera);
@@ -350,7 +350,7 @@ AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& set
             }
         }
         ++pairs;
-        if (progress && !progress(kFlowProgressShare * pairs / pairs_total)) throw AutoLinesCancelled();
+        if (progress && !progress(kFlowProgressShare * pairs / pairs_total)) throw Cancelled();
     }
 
     // ---- temporal aggregate: mean vector, its speed, direction consistency
@@ -419,7 +419,7 @@ AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& set
     }
     const double min_length_px = settings.min_length_px > 0.0 ? settings.min_length_px : 2.0 * result.spacing_px;
     if (region_speeds.empty()) {
-        if (progress && !progress(1.0)) throw AutoLinesCancelled();
+        if (progress && !progress(1.0)) throw Cancelled();
         return result;
     }
 
@@ -470,7 +470,7 @@ AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& set
         out.points = detail::simplify_polyline(full, kSimplifyTolerancePx);
         result.drawing.inputs.push_back(std::move(out));
     }
-    if (progress && !progress(1.0)) throw AutoLinesCancelled();
+    if (progress && !progress(1.0)) throw Cancelled();
     return result;
 }
 

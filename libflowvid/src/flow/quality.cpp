@@ -292,7 +292,7 @@ Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams&
     double done = 0.0;
     const auto tick = [&] {
         done += 1.0;
-        if (progress && !progress(done / total)) throw std::runtime_error("cancelled");
+        if (progress && !progress(done / total)) throw Cancelled();
     };
     std::vector<std::vector<float>> clip_luma, ours, loop, flowmap;
     for (int i = 0; i < count; ++i) {
@@ -310,7 +310,7 @@ Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams&
         }
         return true;
     });
-    if (stopped) throw std::runtime_error("cancelled");
+    if (stopped) throw Cancelled();
     for (int t = 1; t <= n; ++t) {
         loop.push_back(luma(to_display(naive_loop_frame(clip, t))));
         tick();

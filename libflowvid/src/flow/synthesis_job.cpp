@@ -1,9 +1,14 @@
 #include "flowvid/flow/synthesis_job.hpp"
 
+#include "flowvid/error.hpp"
 #include "flowvid/flow/quality.hpp"
 #include "flowvid/formats/any_file.hpp"
+#include "flowvid/formats/atomic_file.hpp"
+
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 namespace flowvid::flow {
@@ -27,17 +32,12 @@ std::optional<formats::Capture> open_bank_clip(const SynthesisJob& job, const fo
     }
 }
 
-void say(const SynthesisLog& log, const std::string& line) {
-    if (log) log(line);
-}
-
-void check_progress(const SynthesisProgress& progress, const std::string& stage, double fraction) {
-    if (progress && !progress(stage, fraction)) throw SynthesisCancelled();
-}
+// Lines for the log go out under the stage "prepare".
+void say(const Progress& progress, const std::string& line) { report_message(progress, "prepare", line); }
 
 // The schedule's warnings and, when the window was shortened for a
 // better-joining wrap, which window was taken over the longest and why.
-void report_window(const Schedule& schedule, const SynthesisLog& log) {
+void report_window(const Schedule& schedule, const Progress& log) {
     for (const std::string& w : schedule.warnings) say(log, "warning: " + w);
     const Schedule::Window& longest = schedule.longest_window;
     if (longest.particles_per_line == 0) return;
@@ -59,7 +59,8 @@ std::vector<std::vector<Eigen::Vector2d>> PreparedSynthesis::drawn_lines_at(int 
     return lines;
 }
 
-PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProgress& progress, const SynthesisLog& log) {
+PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& progress) {
+    const Progress& log = progress;
     PreparedSynthesis out;
     std::vector<Problem> warnings;
     out.bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(job.bank_path, &warnings));
@@ -123,9 +124,12 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProg
                                         std::to_string(out.bank->clip_height_px),
                                     "give the clip the bank was tracked from (--capture)"}});
         CameraMotion camera;
+        bool cancelled = false;  // the reader stops early; what it read is not the clip
         out.clip = std::make_shared<const ClipFrames>(read_clip_stabilised(
-            frames, out.drawing, camera, [&](double f) { return !progress || progress("read clip", f); },
+            frames, out.drawing, camera,
+            [&](double f) { return !(cancelled = progress && !progress({"read clip", f, {}})); },
             background_to_choose ? &footage : nullptr));
+        if (cancelled) throw Cancelled();
         out.camera = camera;
         say(log, describe(camera));
     }
@@ -169,9 +173,10 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProg
             EditSettings edit_settings = job.edit_settings;
             edit_settings.mapping = settings.mapping;
             out.plan = plan_edit(out.drawing, *out.streams, edit_settings, [&](const EditProgress& p) {
-                return !progress || progress("correspondence", static_cast<double>(p.pairs_done) / std::max(1, p.pair_count));
+                return !progress ||
+                       progress({"correspondence", static_cast<double>(p.pairs_done) / std::max(1, p.pair_count), {}});
             });
-            check_progress(progress, "correspondence", 1.0);
+            report_progress(progress, "correspondence", 1.0);
             for (const std::string& w : out.plan->warnings) say(log, "warning: " + w);
             out.outputs = output_lines(*out.plan);
         }
@@ -186,6 +191,87 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProg
         if (std::find(scheduled.begin(), scheduled.end(), w) == scheduled.end()) say(log, "warning: " + w);
     if (!job.keep_clip) out.clip.reset();  // a background that replays the clip holds it itself
     return out;
+}
+
+SynthesisOutcome render_synthesis(const SynthesisJob& job, const SynthesisOutput& output, const Progress& progress) {
+    if (!output.loop && (output.first_frame < 1 || output.last_frame < output.first_frame))
+        throw UsageError("", "frames", "the range " + std::to_string(output.first_frame) + ":" +
+                                           std::to_string(output.last_frame) + " is empty or starts before frame 1",
+                         "give A:B with 1 <= A <= B");
+    // Said before any work: an output the name alone rules out.
+    FrameWriter::check_target(output.path, output.loop ? 0 : output.last_frame - output.first_frame + 1);
+    formats::create_parent_folder(output.path);  // out/%06d.png or a video: its folder, made when missing
+    if (!output.dense_lines_path.empty()) formats::create_parent_folder(output.dense_lines_path);
+    const PreparedSynthesis prepared = prepare_synthesis(job, progress);
+    SynthesisOutcome outcome;
+    outcome.plan = prepared.plan;
+    if (prepared.plan && !output.dense_lines_path.empty())
+        formats::write_flowline_set(output.dense_lines_path, plan_to_flowlines(prepared.drawing, *prepared.plan));
+    outcome.first_frame = output.loop ? 1 : output.first_frame;
+    outcome.last_frame = output.loop ? prepared.synthesizer->period_frames() : output.last_frame;
+    outcome.schedule = prepared.streams->schedule();
+    outcome.background = prepared.background;
+    outcome.median_detail = prepared.median_detail;
+    outcome.settings = prepared.settings;
+    outcome.camera = prepared.camera;
+
+    const int total = outcome.last_frame - outcome.first_frame + 1;
+    FrameWriter writer(output.path, prepared.synthesizer->width(), prepared.synthesizer->height(), prepared.bank->fps, total);
+    // Counted here: a frame is written before the progress that may stop the render hears of it.
+    prepared.synthesizer->render_frames(outcome.first_frame, outcome.last_frame, output.threads,
+                                        [&](int frame, const RgbImage& image) {
+                                            writer.write(frame, image);
+                                            ++outcome.frames_written;
+                                            return !progress || progress({"render",
+                                                                          static_cast<double>(outcome.frames_written) / total,
+                                                                          "frame " + std::to_string(frame)});
+                                        });
+    if (outcome.complete()) writer.close();
+    else writer.discard();  // an interrupted video is not published as if it were whole
+    return outcome;
+}
+
+namespace {
+nlohmann::json number_or_null(double value) { return std::isnan(value) ? nlohmann::json(nullptr) : nlohmann::json(value); }
+}  // namespace
+
+nlohmann::json window_summary(const Schedule& schedule) {
+    nlohmann::json out = {{"wrap_join_error", number_or_null(schedule.wrap_join_error)}};
+    const Schedule::Window& longest = schedule.longest_window;
+    if (longest.particles_per_line > 0)
+        out["longest_window"] = {{"particles_per_line", longest.particles_per_line},
+                                 {"first_start_frame", longest.first_start_frame},
+                                 {"wrap_join_error", number_or_null(longest.wrap_join_error)}};
+    return out;
+}
+
+nlohmann::json outcome_summary(const SynthesisOutcome& outcome, const SynthesisJob& job, const SynthesisOutput& output) {
+    nlohmann::json summary;
+    if (outcome.plan) {
+        int interpolated = 0;
+        for (const DenseLine& d : outcome.plan->lines) interpolated += d.drawn ? 0 : 1;
+        summary["dense_lines"] = outcome.plan->lines.size();
+        summary["interpolated_lines"] = interpolated;
+        summary["correspondence_cost"] = outcome.plan->total_cost;
+    }
+    const Schedule& schedule = outcome.schedule;
+    summary["output"] = output.path;
+    summary["frames"] = {outcome.first_frame, outcome.first_frame + outcome.frames_written - 1};
+    summary["frames_written"] = outcome.frames_written;
+    summary["period_frames"] = schedule.period_frames;
+    summary["particles_per_line"] = schedule.particles_per_line;
+    summary["start_every"] = schedule.start_every;
+    summary["first_start_frame"] = schedule.first_start_frame;
+    summary.update(window_summary(schedule));
+    summary["lines"] = schedule.lines.size();
+    summary["background"] = to_string(outcome.background);
+    summary["texture"] = to_string(outcome.settings.texture_layer);
+    summary["coverage"] = outcome.settings.coverage_weight;
+    if (job.edit) {
+        summary["mapping"] = to_string(outcome.settings.mapping);
+        summary["carry_background"] = outcome.settings.carry_background;
+    }
+    return summary;
 }
 
 }  // namespace flowvid::flow

@@ -92,7 +92,7 @@ class Stages {
 public:
     explicit Stages(const DiagnoseSettings& settings) : m_settings(settings) {}
     void report(const std::string& stage, double fraction) const {
-        if (m_settings.progress && !m_settings.progress(stage, fraction)) throw Cancelled();
+        report_progress(m_settings.progress, stage, fraction);
     }
 
 private:

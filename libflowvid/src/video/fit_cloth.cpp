@@ -3,6 +3,7 @@
 
 #include "flowvid/optim/design.hpp"
 #include "flowvid/optim/thread_pool.hpp"
+#include "flowvid/video/cloth_eval.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -168,6 +169,33 @@ bool end_fit(const ClothFitRequest& request, const ClothFitProblem& problem, int
 
 }  // namespace
 
+// Evaluations' worth of time spent after the search inside the budget: the
+// caller's, and each floor member with its reference run at the floor's
+// substeps over the fit's, + the members' equilibrium searches.
+double evaluations_after_fit(const ClothFitRequest& request) {
+    if (request.floor_members <= 0 || request.shard) return request.evaluations_after_fit;
+    const int fit_substeps = std::max(1, request.problem.swatch.simulation.implicit_substeps_per_frame);
+    return request.evaluations_after_fit + (request.floor_members + 1) * kFloorSubstepsPerFrame / fit_substeps + 2;
+}
+
+// outcome.floors (ClothFitRequest::floor_members).
+void report_floors(const ClothFitRequest& request, int threads, ClothFitOutcome& outcome) {
+    if (request.floor_members <= 0 || request.shard) return;
+    FloorSettings floor = reported_floor(request.floor_members);
+    if (outcome.preset) floor.parameter_sigma = preset_uncertainty(outcome.preset->parameters);
+    outcome.total_floor = 0.0;
+    for (const ClothTrial& trial : outcome.trials) {
+        try {
+            const double weighted =
+                weighted_floor(trial, estimate_floor(trial, outcome.fitted, request.problem, floor, threads));
+            outcome.total_floor += weighted;
+            outcome.floors.push_back({weighted, {}});
+        } catch (const std::runtime_error& error) {
+            outcome.floors.push_back({std::nullopt, error.what()});
+        }
+    }
+}
+
 ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     if (request.captures.empty()) throw std::invalid_argument("fit_cloth: no captures");
     const Clock::time_point started = Clock::now();
@@ -203,7 +231,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     // The final evaluation comes after the search: keep time for it (it
     // costs about what the start's did) so the whole fit stays in budget.
     const double budget = request.budget_seconds > 0.0
-                              ? std::max(1.0, request.budget_seconds - (1.5 + request.evaluations_after_fit) * evaluation_seconds)
+                              ? std::max(1.0, request.budget_seconds - (1.5 + evaluations_after_fit(request)) * evaluation_seconds)
                               : 0.0;
     // Variability restarts run one per thread, each evaluating its trials on
     // one thread; a restart costs at least its start, its simplex and a few
@@ -407,7 +435,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     if (budget > 0.0) {
         const double latest = std::max(evaluation_seconds, search_pace());
         restart_hint = std::max(restart_hint, latest * static_cast<double>(std::min<std::size_t>(threads, problem->trials().size())));
-        const double left = request.budget_seconds - seconds_since(started) - (1.5 + request.evaluations_after_fit) * latest;
+        const double left = request.budget_seconds - seconds_since(started) - (1.5 + evaluations_after_fit(request)) * latest;
         variability_runs = affordable_runs(variability_runs, restart_hint, left);
         outcome.variability_runs_planned = variability_runs;
         restart_budget = std::max(1.0, left) / std::max(1.0, restart_rounds(variability_runs));
@@ -418,6 +446,8 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     }
     outcome.evaluations += 2;  // start and final evaluations
     outcome.simulations = outcome.evaluations * static_cast<long long>(problem->trials().size());
+    report({"floors", 0.995, outcome.evaluations, outcome.final_evaluation.total, 0.0, 0.0});
+    report_floors(request, threads, outcome);
     outcome.seconds = seconds_since(started);
     report({"final", 1.0, outcome.evaluations, outcome.final_evaluation.total, 0.0, 0.0});
     return outcome;
@@ -458,6 +488,8 @@ ClothFitOutcome finish_cloth_fit(const ClothFitRequest& request, const std::vect
     }
     outcome.evaluations += 1;  // the final evaluation
     outcome.simulations = outcome.evaluations * static_cast<long long>(problem.trials().size());
+    report({"floors", 0.995, outcome.evaluations, outcome.final_evaluation.total, 0.0, 0.0});
+    report_floors(request, threads, outcome);
     outcome.seconds = seconds_since(started);
     report({"final", 1.0, outcome.evaluations, outcome.final_evaluation.total, 0.0, 0.0});
     return outcome;

@@ -149,7 +149,7 @@ TEST(AutoLines, AStillClipGetsNoLines) {
 
 TEST(AutoLines, ProgressCanCancelAndReachesOne) {
     MemoryFrames clip = vertical_band(true).clip();
-    EXPECT_THROW(propose_input_lines(clip, {}, [](double) { return false; }), AutoLinesCancelled);
+    EXPECT_THROW(propose_input_lines(clip, {}, [](double) { return false; }), flowvid::Cancelled);
     std::vector<double> fractions;
     propose_input_lines(clip, {}, [&](double f) {
         fractions.push_back(f);

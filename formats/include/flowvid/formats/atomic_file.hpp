@@ -42,6 +42,11 @@ private:
 };
 
 // Reads a whole file; throws flowvid::IoError naming the file when it cannot.
+// Creates the folder a file will be written into, when missing, so that a
+// typo fails at once rather than after long work. Throws IoError naming
+// `file_path` when it cannot.
+void create_parent_folder(const std::string& file_path);
+
 std::string read_text_file(const std::string& path);
 
 }  // namespace flowvid::formats

@@ -192,6 +192,11 @@ bool path_stays_inside_folder(const std::string& relative);
 // (CaptureFileChecks::content) and throws ValidationError listing every problem,
 // or IoError when capture.json cannot be read. Warnings go to `warnings`.
 Capture read_capture(const std::string& path, std::vector<Problem>* warnings = nullptr);
+// read_capture that also checks the kind: throws ValidationError naming
+// capture.json and /kind when it is not one of `kinds` (`needed_by`, e.g.
+// "flowvid diagnose", says who needs it in the message).
+Capture read_capture_of_kind(const std::string& path, const std::vector<std::string>& kinds,
+                             const std::string& needed_by, std::vector<Problem>* warnings = nullptr);
 
 // Every problem of a capture folder (or capture.json), for `flowvid validate`
 // and the fuzz targets; never throws on bad content.

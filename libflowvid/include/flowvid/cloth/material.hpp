@@ -74,4 +74,9 @@ formats::FabricParameters fabric_from_material(const ClothMaterial& material);
 // simulation then reports the blow-up instead of throwing).
 std::vector<Problem> check_material(const ClothMaterial& material);
 
+// Reads a fabric preset and checks that the simulator can use its material:
+// throws the reader's errors, and ValidationError naming the file for a
+// material check_material refuses. Warnings go to `warnings`.
+formats::FabricPreset read_preset_for_simulation(const std::string& path, std::vector<Problem>* warnings = nullptr);
+
 }  // namespace flowvid::cloth

@@ -22,6 +22,7 @@
 
 #include <atomic>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,10 @@ enum class Integrator {
     bdf2,                // second-order backward differences (less damping)
 };
 const char* integrator_name(Integrator integrator);
+// The integrators by the short names the command line and its reports use
+// (rk4, dopri54, bs32, implicit, bdf2).
+const std::map<std::string, Integrator>& integrators_by_short_name();
+const char* integrator_short_name(Integrator integrator);
 
 struct SimulationSettings {
     Integrator integrator = Integrator::rk4_adaptive;

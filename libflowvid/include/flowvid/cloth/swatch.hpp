@@ -64,6 +64,12 @@ struct SwatchOptions {
     JitterShape jitter_shape = JitterShape::per_vertex;
 };
 
+// The swatch options a fit or a command runs with: a rows x cols mesh, the
+// integrator (the adaptive explicit ones at a 0.1 mm position tolerance,
+// which fits need), the initial bow and the simulation's threads
+// (flowvid/threads.hpp).
+SwatchOptions run_swatch_options(int rows, int cols, Integrator integrator, double initial_bow, int threads);
+
 struct Swatch {
     ClothMesh mesh;
     int rows = 0;

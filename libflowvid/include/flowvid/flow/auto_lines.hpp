@@ -14,6 +14,7 @@
 // centre of column x, row y, y down); speeds are pixels per frame of the
 // clip at its full size. A line's first point is upstream.
 
+#include "flowvid/progress.hpp"
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/stabilise.hpp"
 #include "flowvid/formats/capture.hpp"
@@ -62,13 +63,8 @@ struct AutoLines {
     int frame_pairs = 0;                     // frame pairs whose flow was measured
 };
 
-// Thrown by propose_input_lines when `progress` returns false.
-struct AutoLinesCancelled : std::runtime_error {
-    AutoLinesCancelled() : std::runtime_error("cancelled") {}
-};
-
 // Proposes input flow lines for `frames` (display RGB). `progress` gets the
-// fraction done (0..1) and may return false to cancel. Deterministic: the same
+// fraction done (0..1) and may return false to cancel (flowvid::Cancelled). Deterministic: the same
 // clip and settings give the same lines. Throws std::invalid_argument for a
 // clip with fewer than step_frames + 1 frames (of those used) or bad settings.
 AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& settings = {},
@@ -81,7 +77,7 @@ AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& set
 // the estimate along with it), proposed again on the steadied frames.
 // `camera` receives the drift. `progress` gets the stage ("optical flow",
 // "camera drift", "optical flow, steadied") and its fraction done; returning
-// false cancels (AutoLinesCancelled).
+// false cancels (flowvid::Cancelled).
 AutoLines propose_input_lines_steadied(const formats::Capture& capture, int max_frames, CameraMotion& camera,
                                        const AutoLineSettings& settings = {},
                                        const std::function<bool(const std::string& stage, double fraction)>& progress = {});

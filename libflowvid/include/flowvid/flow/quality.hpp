@@ -20,6 +20,7 @@
 // texture advected by a velocity field in two layers half a cycle apart,
 // cross-faded with triangle weights so each layer is reset while invisible.
 
+#include "flowvid/progress.hpp"
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/synthesis.hpp"
 
@@ -259,7 +260,7 @@ struct Comparison {
 // tracked speeds, over `plate`), and measures each against the clip in the
 // band around the tracked lines of `streams`. `progress` gets the fraction
 // done and may return false to stop (the comparison then throws
-// std::runtime_error("cancelled")).
+// flowvid::Cancelled).
 Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams& streams, const Synthesizer& synth,
                                   const RgbImage& plate, const ComparisonSettings& settings = {},
                                   const std::function<bool(double)>& progress = {});

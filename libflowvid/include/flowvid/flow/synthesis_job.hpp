@@ -18,8 +18,10 @@
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/flowlines.hpp"
 #include "flowvid/formats/particle_bank.hpp"
+#include "flowvid/progress.hpp"
 
-#include <functional>
+#include <nlohmann/json_fwd.hpp>
+
 #include <memory>
 #include <optional>
 #include <string>
@@ -60,17 +62,6 @@ struct SynthesisJob {
     bool keep_clip = false;      // keep the clip's frames in the result (for measuring against them)
 };
 
-// Progress of the long steps: stage ("read clip", "correspondence") and the
-// fraction of it done; returning false cancels (prepare_synthesis then throws
-// SynthesisCancelled).
-using SynthesisProgress = std::function<bool(const std::string& stage, double fraction)>;
-// Lines for the user's log: the camera, the background chosen, warnings ("warning: ...").
-using SynthesisLog = std::function<void(const std::string& line)>;
-
-struct SynthesisCancelled : std::runtime_error {
-    SynthesisCancelled() : std::runtime_error("cancelled") {}
-};
-
 struct PreparedSynthesis {
     std::shared_ptr<formats::ParticleBank> bank;
     std::optional<formats::Capture> capture;  // none when the background is `none` and the clip was not needed
@@ -92,11 +83,54 @@ struct PreparedSynthesis {
     std::vector<std::vector<Eigen::Vector2d>> drawn_lines_at(int frame) const;
 };
 
+// Reports the stages "read clip" and "correspondence" (an edit's plan) and
+// logs the camera, the background chosen and warnings through `progress`.
 // Throws flowvid::UsageError when something the user must name is missing
 // (the clip, the drawing), ValidationError for inputs that do not fit
 // together (the clip's size is not the bank's, no output lines to edit),
-// the readers' errors for bad files, and SynthesisCancelled.
-PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const SynthesisProgress& progress = {},
-                                    const SynthesisLog& log = {});
+// the readers' errors for bad files, and flowvid::Cancelled.
+PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& progress = {});
+
+// Where and which frames `render_synthesis` writes.
+struct SynthesisOutput {
+    std::string path;  // FrameWriter target: out/%06d.png (.exr, .tif), a folder, a video (.mp4, .avi), one image
+    int first_frame = 1;  // 1-based, inclusive, of the infinite sequence (any range: frame A is
+    int last_frame = 1;   // the same whichever range renders it)
+    bool loop = false;    // instead of the range: exactly one period, frames 1..period (a file that loops)
+    int threads = 0;      // frames rendered at once (flowvid/threads.hpp)
+    std::string dense_lines_path;  // edit with interpolation: also write its dense lines (*.flowlines.json)
+};
+
+struct SynthesisOutcome {
+    int first_frame = 1;  // the range rendered (for `loop`, 1..period)
+    int last_frame = 0;
+    int frames_written = 0;  // fewer than the range when cancelled
+    bool complete() const { return frames_written == last_frame - first_frame + 1; }
+    Schedule schedule;  // the particles' timing (period, K, window, wrap join)
+    BackgroundMode background = BackgroundMode::median;
+    double median_detail = -1.0;  // background auto: detail kept over the median plate
+    SynthesisSettings settings;   // as rendered: texture, coverage, carried background decided
+    std::optional<CameraMotion> camera;
+    std::optional<EditPlan> plan;  // edit with interpolation: the dense lines and their inputs
+};
+
+// The whole synthesis pipeline: prepare_synthesis, then frames into a
+// FrameWriter, each reported as stage "render" (with the frame number as its
+// message). Cancelling while frames render stops there: image sequences keep
+// the frames written (each written atomically), a video is discarded so no
+// partial file stands under its name, and the outcome says how many were
+// written. Cancelling before throws flowvid::Cancelled. Throws what
+// prepare_synthesis throws and IoError for an output that cannot be written,
+// before any long work where the name alone decides.
+SynthesisOutcome render_synthesis(const SynthesisJob& job, const SynthesisOutput& output, const Progress& progress = {});
+
+// What a render did, as `flowvid synth --json` and `flowvid edit --json`
+// print it (and the Python module returns it): output, frames, the window,
+// the background, texture and coverage chosen, and for an edit its mapping,
+// carried background and dense lines.
+nlohmann::json outcome_summary(const SynthesisOutcome& outcome, const SynthesisJob& job, const SynthesisOutput& output);
+// The window's wrap join: {"wrap_join_error": x or null, "longest_window":
+// {...} when a shorter window than the longest was taken}.
+nlohmann::json window_summary(const Schedule& schedule);
 
 }  // namespace flowvid::flow

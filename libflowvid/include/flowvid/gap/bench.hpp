@@ -10,9 +10,15 @@
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/cloth/simulator.hpp"
 #include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/gap_bench_labels.hpp"
 #include "flowvid/gap/effects.hpp"
+#include "flowvid/gap/open_model.hpp"
+#include "flowvid/progress.hpp"
+
+#include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -66,5 +72,74 @@ void write_cloth_case(const std::string& folder, const BenchCase& c, const forma
 // footage maker's own mesh (so only the effect and the noise count).
 double measure_effect_to_noise(const std::string& folder, const BenchCase& c, const cloth::ClothMaterial& fabric,
                                const BenchSettings& settings, int threads);
+
+// ---- the benchmark as `flowvid bench gap` runs it: make, diagnose, score.
+// DIR/cases/case-NNN/ hold captures and base.fabric.json (what the diagnoser
+// gets); DIR/labels.json the hidden effects (flowvid.gap_bench_labels; only
+// score_bench reads it); DIR/results/case-NNN/diagnosis.json the diagnoses.
+
+struct BenchMakeRequest {
+    std::string out_dir;
+    int cases = 24;
+    std::uint64_t seed = 1;
+    std::vector<std::string> scene_paths;        // cloth.waving captures: camera, projector, pins
+    std::vector<std::string> rigid_scene_paths;  // rigid.toss captures: body and camera (adds rigid effects)
+    std::vector<std::string> fabric_paths;       // fabric presets the footage is made with
+    BenchSettings settings;                      // footage mesh, integrator, strength, effects drawn from
+    std::string footage_integrator_name = "implicit";  // as labels.json records it
+    int threads = 0;
+};
+
+// Draws the cases, writes their folders and DIR/labels.json; returns the
+// labels. Progress: stage "making cases", a case's id and effect as the
+// message; a case halved to make its footage is logged. Throws the readers'
+// errors, UsageError without scenes or fabrics, and flowvid::Cancelled
+// (the cases written so far stay, without labels).
+formats::GapBenchLabels make_bench_cases(const BenchMakeRequest& request, const Progress& progress = {});
+
+// The case folders of a bench (DIR/cases/*/capture.json), sorted.
+std::vector<std::string> bench_case_folders(const std::string& dir);
+
+// How the diagnoser sees a case: its cloth captures with DIR/cases/ID/base.fabric.json,
+// `cloth` giving the rest (mesh, floors); a rigid case as open_rigid_model.
+OpenedGapModel open_bench_case(const std::string& case_folder, const ClothGapRequest& cloth, int threads);
+
+struct BenchScoreRequest {
+    std::string dir;
+    // Also the share of the held-out gap the true effect closes in the
+    // diagnoser's model (simulated; the most a diagnosis could close).
+    bool oracle = false;
+    ClothGapRequest cloth;  // the diagnoser's model, for the oracle
+    int threads = 0;
+};
+
+struct BenchTally {
+    int correct = 0;
+    int cases = 0;
+};
+
+struct BenchScore {
+    int cases_scored = 0;
+    int missing = 0;                              // labelled cases without a diagnosis
+    std::map<std::string, BenchTally> per_effect;  // top-1: the first named effect or its class
+    std::map<std::string, BenchTally> per_bin;     // by effect-to-noise: <1, 1-2, 2-4, 4-8, >=8
+    BenchTally strong;                             // effect-to-noise >= 4
+    BenchTally false_alarms;                       // effect-free cases with an effect named
+    int gap_detected_on_none = 0;
+    double median_gap_closed_strong = 0.0;  // NaN when none (0 counted where not named)
+    double median_gap_closed_named = 0.0;
+    double median_oracle_gap_closed_strong = 0.0;  // with oracle
+    std::map<std::string, double> oracle_by_case;  // with oracle: NaN where it could not run
+    std::vector<Problem> warnings;                 // from reading labels and diagnoses
+};
+// The effect-to-noise bins in order, as BenchScore::per_bin names them.
+const std::vector<std::string>& effect_to_noise_bins();
+
+// Reads DIR/labels.json and every DIR/results/*/diagnosis.json there is,
+// all validated before any work (every problem named by file and field, the
+// labels' effects against the catalogue), scores them and writes
+// DIR/score.json. Throws ValidationError and IoError.
+BenchScore score_bench(const BenchScoreRequest& request);
+nlohmann::json bench_score_json(const BenchScore& score, bool oracle);
 
 }  // namespace flowvid::gap

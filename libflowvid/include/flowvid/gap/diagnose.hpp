@@ -25,6 +25,7 @@
 //     (a finer mesh). Where it closes about as much as the named effects, the
 //     gap may be the model's own discretisation: "unexplained" instead.
 
+#include "flowvid/progress.hpp"
 #include "flowvid/gap/model.hpp"
 
 #include <cstdint>
@@ -53,12 +54,9 @@ struct DiagnoseSettings {
     double min_share_beyond_discretisation = 0.1;
     std::uint64_t seed = 1;
     std::vector<std::string> effects;  // candidates to consider (empty: all the model offers)
-    // Stage name and fraction done; return false to cancel (diagnose then throws Cancelled).
-    std::function<bool(const std::string& stage, double fraction)> progress;
-};
-
-struct Cancelled : std::runtime_error {
-    Cancelled() : std::runtime_error("cancelled") {}
+    // Stages and their fraction done; returning false cancels (diagnose then
+    // throws flowvid::Cancelled).
+    Progress progress;
 };
 
 struct CandidateEvidence {

@@ -117,8 +117,15 @@ struct ClothFitRequest {
     double variability_perturbation = 0.05;
     double budget_seconds = 0.0;           // wall-clock cap on the whole fit, 0 = none (then deterministic)
     // Evaluations' worth of time the caller spends after the fit inside the
-    // same budget (e.g. floor ensembles), kept out of the search's share.
+    // same budget, kept out of the search's share (the floors below keep
+    // their own share: they need not be counted here).
     double evaluations_after_fit = 0.0;
+    // Members of the predictability floor reported beside each trial's final
+    // error (outcome.floors): an ensemble at the fitted fabric, with the
+    // preset's uncertainty, at the steps floors are reported with
+    // (reported_floor), inside the same budget. An error near its floor is as
+    // good as it gets. 0: no floors (shards never have them).
+    int floor_members = 0;
     std::uint64_t seed = 1;
     // Only this shard's search (no variability restarts, no final evaluation,
     // no preset: outcome.search holds its best point). Throws
@@ -138,6 +145,15 @@ struct ClothFitRound {
     double best_error = 0.0;
     long long evaluations = 0;
     double seconds = 0.0;
+};
+
+// One trial's predictability floor as the fit reports it (weighted like its
+// error). The floor re-solves the fitted fabric's equilibrium from scratch;
+// when that fails the fit is still good: the floor is missing and `failure`
+// says why.
+struct ReportedFloor {
+    std::optional<double> weighted;
+    std::string failure;
 };
 
 struct ClothFitOutcome {
@@ -160,6 +176,9 @@ struct ClothFitOutcome {
     // Variability restarts the budget allowed (the request's, or fewer when a
     // time budget cannot pay for them; 0: no uncertainty in the preset).
     int variability_runs_planned = 0;
+    // With request.floor_members: one per trial, and the sum of those there are.
+    std::vector<ReportedFloor> floors;
+    double total_floor = 0.0;
     long long evaluations = 0;             // objective evaluations in all phases
     long long simulations = 0;             // evaluations x trials
     double seconds = 0.0;
@@ -174,7 +193,8 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request);
 // variability restarts from there when request.variability_runs > 0 (a
 // restart with a lower error moves the fit there, as in fit_cloth), then the
 // final evaluation and the preset, exactly as fit_cloth ends. Ignores
-// request.shard and the time budget, so it is deterministic. outcome.search
+// request.shard and the time budget, so it is deterministic. Reports the
+// floors as fit_cloth does. outcome.search
 // gets `values` and `error` as its annealing's best; start_evaluation is
 // left empty (no start is simulated). Throws std::invalid_argument when
 // `names` are not the parameters the request's captures fit.
