@@ -302,7 +302,7 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
     ProgressBar progress(global, "recognize");
     const InterruptWatch interrupt;
     std::atomic<std::size_t> done{0};
-    optim::ThreadPool pool(thread_count(options.run.threads));
+    flowvid::ThreadPool pool(thread_count(options.run.threads));
     pool.run(cells, [&](std::size_t cell, int) {
         if (interrupt.requested()) return;
         const std::size_t p = cell / trials.size(), c = cell % trials.size();

@@ -8,7 +8,6 @@
 #include "model_terms.hpp"
 
 #include "flowvid/cloth/geometry.hpp"
-#include "flowvid/cloth/worker_pool.hpp"
 
 #include <Eigen/Dense>
 

@@ -4,7 +4,7 @@
 
 #include "flowvid/cloth/geometry.hpp"
 #include "flowvid/error.hpp"
-#include "flowvid/cloth/worker_pool.hpp"
+#include "flowvid/thread_pool.hpp"
 
 #include <Eigen/Dense>
 
@@ -262,7 +262,7 @@ void ClothModel::evaluate_terms(const Eigen::VectorXd& x, const Eigen::VectorXd&
             if (drag) add_drag(x, v, time_s, fc, nullptr, nullptr, mode, lin, t0, t1);
         };
         if (m_pool)
-            m_pool->run(kChunks, chunk);
+            m_pool->run(kChunks, [&](std::size_t c, int) { chunk(static_cast<int>(c)); });
         else
             for (int c = 0; c < kChunks; ++c) chunk(c);
         force = m_chunk_force[0];
@@ -282,7 +282,7 @@ void ClothModel::set_threads(int threads) {
     if (threads <= 1)
         m_pool.reset();
     else if (!m_pool || m_pool->threads() != threads)
-        m_pool = std::make_unique<detail::WorkerPool>(threads);
+        m_pool = std::make_unique<ThreadPool>(threads);
 }
 
 int ClothModel::threads() const { return m_pool ? m_pool->threads() : 1; }
@@ -361,7 +361,7 @@ void ClothModel::assemble_product(const Linearization& lin, BlockSparseMatrix& J
         }
     };
     if (m_pool)
-        m_pool->run(kChunks, rows);
+        m_pool->run(kChunks, [&](std::size_t c, int) { rows(static_cast<int>(c)); });
     else
         for (int c = 0; c < kChunks; ++c) rows(c);
     for (const auto& e : lin.pair_blocks) J.add(e.row, e.col, e.value);

@@ -1,7 +1,7 @@
 #include "flowvid/cloth/simulator.hpp"
 
 #include "flowvid/cloth/linear_solve.hpp"
-#include "flowvid/cloth/worker_pool.hpp"
+#include "flowvid/thread_pool.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -484,7 +484,7 @@ SimulationReport ClothSimulator::advance_implicit(double end_time_s) {
             // A = M - h' D - h'^2 K = M - J, J assembled once per Newton step.
             if (w.J.block_rows() != n) w.J = m_model.make_jacobian_matrix();
             m_model.assemble_product(w.lin, w.J);
-            detail::WorkerPool* pool = m_model.worker_pool();
+            ThreadPool* pool = m_model.worker_pool();
             const ConjugateGradient::Operator system = [&](const Eigen::VectorXd& p, Eigen::VectorXd& out) {
                 out.resize(p.size());
                 const std::function<void(int)> rows = [&](int c) {
@@ -493,7 +493,7 @@ SimulationReport ClothSimulator::advance_implicit(double end_time_s) {
                     for (int i = r0; i < r1; ++i) out.segment<3>(3 * i) = mass(i) * p.segment<3>(3 * i) - out.segment<3>(3 * i);
                 };
                 if (pool)
-                    pool->run(ClothModel::kChunks, rows);
+                    pool->run(ClothModel::kChunks, [&](std::size_t c, int) { rows(static_cast<int>(c)); });
                 else
                     for (int c = 0; c < ClothModel::kChunks; ++c) rows(c);
                 if (!w.J.extras().empty()) {
@@ -533,7 +533,7 @@ SimulationReport ClothSimulator::advance_implicit(double end_time_s) {
                 // arithmetic on any number of threads.
                 const ConjugateGradient::ParallelFor parallel = [&](int count, const std::function<void(int)>& task) {
                     if (pool)
-                        pool->run(count, task);
+                        pool->run(static_cast<std::size_t>(count), [&](std::size_t k, int) { task(static_cast<int>(k)); });
                     else
                         for (int k = 0; k < count; ++k) task(k);
                 };

@@ -1,7 +1,7 @@
 #include "flowvid/gap/cloth_model.hpp"
 
 #include "flowvid/optim/annealing.hpp"
-#include "flowvid/optim/thread_pool.hpp"
+#include "flowvid/thread_pool.hpp"
 #include "flowvid/video/stripe_render.hpp"
 
 #include <Eigen/Geometry>
@@ -342,7 +342,7 @@ Residuals ClothGapModel::evaluate_on(const cloth::ClothMaterial& material, const
     if (workers <= 1) {
         for (std::size_t t = 0; t < m_trials.size(); ++t) one(t);
     } else {
-        optim::ThreadPool pool(workers);
+        ThreadPool pool(workers);
         pool.run(m_trials.size(), [&](std::size_t t, int) { one(t); });
     }
     for (std::size_t t = 0; t < m_trials.size(); ++t) {

@@ -1,4 +1,5 @@
 #include "flowvid/optim/annealing.hpp"
+#include "flowvid/threads.hpp"
 
 #include "flowvid/optim/cmaes.hpp"
 

@@ -1,7 +1,7 @@
 #include "flowvid/optim/least_squares.hpp"
 #include "flowvid/threads.hpp"
 
-#include "flowvid/optim/thread_pool.hpp"
+#include "flowvid/thread_pool.hpp"
 
 #include <Eigen/Cholesky>
 

@@ -1,6 +1,6 @@
 #include "flowvid/video/cloth_eval.hpp"
 
-#include "flowvid/optim/thread_pool.hpp"
+#include "flowvid/thread_pool.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -132,7 +132,7 @@ PredictabilityFloor floor_around(const ClothTrial& trial, const cloth::ClothMate
     const std::vector<FloorMember> drawn = draw_floor_members(material, floor);
     std::vector<std::vector<double>> squared(static_cast<std::size_t>(floor.members));
     std::vector<std::vector<FrameError>> errors(static_cast<std::size_t>(floor.members));
-    optim::ThreadPool pool(std::max(1, threads));
+    ThreadPool pool(std::max(1, threads));
     pool.run(static_cast<std::size_t>(floor.members), [&](std::size_t m, int) {
         cloth::SwatchOptions options = settings.swatch;
         options.initial_positions = nominal.simulation.frames.front();  // same branch, a few Newton steps

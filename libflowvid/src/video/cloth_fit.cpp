@@ -1,7 +1,7 @@
 #include "flowvid/video/cloth_fit.hpp"
 
 #include "flowvid/cloth/material.hpp"
-#include "flowvid/optim/thread_pool.hpp"
+#include "flowvid/thread_pool.hpp"
 #include "flowvid/version.hpp"
 #include "flowvid/video/stripe_render.hpp"
 #include "flowvid/video/stripe_scan.hpp"
@@ -688,7 +688,7 @@ void ClothFitProblem::for_each_trial(int threads, const std::function<void(std::
     if (workers <= 1) {
         for (std::size_t t = 0; t < m_trials.size(); ++t) run_trial(t, per_simulation);
     } else {
-        optim::ThreadPool pool(workers);
+        ThreadPool pool(workers);
         pool.run(m_trials.size(), [&](std::size_t t, int) { run_trial(t, per_simulation); });
     }
 }

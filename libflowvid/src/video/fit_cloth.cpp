@@ -2,7 +2,7 @@
 #include "flowvid/threads.hpp"
 
 #include "flowvid/optim/design.hpp"
-#include "flowvid/optim/thread_pool.hpp"
+#include "flowvid/thread_pool.hpp"
 #include "flowvid/video/cloth_eval.hpp"
 
 #include <algorithm>

@@ -2,7 +2,7 @@
 // count as it is, 0 or less every core, never fewer than one.
 
 #include "flowvid/threads.hpp"
-#include "flowvid/optim/thread_pool.hpp"
+#include "flowvid/thread_pool.hpp"
 
 #include <gtest/gtest.h>
 
@@ -17,6 +17,6 @@ TEST(Threads, APositiveCountIsTakenAsItIsAndZeroMeansEveryCore) {
     EXPECT_EQ(flowvid::resolve_thread_count(0), cores);
     EXPECT_EQ(flowvid::resolve_thread_count(-2), cores);
     // The thread pool follows the same rule.
-    EXPECT_EQ(flowvid::optim::ThreadPool(0).threads(), cores);
-    EXPECT_EQ(flowvid::optim::ThreadPool(2).threads(), 2);
+    EXPECT_EQ(flowvid::ThreadPool(0).threads(), cores);
+    EXPECT_EQ(flowvid::ThreadPool(2).threads(), 2);
 }

@@ -143,7 +143,7 @@ TEST(Annealing, IsDeterministicForASeedWhateverTheThreadCount) {
 
 TEST(Annealing, ReportsProgressAndStopsOnCancelAndLimits) {
     const TestFunction f = ackley(4, 2);
-    ThreadPool pool(1);
+    flowvid::ThreadPool pool(1);
     Evaluator evaluator(objective_of(f), f.space, &pool);
     AnnealingSettings s;
     std::vector<AnnealingProgress> seen;
@@ -219,26 +219,4 @@ TEST(Variability, SeparatesDeterminedFromUndeterminedParameters) {
     const VariabilityReport again = variability_analysis(objective, space, start, s);
     for (std::size_t i = 0; i < report.runs.size(); ++i)
         EXPECT_EQ(again.runs[i].best_values, report.runs[i].best_values);
-}
-
-TEST(ThreadPool, RunsEveryIndexOnceAndPropagatesErrors) {
-    ThreadPool pool(2);
-    EXPECT_EQ(pool.threads(), 2);
-    std::vector<std::atomic<int>> hits(1000);
-    std::atomic<int> bad_worker{0};
-    for (int round = 0; round < 20; ++round)
-        pool.run(hits.size(), [&](std::size_t i, int worker) {
-            hits[i]++;
-            if (worker < 0 || worker >= 2) bad_worker++;
-        });
-    for (auto& h : hits) EXPECT_EQ(h.load(), 20);
-    EXPECT_EQ(bad_worker.load(), 0);
-    EXPECT_THROW(pool.run(100, [](std::size_t i, int) {
-        if (i == 37) throw std::runtime_error("boom");
-    }),
-                 std::runtime_error);
-    // Still usable afterwards.
-    std::atomic<int> count{0};
-    pool.run(10, [&](std::size_t, int) { count++; });
-    EXPECT_EQ(count.load(), 10);
 }

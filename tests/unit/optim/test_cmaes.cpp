@@ -5,7 +5,7 @@
 // the box, evaluation limit, cancellation and minimize's dispatch.
 
 #include "flowvid/optim/cmaes.hpp"
-#include "flowvid/optim/thread_pool.hpp"
+#include "flowvid/thread_pool.hpp"
 
 #include <gtest/gtest.h>
 
@@ -65,7 +65,7 @@ double rosenbrock(const Eigen::VectorXd& u) {
 
 AnnealingResult run_cmaes(const std::function<double(const Eigen::VectorXd&)>& f, int n, long long evaluations, int threads = 1,
                           std::uint64_t seed = 1) {
-    ThreadPool pool(threads);
+    flowvid::ThreadPool pool(threads);
     Evaluator evaluator([&f](const Eigen::VectorXd& x, const EvaluationContext&) { return f(x); }, unit_space(n), &pool);
     CmaesSettings s;
     s.seed = seed;

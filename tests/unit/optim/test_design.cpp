@@ -98,7 +98,7 @@ TEST(Design, HaltonFindsAsGoodAStartWithFarFewerEvaluations) {
 
 TEST(Design, EvaluatesInParallelIntoFixedSlots) {
     const TestFunction f = ackley(3, 5);
-    ThreadPool pool(2);
+    flowvid::ThreadPool pool(2);
     Evaluator evaluator([&](const Eigen::VectorXd& x, const EvaluationContext& context) {
         EXPECT_GE(context.worker, 0);
         EXPECT_LT(context.worker, 2);

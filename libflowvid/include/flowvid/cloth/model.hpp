@@ -18,11 +18,11 @@
 #include <memory>
 #include <vector>
 
-namespace flowvid::cloth {
-
-namespace detail {
-class WorkerPool;
+namespace flowvid {
+class ThreadPool;
 }
+
+namespace flowvid::cloth {
 
 // Which terms to evaluate (bit mask).
 namespace ForceTerm {
@@ -134,7 +134,7 @@ public:
     // call from several threads.
     void set_threads(int threads);
     int threads() const;
-    detail::WorkerPool* worker_pool() { return m_pool.get(); }
+    ThreadPool* worker_pool() { return m_pool.get(); }
     static constexpr int kChunks = 2;
 
     double potential_energy(const Eigen::VectorXd& x, unsigned terms = ForceTerm::conservative);
@@ -241,7 +241,7 @@ private:
     std::vector<std::vector<std::pair<int, int>>> m_vertex_edge_local;      // (edge, local index)
     std::vector<Eigen::VectorXd> m_chunk_force;
     std::vector<Eigen::VectorXd> m_chunk_product;
-    std::unique_ptr<detail::WorkerPool> m_pool;
+    std::unique_ptr<ThreadPool> m_pool;
     ContactStatistics m_contact_stats;
 };
 

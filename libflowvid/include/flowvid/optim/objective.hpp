@@ -15,7 +15,7 @@
 // as +inf (the box constraint).
 
 #include "flowvid/optim/parameter_space.hpp"
-#include "flowvid/optim/thread_pool.hpp"
+#include "flowvid/thread_pool.hpp"
 
 #include <Eigen/Core>
 
