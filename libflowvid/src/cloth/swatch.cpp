@@ -1,12 +1,12 @@
 #include "flowvid/cloth/swatch.hpp"
 
 #include "flowvid/error.hpp"
+#include "flowvid/random.hpp"
 #include "flowvid/threads.hpp"
 
 #include <Eigen/Geometry>
 
 #include <algorithm>
-#include <random>
 #include <cmath>
 #include <string>
 
@@ -189,12 +189,12 @@ namespace {
 // Gaussian offsets per coordinate of every free vertex, sigma = rms / sqrt(3)
 // so the RMS vertex offset is `rms_m`.
 Eigen::VectorXd per_vertex_jitter(const Swatch& swatch, double rms_m, std::uint64_t seed) {
-    std::mt19937_64 random(seed);
-    std::normal_distribution<double> normal(0.0, rms_m / std::sqrt(3.0));
+    Random random(seed);
+    const double sigma = rms_m / std::sqrt(3.0);
     Eigen::VectorXd offset = Eigen::VectorXd::Zero(3 * swatch.mesh.vertex_count());
     for (int i = 0; i < swatch.mesh.vertex_count(); ++i)
         if (!swatch.pinned[static_cast<std::size_t>(i)])
-            for (int k = 0; k < 3; ++k) offset(3 * i + k) = normal(random);
+            for (int k = 0; k < 3; ++k) offset(3 * i + k) = random.normal(0.0, sigma);
     return offset;
 }
 
@@ -203,11 +203,10 @@ Eigen::VectorXd per_vertex_jitter(const Swatch& swatch, double rms_m, std::uint6
 // scaled so the RMS over free vertices is `rms_m`. Pinned vertices stay.
 Eigen::VectorXd smooth_normal_jitter(const Swatch& swatch, const Eigen::VectorXd& x, double rms_m, std::uint64_t seed) {
     constexpr int kModes = 4;
-    std::mt19937_64 random(seed);
-    std::normal_distribution<double> normal(0.0, 1.0);
+    Random random(seed);
     double amplitude[kModes][kModes];
     for (auto& row : amplitude)
-        for (double& a : row) a = normal(random);
+        for (double& a : row) a = random.normal();
     const int n = swatch.mesh.vertex_count();
     std::vector<Eigen::Vector3d> normals(static_cast<std::size_t>(n), Eigen::Vector3d::Zero());
     for (const auto& t : swatch.mesh.triangles) {

@@ -1,4 +1,5 @@
 #include "flowvid/flow/quality.hpp"
+#include "flowvid/random.hpp"
 
 #include "flowvid/flow/geometry.hpp"
 
@@ -8,7 +9,6 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
-#include <random>
 #include <stdexcept>
 
 namespace flowvid::flow {
@@ -85,12 +85,12 @@ double nearest_patch_distance(const std::vector<std::vector<float>>& queries_fro
                 centres.emplace_back(x, y);
         }
     if (centres.empty() || queries_from.empty() || search_in.empty()) return 0.0;
-    std::mt19937_64 rng(seed);
+    Random rng(seed);
     double total = 0.0;
     int counted = 0;
     for (int q = 0; q < s.queries; ++q) {
-        const auto [qx, qy] = centres[rng() % centres.size()];
-        const int qt = static_cast<int>(rng() % queries_from.size());
+        const auto [qx, qy] = centres[rng.below(centres.size())];
+        const int qt = static_cast<int>(rng.below(queries_from.size()));
         const std::vector<float>& src = queries_from[static_cast<std::size_t>(qt)];
         double best = std::numeric_limits<double>::infinity();
         for (std::size_t f = 0; f < search_in.size(); ++f) {

@@ -3,6 +3,7 @@
 // quality` shows what that tool scores, computed here in C++.
 
 #include "flowvid/flow/quality.hpp"
+#include "flowvid/random.hpp"
 
 #include "series_statistics.hpp"
 
@@ -12,7 +13,6 @@
 #include <cmath>
 #include <complex>
 #include <numeric>
-#include <random>
 #include <stdexcept>
 
 namespace flowvid::flow {
@@ -125,11 +125,11 @@ public:
             }
         if (m_raw.cols() == 0) return;
         // PCA on up to 20 000 patches drawn with a fixed seed.
-        std::mt19937_64 rng(s.seed);
+        Random rng(s.seed);
         const Eigen::Index sample = std::min<Eigen::Index>(20000, m_raw.cols());
         Eigen::MatrixXd chosen(dims, sample);
         for (Eigen::Index i = 0; i < sample; ++i)
-            chosen.col(i) = m_raw.col(static_cast<Eigen::Index>(rng() % static_cast<std::uint64_t>(m_raw.cols()))).cast<double>();
+            chosen.col(i) = m_raw.col(static_cast<Eigen::Index>(rng.below(static_cast<std::uint64_t>(m_raw.cols())))).cast<double>();
         const Eigen::VectorXd mean = chosen.rowwise().mean();
         chosen.colwise() -= mean;
         const Eigen::MatrixXd covariance = chosen * chosen.transpose() / std::max<double>(1.0, static_cast<double>(sample - 1));

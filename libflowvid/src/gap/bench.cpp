@@ -1,4 +1,5 @@
 #include "flowvid/gap/bench.hpp"
+#include "flowvid/random.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/gap/cloth_model.hpp"
@@ -13,7 +14,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <numbers>
-#include <random>
 #include <stdexcept>
 
 namespace flowvid::gap {
@@ -28,30 +28,28 @@ std::vector<std::string> default_effects(bool rigid) {
 }
 
 // Log-uniform in [lo, hi], with a random sign when `signed_value`.
-double draw(std::mt19937_64& random, double lo, double hi, bool signed_value = false) {
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    const double magnitude = lo * std::pow(hi / lo, u(random));
-    return signed_value && u(random) < 0.5 ? -magnitude : magnitude;
+double draw(Random& random, double lo, double hi, bool signed_value = false) {
+    const double magnitude = lo * std::pow(hi / lo, random.uniform());
+    return signed_value && random.uniform() < 0.5 ? -magnitude : magnitude;
 }
 
 // Magnitudes are log-uniform over what a swatch test can meet, times
 // `strength`; rates and angles of direction are not scaled.
-EffectValues draw_values(const std::string& name, double strength, std::mt19937_64& random) {
+EffectValues draw_values(const std::string& name, double strength, Random& random) {
     const Effect& effect = find_effect(name);
     Eigen::VectorXd v = neutral_values(effect);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
     const auto magnitude = [&](double lo, double hi, bool signed_value = false) {
         return strength * draw(random, lo, hi, signed_value);
     };
     if (name == "drag_nonlinear") {
         v << 0.0, 0.0;  // the fabric's own nonlinear drag (bench_base_material drops it from the base)
     } else if (name == "wind") {
-        const double speed = magnitude(0.3, 3.0), heading = 2.0 * std::numbers::pi * u(random);
+        const double speed = magnitude(0.3, 3.0), heading = 2.0 * std::numbers::pi * random.uniform();
         v(0) = speed * std::cos(heading);
         v(1) = speed * std::sin(heading);
         v(2) = 0.0;
-        if (u(random) < 0.5) {
-            v(3) = speed * (0.3 + 0.7 * u(random));
+        if (random.uniform() < 0.5) {
+            v(3) = speed * (0.3 + 0.7 * random.uniform());
             v(4) = draw(random, 0.5, 2.0);
         }
     } else if (name == "anisotropy") {
@@ -67,14 +65,14 @@ EffectValues draw_values(const std::string& name, double strength, std::mt19937_
         v(0) = magnitude(0.005, 0.08, true);
     } else if (name == "lens_distortion") {
         v(0) = magnitude(0.02, 0.4, true);
-        v(1) = u(random) < 0.5 ? 0.0 : magnitude(0.02, 0.2, true);
+        v(1) = random.uniform() < 0.5 ? 0.0 : magnitude(0.02, 0.2, true);
     } else if (name == "rolling_shutter") {
         v(0) = magnitude(0.004, 0.033, true);
     } else if (name == "motion_blur") {
         v(0) = magnitude(0.004, 0.033);
     } else if (name == "air_drag") {
         v(0) = magnitude(0.02, 0.5);
-        v(1) = u(random) < 0.5 ? 0.0 : magnitude(0.2, 3.0);
+        v(1) = random.uniform() < 0.5 ? 0.0 : magnitude(0.2, 3.0);
     } else if (name == "inertia_error") {
         v(0) = magnitude(0.05, 0.4, true);
         v(1) = magnitude(0.05, 0.4, true);
@@ -94,11 +92,11 @@ std::uint8_t srgb_byte(double linear, double noise) {
 }
 
 // Gaussian noise of RMS sigma, correlated over 3x3 pixels (as after demosaicing).
-cv::Mat correlated_noise(int width, int height, double sigma, std::mt19937_64& random) {
+cv::Mat correlated_noise(int width, int height, double sigma, Random& random) {
     cv::Mat white(height, width, CV_32F);
-    std::normal_distribution<float> n(0.0f, static_cast<float>(3.0 * sigma));  // a 3x3 box divides the RMS by 3
+    const double white_sigma = 3.0 * sigma;  // a 3x3 box divides the RMS by 3
     for (int y = 0; y < height; ++y)
-        for (int x = 0; x < width; ++x) white.at<float>(y, x) = n(random);
+        for (int x = 0; x < width; ++x) white.at<float>(y, x) = static_cast<float>(random.normal(0.0, white_sigma));
     cv::Mat out;
     cv::blur(white, out, cv::Size(3, 3), cv::Point(-1, -1), cv::BORDER_REFLECT);
     return out;
@@ -159,13 +157,12 @@ std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scene
         if (rigid && rigid_scenes < 1) throw std::invalid_argument("flowvid bench gap: '" + e + "' needs a rigid scene (--rigid-scene)");
         rigid_effects += rigid ? 1 : 0;
     }
-    std::mt19937_64 random(seed);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
+    Random random(seed);
     std::vector<BenchCase> cases;
     // The effect-free cases are placed evenly (about none_share of them), the
     // effects cycle through a shuffled order so every effect is represented.
     std::vector<std::string> order = effects;
-    std::shuffle(order.begin(), order.end(), random);
+    random.shuffle(order.begin(), order.end());
     std::size_t next = 0;
     double none_debt = 0.0;
     for (int i = 0; i < count; ++i) {
@@ -173,19 +170,19 @@ std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scene
         char id[32];
         std::snprintf(id, sizeof id, "case-%03d", i + 1);
         c.id = id;
-        c.scene = static_cast<int>(u(random) * scenes) % scenes;
-        c.fabric = static_cast<int>(u(random) * fabrics) % fabrics;
+        c.scene = static_cast<int>(random.uniform() * scenes) % scenes;
+        c.fabric = static_cast<int>(random.uniform() * fabrics) % fabrics;
         none_debt += settings.none_share;
         if (none_debt >= 1.0 - 1e-9 || effects.empty()) {
             none_debt -= 1.0;
             c.effect = "none";
-            c.rigid = rigid_effects > 0 && u(random) * static_cast<double>(effects.size()) < rigid_effects;
+            c.rigid = rigid_effects > 0 && random.uniform() * static_cast<double>(effects.size()) < rigid_effects;
         } else {
             c.effect = order[next++ % order.size()];
             c.values = draw_values(c.effect, settings.strength, random);
             c.rigid = find_effect(c.effect).domain == EffectDomain::rigid;
         }
-        if (c.rigid) c.scene = static_cast<int>(u(random) * rigid_scenes) % rigid_scenes;
+        if (c.rigid) c.scene = static_cast<int>(random.uniform() * rigid_scenes) % rigid_scenes;
         cases.push_back(std::move(c));
     }
     return cases;
@@ -237,7 +234,7 @@ void write_cloth_case(const std::string& folder, const BenchCase& c, const forma
     look.shading = video::StripeShading::lambertian;
     look.background = 0.08f;
     video::StripeRenderer renderer(scenario.camera, trial.projector, look);
-    std::mt19937_64 random(std::hash<std::string>{}(c.id) ^ 0x6a09e667f3bcc909ULL);
+    Random random(seed_from_text(c.id.data(), c.id.size()) ^ 0x6a09e667f3bcc909ULL);
     const int width = scenario.camera.width, height = scenario.camera.height;
     for (int k = 0; k < settings.frames; ++k) {
         const video::StripeImage filmed = film_frame(scenario, run, k, renderer);

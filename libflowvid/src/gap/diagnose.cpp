@@ -1,4 +1,5 @@
 #include "flowvid/gap/diagnose.hpp"
+#include "flowvid/random.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -7,7 +8,6 @@
 #include <limits>
 #include <map>
 #include <numbers>
-#include <random>
 
 namespace flowvid::gap {
 
@@ -160,8 +160,7 @@ Screened screen(const GapModel& model, const std::string& name, const EffectValu
 double bootstrap_stability(const std::vector<const Residuals*>& candidates, std::size_t which, const Residuals& null,
                            const std::vector<std::vector<std::size_t>>& blocks, int resamples, std::uint64_t seed) {
     if (blocks.empty() || resamples < 1) return 0.0;
-    std::mt19937_64 random(seed);
-    std::uniform_int_distribution<std::size_t> pick(0, blocks.size() - 1);
+    Random random(seed);
     const auto block_score = [](const Residuals& r, const std::vector<std::size_t>& block) {
         double s = 0.0;
         for (std::size_t i : block) s += r.frames[i].error / r.frames[i].floor;
@@ -173,7 +172,7 @@ double bootstrap_stability(const std::vector<const Residuals*>& candidates, std:
         std::fill(totals.begin(), totals.end(), 0.0);
         double null_total = 0.0;
         for (std::size_t k = 0; k < blocks.size(); ++k) {
-            const std::vector<std::size_t>& block = blocks[pick(random)];
+            const std::vector<std::size_t>& block = blocks[random.below(blocks.size())];
             for (std::size_t c = 0; c < candidates.size(); ++c) totals[c] += block_score(*candidates[c], block);
             null_total += block_score(null, block);
         }

@@ -69,14 +69,6 @@ std::string read_binary(const std::string& path) {
     return bytes.str();
 }
 
-std::uint64_t mix_seed(std::uint64_t seed, std::uint64_t stream) {
-    // splitmix64 of (seed, stream): independent, reproducible streams per frame.
-    std::uint64_t z = seed + 0x9E3779B97F4A7C15ull * (stream + 1);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
 }  // namespace
 
 RigidCase write_rigid_case(const std::string& folder, const formats::Capture& template_capture, const EffectValues& effects,
@@ -199,7 +191,7 @@ RigidCase write_rigid_case(const std::string& folder, const formats::Capture& te
     };
     const std::size_t pixel_count = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
     {
-        Random noise_random(mix_seed(seed, 0));
+        Random noise_random(derive_seed(seed, 0));
         const std::vector<float> noise = correlated_noise(width, height, settings.noise_sigma, noise_random);
         write_rgb((fs::path(folder) / "background.png").string(), std::vector<Eigen::Vector3f>(pixel_count, backdrop.cast<float>()), noise);
     }
@@ -234,7 +226,7 @@ RigidCase write_rigid_case(const std::string& folder, const formats::Capture& te
                 rgb[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x)] = colour.cast<float>();
                 mask.set(x, y, coverage >= 0.5);
             }
-        Random noise_random(mix_seed(seed, i + 1));
+        Random noise_random(derive_seed(seed, i + 1));
         const std::vector<float> noise = correlated_noise(width, height, settings.noise_sigma, noise_random);
         char name[32];
         std::snprintf(name, sizeof name, "%06d.png", static_cast<int>(i) + 1);

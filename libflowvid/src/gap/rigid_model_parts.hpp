@@ -3,6 +3,7 @@
 // (rigid_bench.cpp) share. Not part of the public interface.
 
 #include "flowvid/formats/capture.hpp"
+#include "flowvid/random.hpp"
 #include "flowvid/render/rasterizer.hpp"
 #include "flowvid/rigid/dynamics.hpp"
 
@@ -12,37 +13,9 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <random>
 #include <vector>
 
 namespace flowvid::gap::rigid_parts {
-
-// Random numbers from mt19937_64's output, which the standard specifies
-// exactly, so a seed gives the same case with any standard library.
-class Random {
-public:
-    explicit Random(std::uint64_t seed) : m_engine(seed) {}
-    double uniform() { return static_cast<double>(m_engine() >> 11) * 0x1.0p-53; }
-    double uniform(double a, double b) { return a + (b - a) * uniform(); }
-    double normal() {
-        if (m_has_spare) {
-            m_has_spare = false;
-            return m_spare;
-        }
-        double u = 0.0;
-        while (u <= 0.0) u = uniform();
-        const double v = uniform();
-        const double r = std::sqrt(-2.0 * std::log(u));
-        m_spare = r * std::sin(2.0 * M_PI * v);
-        m_has_spare = true;
-        return r * std::cos(2.0 * M_PI * v);
-    }
-
-private:
-    std::mt19937_64 m_engine;
-    bool m_has_spare = false;
-    double m_spare = 0.0;
-};
 
 inline bool finite_state(const rigid::RigidState& s) {
     return s.com_m.allFinite() && s.orientation.coeffs().allFinite() && s.com_velocity_m_per_s.allFinite() &&

@@ -3,7 +3,7 @@
 
 #include "flowvid/optim/cmaes.hpp"
 
-#include "random.hpp"
+#include "flowvid/random.hpp"
 #include "search_result.hpp"
 #include "timing.hpp"
 
@@ -337,7 +337,7 @@ private:
 
     Evaluator& m_ev;
     const AnnealingSettings& m_s;
-    detail::Random m_random;
+    Random m_random;
     int m_n;
     int m_run;
     Clock::time_point m_start;
@@ -370,7 +370,7 @@ MinimizeResult minimize(const Objective& objective, const ParameterSpace& space,
         settings.design == DesignKind::grid
             ? grid_design(n, settings.grid_levels)
             : halton_design(n, settings.design_points > 0 ? settings.design_points : 16 * n,
-                            detail::derive_seed(settings.annealing.seed, 0x4a17));
+                            derive_seed(settings.annealing.seed, 0x4a17));
     MinimizeResult result;
     result.design_points_total = static_cast<int>(points.size());
     // A shard keeps every shard_count-th point of the whole design: the
@@ -429,7 +429,7 @@ MinimizeResult minimize(const Objective& objective, const ParameterSpace& space,
     // search's is: the other shards evaluate the rest of it.
     const long long design_charged =
         design_evaluated + (result.design_points_total - static_cast<long long>(result.design.points.size()));
-    if (sharded) annealing.seed = detail::derive_seed(settings.annealing.seed, 0x5a4d0000ULL + settings.shard_index);
+    if (sharded) annealing.seed = derive_seed(settings.annealing.seed, 0x5a4d0000ULL + settings.shard_index);
     if (settings.total_budget_seconds > 0.0)
         annealing.budget_seconds = std::max(1.0, settings.total_budget_seconds - design_seconds);
     if (annealing.max_evaluations > 0)
@@ -440,7 +440,7 @@ MinimizeResult minimize(const Objective& objective, const ParameterSpace& space,
         // CMA-ES evaluates whole generations in parallel, like the design:
         // its pace per point is the design's, and it needs no schedule.
         CmaesSettings strategy;
-        strategy.seed = detail::derive_seed(annealing.seed, 0xc3a5);
+        strategy.seed = derive_seed(annealing.seed, 0xc3a5);
         strategy.population = settings.cmaes_population;
         strategy.initial_sigma = settings.cmaes_initial_sigma;
         strategy.max_evaluations = annealing.max_evaluations;
@@ -478,7 +478,7 @@ VariabilityReport variability_analysis(const Objective& objective, const Paramet
     if (start_values.size() != space.size()) throw std::invalid_argument("variability_analysis: start has the wrong dimension");
     if (settings.runs < 1) throw std::invalid_argument("variability_analysis: runs must be >= 1");
     VariabilityReport report;
-    detail::Random random(detail::derive_seed(settings.annealing.seed, 0x7a41));
+    Random random(derive_seed(settings.annealing.seed, 0x7a41));
     for (int i = 0; i < settings.runs; ++i) {
         Eigen::VectorXd start = start_values;
         for (int k = 0; k < space.size(); ++k) start(k) *= 1.0 + settings.perturbation * random.symmetric();
@@ -494,7 +494,7 @@ VariabilityReport variability_analysis(const Objective& objective, const Paramet
         Evaluator evaluator(objective, space, nullptr);
         evaluator.run_inline_as(worker);
         AnnealingSettings s = settings.annealing;
-        s.seed = detail::derive_seed(settings.annealing.seed, i + 1);
+        s.seed = derive_seed(settings.annealing.seed, i + 1);
         if (settings.annealing.progress) {
             s.progress = [&](const AnnealingProgress& p) {
                 std::lock_guard<std::mutex> lock(progress_mutex);

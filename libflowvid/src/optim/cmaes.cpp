@@ -1,6 +1,6 @@
 #include "flowvid/optim/cmaes.hpp"
 
-#include "random.hpp"
+#include "flowvid/random.hpp"
 #include "search_result.hpp"
 #include "timing.hpp"
 
@@ -38,7 +38,7 @@ public:
     }
 
 private:
-    detail::Random m_random;
+    Random m_random;
     double m_spare = 0.0;
     bool m_has_spare = false;
 };

@@ -1,6 +1,6 @@
 #include "flowvid/optim/design.hpp"
 
-#include "random.hpp"
+#include "flowvid/random.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -38,7 +38,7 @@ std::vector<Eigen::VectorXd> halton_design(int dimensions, int count, std::uint6
                                         59, 61, 67, 71, 73, 79, 83, 89, 97, 101, 103, 107, 109, 113, 127, 131};
     if (dimensions < 1 || dimensions > 32) throw std::invalid_argument("halton_design: 1 to 32 dimensions");
     if (count < 0) throw std::invalid_argument("halton_design: negative count");
-    detail::Random random(seed);
+    Random random(seed);
     std::vector<Eigen::VectorXd> points(static_cast<std::size_t>(count), Eigen::VectorXd(dimensions));
     for (int d = 0; d < dimensions; ++d) {
         const int base = kPrimes[d];

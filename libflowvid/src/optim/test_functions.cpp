@@ -1,6 +1,6 @@
 #include "flowvid/optim/test_functions.hpp"
 
-#include "random.hpp"
+#include "flowvid/random.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -15,7 +15,7 @@ constexpr double kTwoPi = 2.0 * std::numbers::pi;
 Eigen::VectorXd shift_of(int n, std::uint64_t seed, double half_width) {
     Eigen::VectorXd shift = Eigen::VectorXd::Zero(n);
     if (seed == 0) return shift;
-    detail::Random random(detail::derive_seed(seed, 0x5eed));
+    Random random(derive_seed(seed, 0x5eed));
     for (int i = 0; i < n; ++i) shift(i) = half_width * random.symmetric();
     return shift;
 }

@@ -1,11 +1,11 @@
 #include "flowvid/video/cloth_eval.hpp"
 
+#include "flowvid/random.hpp"
 #include "flowvid/thread_pool.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <random>
 #include <stdexcept>
 
 namespace flowvid::video {
@@ -59,18 +59,16 @@ cloth::SwatchRun run_trial(const ClothTrial& trial, const cloth::ClothMaterial& 
     return cloth::simulate_swatch(trial.experiment, material, options);
 }
 
-cloth::ClothMaterial perturbed(const cloth::ClothMaterial& material, const FloorSettings& floor, std::mt19937_64& random) {
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    std::normal_distribution<double> normal(0.0, 1.0);
+cloth::ClothMaterial perturbed(const cloth::ClothMaterial& material, const FloorSettings& floor, Random& random) {
     cloth::ClothMaterial m = material;
     std::map<std::pair<double, double>, double> tied_draws;  // (value, sigma) -> its normal draw
     for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table()) {
         const double value = material_parameter(material, info.key);
-        double moved = value * (1.0 + floor.relative_perturbation * u(random));
+        double moved = value * (1.0 + floor.relative_perturbation * random.symmetric());
         const auto sigma = floor.parameter_sigma.find(info.key);
         if (sigma != floor.parameter_sigma.end() && sigma->second > 0.0 && value > 0.0) {
             const auto [draw, fresh] = tied_draws.try_emplace({value, sigma->second}, 0.0);
-            if (fresh) draw->second = normal(random);
+            if (fresh) draw->second = random.normal();
             moved *= std::exp(draw->second * sigma->second / value);
         }
         set_material_parameter(m, info.key, moved);
@@ -81,11 +79,11 @@ cloth::ClothMaterial perturbed(const cloth::ClothMaterial& material, const Floor
 }  // namespace
 
 std::vector<FloorMember> draw_floor_members(const cloth::ClothMaterial& material, const FloorSettings& floor) {
-    std::mt19937_64 random(floor.seed);
+    Random random(floor.seed);
     std::vector<FloorMember> members;
     for (int m = 0; m < floor.members; ++m) {
         cloth::ClothMaterial drawn = perturbed(material, floor, random);
-        members.push_back({std::move(drawn), random()});
+        members.push_back({std::move(drawn), random.next()});
     }
     return members;
 }

@@ -301,7 +301,7 @@ TEST(RigidGapCase, WritesAReadableDeterministicCapture) {
     for (auto [frame, index] : {std::pair{1, 0}, std::pair{8, 1}}) {
         const metrics::Silhouette mask = metrics::silhouette_from_image(source.mask(frame));
         const metrics::Silhouette expected = gap::render_rigid_mask(body, *capture.camera, motion.states[static_cast<std::size_t>(index)]);
-        EXPECT_GT(mask.area_px(), 300);
+        EXPECT_GT(mask.area_px(), 150);  // a body tens of pixels across (45 to 70 px at the start), not a speck
         EXPECT_EQ(metrics::silhouette_xor(mask, expected), 0) << "frame " << frame;
     }
 
