@@ -3,11 +3,14 @@
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/cloth/swatch.hpp"
 #include "flowvid/error.hpp"
+#include "flowvid/progress.hpp"
+#include "flowvid/video/fit_cloth.hpp"
 
 #include <pybind11/functional.h>
 #include <pybind11/stl.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 
 namespace py = pybind11;
@@ -93,6 +96,70 @@ py::list frames_to_python(const std::vector<Eigen::MatrixX3d>& frames) {
     return result;
 }
 
+// flowvid fit cloth, in process: captures to a fitted preset (video::fit_cloth).
+py::object fit_cloth(const std::vector<std::string>& captures, const std::string& out, const std::string& name,
+                     long long evaluations, double budget_seconds, std::uint64_t seed, int rows, int cols,
+                     const std::string& integrator, const std::string& fit_to, const std::string& search,
+                     int variability_runs, int floor_members, int threads, const py::object& progress) {
+    video::ClothFitRequest request;
+    for (const std::string& path : captures)
+        request.captures.push_back(formats::read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid.cloth.fit"));
+    request.name = name;
+    request.evaluations = evaluations;
+    request.budget_seconds = budget_seconds;
+    request.seed = seed;
+    const auto named = cloth::integrators_by_short_name().find(integrator);
+    if (named == cloth::integrators_by_short_name().end())
+        throw Error("<options>", "integrator", "unknown integrator '" + integrator + "'", "use rk4, dopri54, bs32, implicit or bdf2");
+    request.problem.swatch = cloth::run_swatch_options(rows, cols, named->second, 1.0, threads);
+    const std::optional<video::FitTarget> target = video::fit_target_from_name(fit_to);
+    if (!target) throw Error("<options>", "fit_to", "unknown target '" + fit_to + "'", "use footage, scan or tracks");
+    request.load.target = *target;
+    if (*target != video::FitTarget::footage) {  // shape targets compare fewer, faster-fading frames (as the CLI)
+        request.load.waving_frames = video::kTracksWavingFrames;
+        request.load.half_life_frames = video::kTracksHalfLifeFrames;
+    }
+    const std::optional<optim::SearchMethod> method = optim::search_method_from_name(search);
+    if (!method) throw Error("<options>", "search", "unknown search '" + search + "'", "use cmaes or annealing");
+    request.search = *method;
+    request.variability_runs = variability_runs;
+    request.floor_members = floor_members;
+    request.threads = threads;
+    if (!progress.is_none())
+        request.progress = [progress](const video::ClothFitProgress& p) {
+            py::gil_scoped_acquire hold;
+            char message[160];
+            std::snprintf(message, sizeof message, "%lld evaluations, best %.4g", p.evaluations, p.best_error);
+            const py::object answer = progress(p.phase, p.fraction, std::string(message));
+            return answer.is_none() || answer.cast<bool>();
+        };
+    video::ClothFitOutcome outcome;
+    {
+        py::gil_scoped_release release;  // minutes of simulation: the interpreter (Blender's UI) keeps running
+        outcome = video::fit_cloth(request);
+    }
+    if (outcome.status == video::ClothFitOutcome::Status::cancelled) throw Cancelled();
+    if (!out.empty() && outcome.preset) formats::write_fabric_preset(out, *outcome.preset);
+    py::dict result;
+    result["preset"] = outcome.preset ? json_to_python(formats::fabric_preset_to_json(*outcome.preset)) : py::none();
+    result["start_error"] = outcome.start_evaluation.total;
+    result["final_error"] = outcome.final_evaluation.total;
+    result["final_error_floor"] = floor_members > 0 ? py::object(py::float_(outcome.total_floor)) : py::none();
+    py::list trials;
+    for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i) {
+        py::dict trial;
+        trial["capture"] = outcome.trial_names[i];
+        trial["final_error"] = outcome.final_evaluation.trials[i].error;
+        trial["floor"] = i < outcome.floors.size() && outcome.floors[i].weighted ? py::object(py::float_(*outcome.floors[i].weighted))
+                                                                                 : py::none();
+        trials.append(trial);
+    }
+    result["trials"] = trials;
+    result["evaluations"] = outcome.evaluations;
+    result["seconds"] = outcome.seconds;
+    return result;
+}
+
 }  // namespace
 
 void bind_cloth(py::module_& module) {
@@ -154,6 +221,17 @@ preset's "parameters". Returns {"status", "reason", "equilibrium_converged", "fr
 rows*cols (x, y, z) tuples (vertex r*cols + c, row 0 at v = 0), "pinned_vertices", "wall_time_s"}.
 progress(frame, frame_count) -> bool may cancel (status "cancelled"); initial_positions (rows*cols
 [x, y, z]) starts the equilibrium search there instead of the hanging start.)");
+    cloth_module.def("fit", &fit_cloth, py::arg("captures"), py::arg("out") = "", py::arg("name") = "fitted fabric",
+                     py::arg("evaluations") = 400, py::arg("budget_seconds") = 0.0, py::arg("seed") = 1,
+                     py::arg("rows") = 24, py::arg("cols") = 24, py::arg("integrator") = "implicit",
+                     py::arg("fit_to") = "footage", py::arg("search") = "cmaes", py::arg("variability_runs") = 4,
+                     py::arg("floor_members") = 4, py::arg("threads") = 0, py::arg("progress") = py::none(),
+                     R"(Fit a fabric preset to cloth captures, as `flowvid fit cloth` does (video::fit_cloth).
+
+captures: the static drape(s) and waving test(s) of one fabric (capture folders); out: write the
+preset there too (*.fabric.json); fit_to: footage, scan or tracks; progress(phase, fraction, message)
+-> False cancels (flowvid.Cancelled). Returns {"preset": dict, "start_error", "final_error",
+"final_error_floor", "trials": [{"capture", "final_error", "floor"}], "evaluations", "seconds"}.)");
 }
 
 }  // namespace flowvid::python
