@@ -37,9 +37,9 @@
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/vertex_animation.hpp"
-#include "flowvid/video/cloth_eval.hpp"
+#include "flowvid/cloth_fit/cloth_eval.hpp"
 #include "flowvid/optim/least_squares.hpp"
-#include "flowvid/video/fit_cloth.hpp"
+#include "flowvid/cloth_fit/fit_cloth.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -57,7 +57,7 @@
 
 namespace fc = flowvid::cloth;
 namespace ff = flowvid::formats;
-namespace fv = flowvid::video;
+namespace cf = flowvid::cloth_fit;
 namespace optim = flowvid::optim;
 namespace fs = std::filesystem;
 
@@ -87,15 +87,15 @@ struct Options {
     // The waving trial's fitted frames and their weighting (fit cloth
     // --fit-to tracks's defaults: 20 frames, full weight for 10, then
     // halving every 5; the study before them used 50 and 10).
-    int waving_frames = fv::kTracksWavingFrames;
-    double half_life_frames = fv::kTracksHalfLifeFrames;
+    int waving_frames = cf::kTracksWavingFrames;
+    double half_life_frames = cf::kTracksHalfLifeFrames;
     double static_weight = 1.0;  // the static drape's frame against a waving frame's full weight
     // A floor on the fitted bending stiffness (N m), 0: the fit's own range.
     // Folds much finer than the mesh make a drape mesh-dependent; a floor
     // trades reach for a preset that is the same fabric on any mesh.
     double min_bending_N_m = 0.0;
     // A scan fit's background band (px from the footage's outline; 0: off).
-    double outside_band_px = fv::ScanOutsideBand{}.max_px;
+    double outside_band_px = cf::ScanOutsideBand{}.max_px;
     // Presets to score on the fit's own training objective instead of
     // fitting (does the objective prefer the fabric nearer the truth?).
     std::vector<std::string> score;
@@ -113,7 +113,7 @@ struct Options {
     // capacity), or the footage alone (--fit-to scan: its stripe scan;
     // footage: its angle maps and silhouettes; the shared captures, never
     // truth). The predictions are scored the same way.
-    fv::FitTarget fit_to = fv::FitTarget::tracks;
+    cf::FitTarget fit_to = cf::FitTarget::tracks;
 };
 
 // Where the captures are: ../shared/captures, or --captures DIR (another set
@@ -159,7 +159,7 @@ struct Windows {
 
 Windows windows_of(const std::vector<double>& per_frame_rms_m) {
     const int n = static_cast<int>(per_frame_rms_m.size());
-    auto pooled = [&](int first, int last) { return 1e3 * fv::pooled_rms(per_frame_rms_m, {first, std::min(last, n)}); };
+    auto pooled = [&](int first, int last) { return 1e3 * cf::pooled_rms(per_frame_rms_m, {first, std::min(last, n)}); };
     Windows w;
     w.frame1 = pooled(1, 1);
     if (n >= 10) w.f1_10 = pooled(1, 10);
@@ -187,9 +187,9 @@ std::string cell(double v) {
 // today: the 9 parameters of the thesis's waving fit; compression: + the
 // two compression ratios; linear-drag: + linear normal drag; hem: + the
 // hem's line density; diagonal: + the diagonal tension fibres; all: every
-// one of them (what fit cloth --fit-to tracks fits: fv::capacity_terms).
-std::vector<fv::FittedParameter> variant_parameters(const std::string& variant) {
-    std::vector<fv::FittedParameter> p = fv::waving_test_parameters();
+// one of them (what fit cloth --fit-to tracks fits: cf::capacity_terms).
+std::vector<cf::FittedParameter> variant_parameters(const std::string& variant) {
+    std::vector<cf::FittedParameter> p = cf::waving_test_parameters();
     const bool compression = variant == "compression" || variant == "all";
     const bool linear_drag = variant == "linear-drag" || variant == "all";
     const bool hem = variant == "hem" || variant == "all";
@@ -197,7 +197,7 @@ std::vector<fv::FittedParameter> variant_parameters(const std::string& variant) 
     if (variant != "today" && !compression && !linear_drag && !hem && !diagonal)
         throw std::invalid_argument("unknown variant '" + variant +
                                     "' (known: today, compression, linear-drag, hem, diagonal, all)");
-    for (const fv::FittedParameter& term : fv::capacity_terms(true, fv::DragModel::nonlinear)) {
+    for (const cf::FittedParameter& term : cf::capacity_terms(true, cf::DragModel::nonlinear)) {
         const bool wanted = term.key == "hem_line_density_kg_per_m"            ? hem
                             : term.key == "drag_linear_normal_kg_per_m2_s"     ? linear_drag
                             : term.key == "diagonal_tension_stiffness_N_per_m" ? diagonal
@@ -209,15 +209,15 @@ std::vector<fv::FittedParameter> variant_parameters(const std::string& variant) 
 
 // ---- Predictions from the fitted material ----------------------------------
 
-fv::ClothFitSettings fit_settings() {
-    fv::ClothFitSettings settings;
+cf::ClothFitSettings fit_settings() {
+    cf::ClothFitSettings settings;
     settings.swatch.simulation.integrator = fc::Integrator::implicit_euler;  // fit cloth's default
     return settings;
 }
 
 // What the fits (and --score) read: the trials' frames and weights.
-fv::TrialLoadSettings training_load(const Options& o) {
-    fv::TrialLoadSettings load;
+cf::TrialLoadSettings training_load(const Options& o) {
+    cf::TrialLoadSettings load;
     load.target = o.fit_to;
     load.half_life_frames = o.half_life_frames;  // late, chaotic frames count less
     load.waving_frames = o.waving_frames;
@@ -232,12 +232,12 @@ fv::TrialLoadSettings training_load(const Options& o) {
 Windows predict(const std::string& tracks_folder, const fc::ClothMaterial& material, int threads) {
     const ff::Capture capture = ff::read_capture(tracks_folder);
     const ff::Capture original = ff::read_capture(shared_capture(fs::path(tracks_folder).filename().string()));
-    fv::TrialLoadSettings load;
-    load.target = fv::FitTarget::tracks;
+    cf::TrialLoadSettings load;
+    load.target = cf::FitTarget::tracks;
     load.waving_frames = capture.frames.count;
-    const fv::ClothTrial trial = fv::load_trial(capture, load);
-    const fv::TrialAssessment a =
-        fv::assess_trial(trial, material, fit_settings(), ff::read_capture_truth_positions(original), nullptr, threads);
+    const cf::ClothTrial trial = cf::load_trial(capture, load);
+    const cf::TrialAssessment a =
+        cf::assess_trial(trial, material, fit_settings(), ff::read_capture_truth_positions(original), nullptr, threads);
     if (!a.report.ok())
         std::fprintf(stderr, "  %s: the prediction stopped at frame %d: %s\n", trial.name.c_str(), a.report.frame,
                      a.report.reason.c_str());
@@ -250,13 +250,13 @@ Eigen::MatrixX3d resample(const Eigen::MatrixX3d& grid, int rows, int cols, int 
 // frame, read back at the truth's 24 x 24 uv grid (for the resolution check).
 fc::GridFrames predict_at(const std::string& tracks_folder, const fc::ClothMaterial& material, int rows, int threads) {
     const ff::Capture capture = ff::read_capture(tracks_folder);
-    fv::TrialLoadSettings load;
-    load.target = fv::FitTarget::tracks;
+    cf::TrialLoadSettings load;
+    load.target = cf::FitTarget::tracks;
     load.waving_frames = capture.frames.count;
-    const fv::ClothTrial trial = fv::load_trial(capture, load);
-    fv::ClothFitSettings settings = fit_settings();
+    const cf::ClothTrial trial = cf::load_trial(capture, load);
+    cf::ClothFitSettings settings = fit_settings();
     settings.swatch.rows = settings.swatch.cols = rows;
-    const fv::TrialAssessment a = fv::assess_trial(trial, material, settings, std::nullopt, nullptr, threads);
+    const cf::TrialAssessment a = cf::assess_trial(trial, material, settings, std::nullopt, nullptr, threads);
     fc::GridFrames out;
     if (!a.report.ok()) {
         std::fprintf(stderr, "  %s at %dx%d: the prediction stopped at frame %d: %s\n", trial.name.c_str(), rows, rows,
@@ -407,7 +407,7 @@ int main(int argc, char** argv) {
             o.search = *search;
         }
         else if (a == "--fit-to") {
-            const std::optional<fv::FitTarget> target = fv::fit_target_from_name(value());
+            const std::optional<cf::FitTarget> target = cf::fit_target_from_name(value());
             if (!target) return usage("--fit-to takes tracks, scan or footage");
             o.fit_to = *target;
         }
@@ -446,7 +446,7 @@ int main(int argc, char** argv) {
     }
     const fs::path scratch = o.scratch;
     fs::create_directories(scratch);
-    if (o.fit_to == fv::FitTarget::tracks)
+    if (o.fit_to == cf::FitTarget::tracks)
         std::printf("Model capacity study: each public capture's truth/positions.exr is handed to the fit as 3D tracks\n"
                     "in a scratch copy (%s); this is the one place truth reaches a fit, and it says nothing about\n"
                     "the footage fit, only about what the model can reach. RMS vertex error against truth, mm.\n",
@@ -455,7 +455,7 @@ int main(int argc, char** argv) {
         std::printf("Footage fit (--fit-to %s): the fit reads the shared captures' footage, never truth/; the\n"
                     "predictions start from each capture's measured first frame (truth handed over as tracks in\n"
                     "%s) and are scored against truth/, evaluation only. RMS vertex error, mm.\n",
-                    fv::fit_target_name(o.fit_to), (scratch / "tracks").string().c_str());
+                    cf::fit_target_name(o.fit_to), (scratch / "tracks").string().c_str());
     nlohmann::json record;
     for (const std::string& fabric : o.fabrics) {
         std::string other = fabric == "cotton" ? "silk" : "cotton";  // the wrong fabric of the bound rows
@@ -470,39 +470,39 @@ int main(int argc, char** argv) {
         if (has_static2) copies[static2] = tracks_copy(static2, scratch);
         // A tracks fit reads the scratch copies (truth as tracks); the others the shared footage.
         const auto training_captures = [&] {
-            if (o.fit_to == fv::FitTarget::tracks)
+            if (o.fit_to == cf::FitTarget::tracks)
                 return std::vector<ff::Capture>{ff::read_capture(copies[static1]), ff::read_capture(copies[waving1])};
             return std::vector<ff::Capture>{ff::read_capture(shared_capture(static1)), ff::read_capture(shared_capture(waving1))};
         };
 
         std::printf("\n### %s: fit %s + %s to %s, predict %s%s\n\n", fabric.c_str(), static1.c_str(), waving1.c_str(),
-                    fv::fit_target_name(o.fit_to), waving2.c_str(), has_static2 ? (" and " + static2).c_str() : "");
+                    cf::fit_target_name(o.fit_to), waving2.c_str(), has_static2 ? (" and " + static2).c_str() : "");
         if (!o.score.empty()) {
-            const fv::TrialLoadSettings load = training_load(o);
-            std::vector<fv::ClothTrial> trials = fv::load_trials(training_captures(), load);
-            const std::vector<fv::FittedParameter> parameters = fv::parameters_for(trials, fv::DragModel::nonlinear);
-            fv::ClothFitSettings settings = fit_settings();
-            settings.base = fv::middle_of_ranges(settings.base, parameters);  // as the fit's (its warm start)
+            const cf::TrialLoadSettings load = training_load(o);
+            std::vector<cf::ClothTrial> trials = cf::load_trials(training_captures(), load);
+            const std::vector<cf::FittedParameter> parameters = cf::parameters_for(trials, cf::DragModel::nonlinear);
+            cf::ClothFitSettings settings = fit_settings();
+            settings.base = cf::middle_of_ranges(settings.base, parameters);  // as the fit's (its warm start)
             if (!o.score_start_material.empty()) {
                 // The start chosen with this fabric instead (as a second round of a fit would).
                 settings.base = fc::material_from_fabric(ff::read_fabric_preset(o.score_start_material).parameters);
                 std::printf("(the footage's start chosen with %s's fabric)\n", o.score_start_material.c_str());
             }
-            fv::ClothFitProblem problem(std::move(trials), parameters, settings);
-            if (o.score_from_measured_start && o.fit_to != fv::FitTarget::tracks) {
+            cf::ClothFitProblem problem(std::move(trials), parameters, settings);
+            if (o.score_from_measured_start && o.fit_to != cf::FitTarget::tracks) {
                 // Each trial starts where its tracks fit would: the measured
                 // (truth's) first frame, instead of the footage's own start.
-                fv::TrialLoadSettings tracks_load = load;
-                tracks_load.target = fv::FitTarget::tracks;
-                const fv::ClothFitProblem measured(
-                    fv::load_trials({ff::read_capture(copies[static1]), ff::read_capture(copies[waving1])}, tracks_load),
+                cf::TrialLoadSettings tracks_load = load;
+                tracks_load.target = cf::FitTarget::tracks;
+                const cf::ClothFitProblem measured(
+                    cf::load_trials({ff::read_capture(copies[static1]), ff::read_capture(copies[waving1])}, tracks_load),
                     parameters, settings);
                 for (std::size_t t = 0; t < problem.trials().size(); ++t) problem.set_warm_start(t, measured.warm_start(t));
                 std::printf("(each trial started from its measured first frame, as a tracks fit's)\n");
             }
             for (const std::string& path : o.score) {
                 const fc::ClothMaterial m = fc::material_from_fabric(ff::read_fabric_preset(path).parameters);
-                const fv::ClothEvaluation e = problem.evaluate(m, o.threads);
+                const cf::ClothEvaluation e = problem.evaluate(m, o.threads);
                 std::printf("training objective of %s: %.1f (", path.c_str(), e.total);
                 for (std::size_t t = 0; t < e.trials.size(); ++t)
                     std::printf("%s%s %.1f", t ? ", " : "", problem.trials()[t].name.c_str(), e.trials[t].error);
@@ -551,7 +551,7 @@ int main(int argc, char** argv) {
                     if (variants.contains(name) && !nested_start) {
                         fc::ClothMaterial m;
                         for (const auto& [key, value] : variants[name].begin()->at("parameters").items())
-                            fv::set_material_parameter(m, key, value.get<double>());
+                            cf::set_material_parameter(m, key, value.get<double>());
                         nested_start = m;
                         std::fprintf(stderr, "  [%s] larger models also start from %s's %s fit\n", fabric.c_str(),
                                      o.nested_from.c_str(), name);
@@ -561,7 +561,7 @@ int main(int argc, char** argv) {
         std::optional<fc::ClothMaterial> last_fitted;
         for (const std::string& variant : o.variants) {
             for (const long long evaluations : o.evaluations) {
-                fv::ClothFitRequest request;
+                cf::ClothFitRequest request;
                 request.name = fabric + " " + variant;
                 request.captures = training_captures();
                 request.load = training_load(o);
@@ -581,7 +581,7 @@ int main(int argc, char** argv) {
                 auto last = std::make_shared<long long>(-1000);
                 // Progress reports (evaluations, best training error), as often as the fit reports.
                 auto curve = std::make_shared<nlohmann::json>(nlohmann::json::array());
-                request.progress = [tag, last, curve](const fv::ClothFitProgress& p) {
+                request.progress = [tag, last, curve](const cf::ClothFitProgress& p) {
                     if (p.evaluations > 0 && (curve->empty() || curve->back()[0].get<long long>() != p.evaluations))
                         curve->push_back({p.evaluations, p.best_error});
                     if (p.evaluations - *last >= 50 || p.phase == "polish") {
@@ -592,9 +592,9 @@ int main(int argc, char** argv) {
                     return true;
                 };
                 std::fprintf(stderr, "fitting %s\n", tag.c_str());
-                fv::ClothFitOutcome fit = fv::fit_cloth(request);
+                cf::ClothFitOutcome fit = cf::fit_cloth(request);
                 nlohmann::json rounds = nlohmann::json::array();
-                for (const fv::ClothFitRound& r : fit.rounds) {
+                for (const cf::ClothFitRound& r : fit.rounds) {
                     std::fprintf(stderr, "  [%s] round %zu: %.4g -> %.4g, %lld evaluations, %.0f s\n", tag.c_str(), rounds.size() + 1,
                                  r.start_error, r.best_error, r.evaluations, r.seconds);
                     rounds.push_back({{"start_error", r.start_error}, {"best_error", r.best_error}, {"evaluations", r.evaluations},
@@ -604,9 +604,9 @@ int main(int argc, char** argv) {
                 // best smaller fit so far (its new terms at their neutral
                 // values, clamped into range), and keep whichever fits better.
                 if (nested_start) {
-                    fv::ClothFitSettings settings = request.problem;
+                    cf::ClothFitSettings settings = request.problem;
                     settings.base = fit.start;
-                    const fv::ClothFitProblem problem(fit.trials, fit.parameters, settings);
+                    const cf::ClothFitProblem problem(fit.trials, fit.parameters, settings);
                     optim::LeastSquaresSettings polish;
                     polish.max_evaluations = 8LL * (static_cast<long long>(fit.parameters.size()) + 1);
                     polish.threads = o.threads;
@@ -654,7 +654,7 @@ int main(int argc, char** argv) {
                             has_static2 ? (", " + static2 + " (held out) " + cell(held_static.frame1)).c_str() : "");
                 std::fflush(stdout);
                 nlohmann::json parameters;
-                for (const fv::FittedParameter& p : fit.parameters) parameters[p.key] = fv::material_parameter(fit.fitted, p.key);
+                for (const cf::FittedParameter& p : fit.parameters) parameters[p.key] = cf::material_parameter(fit.fitted, p.key);
                 record[fabric][variant][std::to_string(evaluations)] = {
                     {"parameters", parameters},
                     {"parameter_count", fit.parameters.size()},
@@ -662,7 +662,7 @@ int main(int argc, char** argv) {
                     {"seconds", fit.seconds},
                     {"training_error", fit.final_evaluation.total},
                     {"rounds", rounds},
-                    {"fit_to", fv::fit_target_name(o.fit_to)},
+                    {"fit_to", cf::fit_target_name(o.fit_to)},
                     {"curve", *curve},
                     {"held_out_waving", windows_json(held_out)},
                     {"start_waving", windows_json(start)},

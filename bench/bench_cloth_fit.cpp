@@ -19,8 +19,8 @@
 
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/formats/capture.hpp"
-#include "flowvid/video/cloth_eval.hpp"
-#include "flowvid/video/fit_cloth.hpp"
+#include "flowvid/cloth_fit/cloth_eval.hpp"
+#include "flowvid/cloth_fit/fit_cloth.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -33,7 +33,7 @@
 #include <memory>
 #include <string>
 
-namespace fv = flowvid::video;
+namespace cf = flowvid::cloth_fit;
 namespace fs = std::filesystem;
 
 namespace {
@@ -45,8 +45,8 @@ double env_number(const char* name, double fallback) {
     return text ? std::atof(text) : fallback;
 }
 
-fv::ClothFitRequest request_for(const std::string& name, const std::vector<std::string>& captures, fv::DragModel drag) {
-    fv::ClothFitRequest request;
+cf::ClothFitRequest request_for(const std::string& name, const std::vector<std::string>& captures, cf::DragModel drag) {
+    cf::ClothFitRequest request;
     request.name = name;
     for (const std::string& c : captures) request.captures.push_back(flowvid::formats::read_capture(capture_path(c)));
     request.drag = drag;
@@ -59,7 +59,7 @@ fv::ClothFitRequest request_for(const std::string& name, const std::vector<std::
     request.seed = 1;
     request.threads = 2;
     auto last_print = std::make_shared<long long>(-1000);
-    request.progress = [last_print, name](const fv::ClothFitProgress& p) {
+    request.progress = [last_print, name](const cf::ClothFitProgress& p) {
         if (p.evaluations - *last_print >= 50 || p.phase != "annealing") {
             std::fprintf(stderr, "  [%s] %s %.0f%%, %lld evaluations, best %.1f\n", name.c_str(), p.phase.c_str(),
                          100 * p.fraction, p.evaluations, p.best_error);
@@ -71,22 +71,22 @@ fv::ClothFitRequest request_for(const std::string& name, const std::vector<std::
 }
 
 struct Assessed {
-    std::vector<fv::WindowSummary> windows;
+    std::vector<cf::WindowSummary> windows;
     double all_frames_mm = 0.0;
     double weighted_error = 0.0;
 };
 
 Assessed assess(const std::string& capture_name, const flowvid::cloth::ClothMaterial& material, bool floor) {
     const flowvid::formats::Capture capture = flowvid::formats::read_capture(capture_path(capture_name));
-    const fv::ClothTrial trial = fv::load_trial(capture, {});
-    fv::ClothFitSettings settings;
+    const cf::ClothTrial trial = cf::load_trial(capture, {});
+    cf::ClothFitSettings settings;
     settings.swatch.simulation.integrator = flowvid::cloth::Integrator::implicit_euler;
-    fv::FloorSettings floor_settings;
-    const fv::TrialAssessment a = fv::assess_trial(trial, material, settings, flowvid::formats::read_capture_truth_positions(capture),
+    cf::FloorSettings floor_settings;
+    const cf::TrialAssessment a = cf::assess_trial(trial, material, settings, flowvid::formats::read_capture_truth_positions(capture),
                                                    floor ? &floor_settings : nullptr, 2);
     Assessed out;
-    out.windows = fv::summarize_windows(a, fv::standard_windows(static_cast<int>(trial.frames.size())));
-    out.all_frames_mm = 1e3 * fv::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
+    out.windows = cf::summarize_windows(a, cf::standard_windows(static_cast<int>(trial.frames.size())));
+    out.all_frames_mm = 1e3 * cf::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
     out.weighted_error = a.weighted_error;
     return out;
 }
@@ -113,11 +113,11 @@ int main() {
         const std::vector<std::string> training = {"cloth-" + fabric + "-static-1", "cloth-" + fabric + "-waving-1"};
         const std::string held_out = "cloth-" + fabric + "-waving-2";
         std::fprintf(stderr, "fitting %s (nonlinear drag)\n", fabric.c_str());
-        const fv::ClothFitOutcome nonlinear = fv::fit_cloth(request_for(fabric, training, fv::DragModel::nonlinear));
+        const cf::ClothFitOutcome nonlinear = cf::fit_cloth(request_for(fabric, training, cf::DragModel::nonlinear));
         const bool nonlinear_only = std::getenv("FLOWVID_FIT_NONLINEAR_ONLY") != nullptr;
         std::fprintf(stderr, "fitting %s (linear drag only)\n", fabric.c_str());
-        const fv::ClothFitOutcome linear =
-            nonlinear_only ? nonlinear : fv::fit_cloth(request_for(fabric + "-linear", training, fv::DragModel::linear));
+        const cf::ClothFitOutcome linear =
+            nonlinear_only ? nonlinear : cf::fit_cloth(request_for(fabric + "-linear", training, cf::DragModel::linear));
         fitted[fabric] = nonlinear.fitted;
         if (nonlinear.preset) flowvid::formats::write_fabric_preset((out / (fabric + ".fabric.json")).string(), *nonlinear.preset);
 
@@ -164,10 +164,10 @@ int main() {
 
     if (std::getenv("FLOWVID_FIT_SKIP_SPEED") == nullptr) {
         std::fprintf(stderr, "speed: 9 parameters, two 50-frame waving trials\n");
-        fv::ClothFitRequest speed = request_for("cotton-two-waving", {"cloth-cotton-waving-1", "cloth-cotton-waving-2"},
-                                                fv::DragModel::nonlinear);
+        cf::ClothFitRequest speed = request_for("cotton-two-waving", {"cloth-cotton-waving-1", "cloth-cotton-waving-2"},
+                                                cf::DragModel::nonlinear);
         speed.budget_seconds = 600.0;  // the 10 minutes
-        const fv::ClothFitOutcome r = fv::fit_cloth(speed);
+        const cf::ClothFitOutcome r = cf::fit_cloth(speed);
         std::printf("\n### Speed: 9-parameter fit of cotton waving-1 + waving-2 (50 frames each, 24x24, 2 threads)\n\n"
                     "%.0f s wall, %lld evaluations = %lld simulations, annealing %s\n", r.seconds, r.evaluations,
                     r.simulations, flowvid::optim::status_name(r.search.annealing.status));

@@ -21,7 +21,7 @@
 
 #include "flowvid/cloth/simulator.hpp"
 #include "flowvid/formats/capture.hpp"
-#include "flowvid/video/fit_cloth.hpp"
+#include "flowvid/cloth_fit/fit_cloth.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -37,7 +37,7 @@
 #include <string>
 #include <vector>
 
-namespace fv = flowvid::video;
+namespace cf = flowvid::cloth_fit;
 namespace fs = std::filesystem;
 namespace optim = flowvid::optim;
 
@@ -59,7 +59,7 @@ struct CurvePoint {
 
 // Best error after each evaluation count: the design's points in order, then
 // the search's stages (or generations), then the polish's accepted steps.
-std::vector<CurvePoint> curve_of(const fv::ClothFitOutcome& outcome) {
+std::vector<CurvePoint> curve_of(const cf::ClothFitOutcome& outcome) {
     std::vector<CurvePoint> curve;
     double best = std::numeric_limits<double>::infinity();
     long long evaluations = 0;
@@ -193,14 +193,14 @@ int main() {
         for (std::string m; std::getline(list, m, ',');) methods.push_back(m);
     }
 
-    fv::ClothFitRequest base;
+    cf::ClothFitRequest base;
     for (const char* trial : {"static-1", "waving-1", "waving-2"})
         base.captures.push_back(flowvid::formats::read_capture(std::string(FLOWVID_SHARED_DIR) + "/captures/cloth-" + fabric + "-" + trial));
     base.name = fabric;
-    base.load.target = fv::fit_target_from_name(fit_to).value_or(fv::FitTarget::scan);
+    base.load.target = cf::fit_target_from_name(fit_to).value_or(cf::FitTarget::scan);
     base.load.waving_frames = static_cast<int>(env_number("FLOWVID_SEARCH_FRAMES", 50));
     // The shape targets' predictability weighting (fit cloth's defaults for them).
-    base.load.half_life_frames = base.load.target == fv::FitTarget::footage ? 10.0 : 5.0;
+    base.load.half_life_frames = base.load.target == cf::FitTarget::footage ? 10.0 : 5.0;
     base.evaluations = static_cast<long long>(env_number("FLOWVID_SEARCH_EVALUATIONS", 400));
     base.budget_seconds = env_number("FLOWVID_SEARCH_BUDGET_S", 600);
     base.threads = static_cast<int>(env_number("FLOWVID_SEARCH_THREADS", 2));
@@ -218,7 +218,7 @@ int main() {
     std::ofstream csv((out / "curves.csv").string());
     csv << "search,evaluations,best_error\n";
     for (const std::string& method : methods) {
-        fv::ClothFitRequest request = base;
+        cf::ClothFitRequest request = base;
         const std::optional<optim::SearchMethod> search = optim::search_method_from_name(method);
         if (!search) {
             std::fprintf(stderr, "FLOWVID_SEARCH_METHODS: \"%s\" is not annealing or cmaes\n", method.c_str());
@@ -227,7 +227,7 @@ int main() {
         request.search = *search;
         long long last = -1000;
         std::string phase;
-        request.progress = [&](const fv::ClothFitProgress& p) {
+        request.progress = [&](const cf::ClothFitProgress& p) {
             if (p.evaluations - last >= 25 || p.phase != phase) {
                 phase = p.phase;
                 std::fprintf(stderr, "  [%s] %s %.0f%%, %lld evaluations, best %.1f\n", method.c_str(), p.phase.c_str(),
@@ -237,7 +237,7 @@ int main() {
             return true;
         };
         std::fprintf(stderr, "fitting %s with %s\n", fabric.c_str(), method.c_str());
-        const fv::ClothFitOutcome outcome = fv::fit_cloth(request);
+        const cf::ClothFitOutcome outcome = cf::fit_cloth(request);
         const std::vector<CurvePoint> curve = curve_of(outcome);
         for (const CurvePoint& p : curve) csv << method << ',' << p.evaluations << ',' << p.best << '\n';
         curves.emplace_back(method, curve);

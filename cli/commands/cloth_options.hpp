@@ -6,7 +6,7 @@
 
 #include "flowvid/cloth/swatch.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
-#include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/cloth_fit/cloth_fit.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -36,8 +36,8 @@ std::optional<cloth::SwatchOptions> swatch_options(const ClothRunOptions& option
 
 // Tracks and scan targets compare point distances that grow with chaos:
 // unless --frames / --half-life-frames were given (their options here),
-// they take video::kTracksWavingFrames and kTracksHalfLifeFrames.
-void apply_shape_target_frame_defaults(video::FitTarget target, const CLI::Option* frames_option,
+// they take cloth_fit::kTracksWavingFrames and kTracksHalfLifeFrames.
+void apply_shape_target_frame_defaults(cloth_fit::FitTarget target, const CLI::Option* frames_option,
                                        const CLI::Option* half_life_option, int& frames, double& half_life_frames);
 
 // Threads to use: the option, or every core for 0.

@@ -10,7 +10,7 @@
 
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/formats/atomic_file.hpp"
-#include "flowvid/video/cloth_eval.hpp"
+#include "flowvid/cloth_fit/cloth_eval.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -50,8 +50,8 @@ void add_trial_options(CLI::App& app, TrialOptions& options) {
         ->capture_default_str();
 }
 
-video::FitTarget compared_target(const TrialOptions& options) {
-    return video::fit_target_from_name(options.compare).value_or(video::FitTarget::footage);
+cloth_fit::FitTarget compared_target(const TrialOptions& options) {
+    return cloth_fit::fit_target_from_name(options.compare).value_or(cloth_fit::FitTarget::footage);
 }
 
 // --compare scan: the scan fits' frame defaults unless --frames or --half-life-frames were given.
@@ -59,8 +59,8 @@ void apply_compare_defaults(const CLI::Option* frames, const CLI::Option* half_l
     apply_shape_target_frame_defaults(compared_target(options), frames, half_life, options.frames, options.half_life_frames);
 }
 
-video::TrialLoadSettings load_settings(const TrialOptions& options) {
-    video::TrialLoadSettings load;
+cloth_fit::TrialLoadSettings load_settings(const TrialOptions& options) {
+    cloth_fit::TrialLoadSettings load;
     load.target = compared_target(options);
     load.waving_frames = options.frames;
     load.full_weight_frames = options.full_weight_frames;
@@ -69,10 +69,10 @@ video::TrialLoadSettings load_settings(const TrialOptions& options) {
     return load;
 }
 
-std::optional<video::ClothFitSettings> fit_settings(const ClothRunOptions& run, const TrialOptions& trial) {
+std::optional<cloth_fit::ClothFitSettings> fit_settings(const ClothRunOptions& run, const TrialOptions& trial) {
     const std::optional<cloth::SwatchOptions> swatch = swatch_options(run);
     if (!swatch) return std::nullopt;
-    video::ClothFitSettings settings;
+    cloth_fit::ClothFitSettings settings;
     settings.swatch = *swatch;
     settings.metric.silhouette_term = load_settings(trial).silhouette_term;
     return settings;
@@ -88,7 +88,7 @@ struct EvalClothOptions {
     int floor_members = 6;
     std::string floor_kind = "full";
     std::string floor_integrator = "implicit";
-    int floor_substeps = video::kFloorSubstepsPerFrame;
+    int floor_substeps = cloth_fit::kFloorSubstepsPerFrame;
     std::string report;
     ClothRunOptions run;
     TrialOptions trial;
@@ -123,15 +123,15 @@ std::string one_decimal(double value) {
 
 int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global) {
     const formats::FabricPreset preset = read_preset_for_simulation(options.preset);
-    const std::optional<video::ClothFitSettings> settings = fit_settings(options.run, options.trial);
+    const std::optional<cloth_fit::ClothFitSettings> settings = fit_settings(options.run, options.trial);
     if (!settings) return kExitUsage;
     std::vector<formats::Capture> captures;
     for (const std::string& path : options.captures)
         captures.push_back(formats::read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid eval cloth"));
     if (!options.report.empty()) formats::create_parent_folder(options.report + "/eval.json");
     const cloth::ClothMaterial material = cloth::material_from_fabric(preset.parameters);
-    video::FloorSettings floor = video::reported_floor(options.floor_members);
-    if (options.floor_kind == "full") floor.parameter_sigma = video::preset_uncertainty(preset.parameters);
+    cloth_fit::FloorSettings floor = cloth_fit::reported_floor(options.floor_members);
+    if (options.floor_kind == "full") floor.parameter_sigma = cloth_fit::preset_uncertainty(preset.parameters);
     if (options.floor_integrator == "same") {
         floor.integrator.reset();
         floor.implicit_substeps_per_frame.reset();
@@ -150,22 +150,22 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
     body << html::element("h1", preset.name) << html::element("p", "preset " + options.preset);
     for (std::size_t i = 0; i < captures.size(); ++i) {
         progress.update(static_cast<double>(i) / captures.size(), captures[i].folder);
-        const video::ClothTrial trial = video::load_trial(captures[i], load_settings(options.trial));
+        const cloth_fit::ClothTrial trial = cloth_fit::load_trial(captures[i], load_settings(options.trial));
         const std::optional<formats::VertexAnimation> truth = formats::read_capture_truth_positions(captures[i]);
-        const video::TrialAssessment a =
-            video::assess_trial(trial, material, *settings, truth, floor.members > 0 ? &floor : nullptr, threads);
-        const std::vector<video::WindowSummary> windows =
-            video::summarize_windows(a, video::standard_windows(static_cast<int>(trial.frames.size())));
+        const cloth_fit::TrialAssessment a =
+            cloth_fit::assess_trial(trial, material, *settings, truth, floor.members > 0 ? &floor : nullptr, threads);
+        const std::vector<cloth_fit::WindowSummary> windows =
+            cloth_fit::summarize_windows(a, cloth_fit::standard_windows(static_cast<int>(trial.frames.size())));
         nlohmann::json window_json = nlohmann::json::array();
         html::Table table;
         table.header = {"frames", "metric E_k (mean)", "floor", "vertex RMS (mm)", "floor (mm)"};
-        for (const video::WindowSummary& w : windows) {
-            window_json.push_back({{"frames", video::window_name(w.window)},
+        for (const cloth_fit::WindowSummary& w : windows) {
+            window_json.push_back({{"frames", cloth_fit::window_name(w.window)},
                                    {"metric_mean", number_or_null(w.metric_mean)},
                                    {"metric_floor", number_or_null(w.metric_floor_mean)},
                                    {"vertex_rms_mm", number_or_null(1e3 * w.vertex_rms_m)},
                                    {"vertex_floor_mm", number_or_null(1e3 * w.vertex_floor_m)}});
-            table.rows.push_back({video::window_name(w.window), one_decimal(w.metric_mean), one_decimal(w.metric_floor_mean),
+            table.rows.push_back({cloth_fit::window_name(w.window), one_decimal(w.metric_mean), one_decimal(w.metric_floor_mean),
                                   one_decimal(1e3 * w.vertex_rms_m), one_decimal(1e3 * w.vertex_floor_m)});
         }
         body << html::element("h2", captures[i].folder) << html::table(table);
@@ -186,14 +186,14 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
             body << frame_plot("vertex RMS vs ground truth per frame (mm)", "vertex RMS (mm)", vertex_mm, vertex_floor_mm);
         nlohmann::json entry = {{"capture", captures[i].folder},
                                 {"test", a.is_static ? "static" : "waving"},
-                                {"weighted_floor", a.floor ? nlohmann::json(video::weighted_floor(trial, *a.floor)) : nlohmann::json()},
+                                {"weighted_floor", a.floor ? nlohmann::json(cloth_fit::weighted_floor(trial, *a.floor)) : nlohmann::json()},
                                 {"simulation", a.report.ok() ? std::string("ok") : std::string(cloth::status_name(a.report.status)) +
                                                                                        " at frame " + std::to_string(a.report.frame)},
                                 {"weighted_error", a.weighted_error},
                                 {"windows", window_json}};
-        if (trial.measures_shape()) entry["rms_mm"] = video::tracks_rms_mm(trial, a.weighted_error);  // E_k in mm^2
+        if (trial.measures_shape()) entry["rms_mm"] = cloth_fit::tracks_rms_mm(trial, a.weighted_error);  // E_k in mm^2
         if (!a.vertex_rms_m.empty())
-            entry["vertex_rms_mm_all_frames"] = 1e3 * video::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
+            entry["vertex_rms_mm_all_frames"] = 1e3 * cloth_fit::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
         if (a.floor)
             entry["floor"] = {{"integrator", cloth::integrator_name(a.floor->integrator)},
                               {"implicit_substeps_per_frame", a.floor->implicit_substeps_per_frame},
@@ -286,19 +286,19 @@ struct RecognizeOptions {
 };
 
 int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) {
-    const std::optional<video::ClothFitSettings> settings = fit_settings(options.run, options.trial);
+    const std::optional<cloth_fit::ClothFitSettings> settings = fit_settings(options.run, options.trial);
     if (!settings) return kExitUsage;
     std::vector<formats::FabricPreset> presets;
     for (const std::string& path : options.presets) presets.push_back(read_preset_for_simulation(path));
-    std::vector<video::ClothTrial> trials;
+    std::vector<cloth_fit::ClothTrial> trials;
     std::vector<std::optional<formats::VertexAnimation>> truths;
     for (const std::string& path : options.captures) {
         const formats::Capture capture = formats::read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid recognize");
-        trials.push_back(video::load_trial(capture, load_settings(options.trial)));
+        trials.push_back(cloth_fit::load_trial(capture, load_settings(options.trial)));
         truths.push_back(formats::read_capture_truth_positions(capture));
     }
     const std::size_t cells = presets.size() * trials.size();
-    std::vector<video::TrialAssessment> assessments(cells);
+    std::vector<cloth_fit::TrialAssessment> assessments(cells);
     ProgressBar progress(global, "recognize");
     const InterruptWatch interrupt;
     std::atomic<std::size_t> done{0};
@@ -306,7 +306,7 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
     pool.run(cells, [&](std::size_t cell, int) {
         if (interrupt.requested()) return;
         const std::size_t p = cell / trials.size(), c = cell % trials.size();
-        assessments[cell] = video::assess_trial(trials[c], cloth::material_from_fabric(presets[p].parameters), *settings,
+        assessments[cell] = cloth_fit::assess_trial(trials[c], cloth::material_from_fabric(presets[p].parameters), *settings,
                                                 truths[c], nullptr, 1);
         ++done;
     });
@@ -327,24 +327,24 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
         nlohmann::json errors = nlohmann::json::object(), vertex = nlohmann::json::object();
         table << std::filesystem::path(trials[c].name).filename().string() << ':';
         for (std::size_t p = 0; p < presets.size(); ++p) {
-            const video::TrialAssessment& a = assessments[p * trials.size() + c];
+            const cloth_fit::TrialAssessment& a = assessments[p * trials.size() + c];
             errors[options.presets[p]] = a.weighted_error;
             char cell[64];
-            const double shown = scan ? video::tracks_rms_mm(trials[c], a.weighted_error) : a.weighted_error;
+            const double shown = scan ? cloth_fit::tracks_rms_mm(trials[c], a.weighted_error) : a.weighted_error;
             std::snprintf(cell, sizeof cell, scan ? "  %8.2f%s" : "  %12.1f%s", shown, p == best ? "*" : " ");
             table << cell;
             if (!a.vertex_rms_m.empty())
-                vertex[options.presets[p]] = 1e3 * video::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
+                vertex[options.presets[p]] = 1e3 * cloth_fit::pooled_rms(a.vertex_rms_m, {1, static_cast<int>(a.vertex_rms_m.size())});
         }
         // The floor of the recognised preset on this capture: differences
         // between presets below it mean nothing.
-        const video::FloorSettings floor = video::reported_floor(4);
-        const double floor_error = video::weighted_floor(
-            trials[c], video::estimate_floor(trials[c], cloth::material_from_fabric(presets[best].parameters), *settings, floor,
+        const cloth_fit::FloorSettings floor = cloth_fit::reported_floor(4);
+        const double floor_error = cloth_fit::weighted_floor(
+            trials[c], cloth_fit::estimate_floor(trials[c], cloth::material_from_fabric(presets[best].parameters), *settings, floor,
                                              thread_count(options.run.threads)));
         char floor_text[48];
         std::snprintf(floor_text, sizeof floor_text, scan ? "  (floor %.2f)" : "  (floor %.1f)",
-                      scan ? video::tracks_rms_mm(trials[c], floor_error) : floor_error);
+                      scan ? cloth_fit::tracks_rms_mm(trials[c], floor_error) : floor_error);
         table << floor_text << '\n';
         nlohmann::json row = {{"capture", trials[c].name}, {"metric_error", errors}, {"recognized_as", options.presets[best]},
                               {"floor", floor_error}};

@@ -11,9 +11,9 @@
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/fit_shard.hpp"
 #include "flowvid/version.hpp"
-#include "flowvid/video/cloth_eval.hpp"
-#include "flowvid/video/fit_cloth.hpp"
-#include "flowvid/video/fit_cloth_shards.hpp"
+#include "flowvid/cloth_fit/cloth_eval.hpp"
+#include "flowvid/cloth_fit/fit_cloth.hpp"
+#include "flowvid/cloth_fit/fit_cloth_shards.hpp"
 
 #include <chrono>
 #include <filesystem>
@@ -65,11 +65,11 @@ struct FitClothOptions {
     bool variability_runs_given = false;  // --shards: restarts in the merge only when asked for
 };
 
-nlohmann::json material_summary(const cloth::ClothMaterial& material, const std::vector<video::FittedParameter>& parameters,
+nlohmann::json material_summary(const cloth::ClothMaterial& material, const std::vector<cloth_fit::FittedParameter>& parameters,
                                 const optim::VariabilityReport* variability) {
     nlohmann::json out = nlohmann::json::object();
     for (std::size_t i = 0; i < parameters.size(); ++i) {
-        nlohmann::json entry = {{"value", video::material_parameter(material, parameters[i].key)}};
+        nlohmann::json entry = {{"value", cloth_fit::material_parameter(material, parameters[i].key)}};
         if (variability && i < variability->parameters.size()) {
             entry["uncertainty"] = variability->parameters[i].stddev;
             entry["variability_percent"] = variability->parameters[i].variability_percent;
@@ -80,12 +80,12 @@ nlohmann::json material_summary(const cloth::ClothMaterial& material, const std:
 }
 
 // The fit's request from the options (every path: whole, shard, merge).
-video::ClothFitRequest make_request(const FitClothOptions& options, const cloth::SwatchOptions& swatch,
+cloth_fit::ClothFitRequest make_request(const FitClothOptions& options, const cloth::SwatchOptions& swatch,
                                     std::vector<formats::Capture> captures, const std::string& out) {
-    video::ClothFitRequest request;
+    cloth_fit::ClothFitRequest request;
     request.captures = std::move(captures);
     request.name = options.name.empty() ? std::filesystem::path(out).stem().stem().string() : options.name;
-    request.load.target = video::fit_target_from_name(options.fit_to).value_or(video::FitTarget::footage);
+    request.load.target = cloth_fit::fit_target_from_name(options.fit_to).value_or(cloth_fit::FitTarget::footage);
     request.load.waving_frames = options.frames;
     request.load.full_weight_frames = options.full_weight_frames;
     request.load.half_life_frames = options.half_life_frames;
@@ -95,7 +95,7 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
     request.problem.metric.silhouette_term =
         options.metric == "edge" ? video::SilhouetteTerm::edge_distance : video::SilhouetteTerm::pixel_xor;
     request.load.silhouette_term = request.problem.metric.silhouette_term;
-    request.drag = options.drag == "linear" ? video::DragModel::linear : video::DragModel::nonlinear;
+    request.drag = options.drag == "linear" ? cloth_fit::DragModel::linear : cloth_fit::DragModel::nonlinear;
     request.evaluations = options.evaluations;
     request.refine_rounds = options.refine_rounds;
     request.search = optim::search_method_from_name(options.search).value_or(optim::SearchMethod::cmaes);
@@ -108,28 +108,28 @@ video::ClothFitRequest make_request(const FitClothOptions& options, const cloth:
     return request;
 }
 
-int run_shards(const FitClothOptions& options, const GlobalOptions& global, video::ClothFitRequest request);
+int run_shards(const FitClothOptions& options, const GlobalOptions& global, cloth_fit::ClothFitRequest request);
 
-// How the reported floor's runs are integrated (video::reported_floor).
+// How the reported floor's runs are integrated (cloth_fit::reported_floor).
 std::string reported_floor_integrator() {
     return std::string(cloth::integrator_name(cloth::Integrator::implicit_euler)) + ", " +
-           std::to_string(video::kFloorSubstepsPerFrame) + " substeps a frame";
+           std::to_string(cloth_fit::kFloorSubstepsPerFrame) + " substeps a frame";
 }
 
 // Each trial's final error next to its predictability floor (the fit's
 // ClothFitRequest::floor_members): an error near the floor is as good as it gets.
-nlohmann::json trials_with_floors(const video::ClothFitOutcome& outcome) {
+nlohmann::json trials_with_floors(const cloth_fit::ClothFitOutcome& outcome) {
     nlohmann::json trials = nlohmann::json::array();
     for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i) {
         nlohmann::json trial = {{"capture", outcome.trial_names[i]}, {"final_error", outcome.final_evaluation.trials[i].error}};
         const bool shape = outcome.trials[i].measures_shape();
         if (shape)
             // A tracks or scan fit's error is a weighted mean square (mm^2): its root reads as a distance.
-            trial["final_rms_mm"] = video::tracks_rms_mm(outcome.trials[i], outcome.final_evaluation.trials[i].error);
-        const video::ReportedFloor& floor = outcome.floors.at(i);
+            trial["final_rms_mm"] = cloth_fit::tracks_rms_mm(outcome.trials[i], outcome.final_evaluation.trials[i].error);
+        const cloth_fit::ReportedFloor& floor = outcome.floors.at(i);
         if (floor.weighted) {
             trial["floor"] = *floor.weighted;
-            if (shape) trial["floor_rms_mm"] = video::tracks_rms_mm(outcome.trials[i], *floor.weighted);
+            if (shape) trial["floor_rms_mm"] = cloth_fit::tracks_rms_mm(outcome.trials[i], *floor.weighted);
         } else {
             log_message("warning: no predictability floor for " + outcome.trial_names[i] + ": " + floor.failure);
             trial["floor"] = nullptr;
@@ -151,21 +151,21 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     for (const std::string& path : options.captures)
         captures.push_back(formats::read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid fit cloth"));
     formats::create_parent_folder(options.out);
-    video::ClothFitRequest request = make_request(options, *swatch, std::move(captures), options.out);
+    cloth_fit::ClothFitRequest request = make_request(options, *swatch, std::move(captures), options.out);
     if (!options.start.empty()) request.start = cloth::material_from_fabric(formats::read_fabric_preset(options.start).parameters);
     if (sharded) return run_shards(options, global, std::move(request));
     ProgressBar progress(global, "fit cloth");
     const InterruptWatch interrupt;
-    request.progress = [&](const video::ClothFitProgress& p) {
+    request.progress = [&](const cloth_fit::ClothFitProgress& p) {
         char detail[160];
         std::snprintf(detail, sizeof detail, "%s, %lld evaluations, best %.4g, T %.3g, ETA %.0f s", p.phase.c_str(),
                       p.evaluations, p.best_error, p.temperature, p.eta_s);
         progress.update(p.fraction, detail);
         return !interrupt.requested();
     };
-    const video::ClothFitOutcome outcome = video::fit_cloth(request);
+    const cloth_fit::ClothFitOutcome outcome = cloth_fit::fit_cloth(request);
     progress.done();
-    if (outcome.status == video::ClothFitOutcome::Status::cancelled) {
+    if (outcome.status == cloth_fit::ClothFitOutcome::Status::cancelled) {
         log_message("interrupted: nothing written");
         return kExitInterrupted;
     }
@@ -178,14 +178,14 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     nlohmann::json trials = trials_with_floors(outcome);
     for (std::size_t i = 0; i < trials.size(); ++i) trials[i]["start_error"] = outcome.start_evaluation.trials[i].error;
     nlohmann::json summary = {{"out", options.out},
-                              {"fit_to", video::fit_target_name(request.load.target)},
+                              {"fit_to", cloth_fit::fit_target_name(request.load.target)},
                               {"waving_frames", request.load.waving_frames},
                               {"half_life_frames", request.load.half_life_frames},
                               {"static_weight", request.load.static_weight},
                               {"min_bending_N_m", request.min_bending_N_m},
                               {"start", options.start.empty() ? nlohmann::json("middle of the ranges") : nlohmann::json(options.start)},
                               {"search", optim::search_method_name(request.search)},
-                              {"drag", video::drag_model_name(request.drag)},
+                              {"drag", cloth_fit::drag_model_name(request.drag)},
                               {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
                               {"start_error", outcome.start_evaluation.total},
                               {"final_error", outcome.final_evaluation.total},
@@ -201,7 +201,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     // Each round's errors are on its own fold states: a refinement round's
     // start is the previous round's best, scored again.
     nlohmann::json rounds = nlohmann::json::array();
-    for (const video::ClothFitRound& r : outcome.rounds)
+    for (const cloth_fit::ClothFitRound& r : outcome.rounds)
         rounds.push_back({{"start_error", r.start_error}, {"best_error", r.best_error}, {"evaluations", r.evaluations},
                           {"seconds", r.seconds}});
     summary["rounds"] = rounds;
@@ -218,12 +218,12 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
 // ---- Farm and cluster splitting: --shard i/n, --shards n, and the cloth merge.
 
 // "i/n" with 1 <= i <= n <= 10000; nullopt (logged) otherwise.
-std::optional<video::ClothFitShard> parse_shard(const std::string& text) {
+std::optional<cloth_fit::ClothFitShard> parse_shard(const std::string& text) {
     int index = 0, count = 0;
     char slash = 0, extra = 0;
     if (std::sscanf(text.c_str(), "%d%c%d%c", &index, &slash, &count, &extra) == 3 && slash == '/' && index >= 1 &&
         count >= 1 && index <= count && count <= 10000)
-        return video::ClothFitShard{index, count};
+        return cloth_fit::ClothFitShard{index, count};
     log_message("error: --shard " + text + ": expected i/n with 1 <= i <= n, e.g. 2/8 (the second of 8 shards)");
     return std::nullopt;
 }
@@ -248,10 +248,10 @@ void apply_source_date_epoch(formats::FabricPreset& preset) {
     preset.provenance.created_utc = stamp;
 }
 
-// The last step of a split cloth fit (video::merge_cloth_fit_shards), written
+// The last step of a split cloth fit (cloth_fit::merge_cloth_fit_shards), written
 // exactly as fit cloth writes. Used by `flowvid merge` and by `fit cloth --shards n`.
 int merge_cloth(const MergeRequest& merge, const GlobalOptions& global) {
-    video::ClothMergeRequest request;
+    cloth_fit::ClothMergeRequest request;
     request.shards = merge.shards;
     request.name = merge.name.empty() ? std::filesystem::path(merge.out).stem().stem().string() : merge.name;
     request.variability_runs = merge.variability_runs;
@@ -260,14 +260,14 @@ int merge_cloth(const MergeRequest& merge, const GlobalOptions& global) {
     request.threads = merge.threads;
     ProgressBar progress(global, "merge cloth");
     const InterruptWatch interrupt;
-    request.progress = [&](const video::ClothFitProgress& p) {
+    request.progress = [&](const cloth_fit::ClothFitProgress& p) {
         progress.update(p.fraction, p.phase);
         return !interrupt.requested();
     };
-    const video::ClothMergeOutcome merged = video::merge_cloth_fit_shards(request);
-    const video::ClothFitOutcome& outcome = merged.fit;
+    const cloth_fit::ClothMergeOutcome merged = cloth_fit::merge_cloth_fit_shards(request);
+    const cloth_fit::ClothFitOutcome& outcome = merged.fit;
     progress.done();
-    if (outcome.status == video::ClothFitOutcome::Status::cancelled) {
+    if (outcome.status == cloth_fit::ClothFitOutcome::Status::cancelled) {
         log_message("interrupted: nothing written");
         return kExitInterrupted;
     }
@@ -304,10 +304,10 @@ const RegisterMergeKind merge_registration{MergeKind{"cloth", merge_cloth}};
 // shard here, one after the other (each with every thread; the result does
 // not depend on the order or the threads), then the same merge as
 // `flowvid merge`.
-int run_shards(const FitClothOptions& options, const GlobalOptions& global, video::ClothFitRequest request) {
-    std::vector<video::ClothFitShard> todo;
+int run_shards(const FitClothOptions& options, const GlobalOptions& global, cloth_fit::ClothFitRequest request) {
+    std::vector<cloth_fit::ClothFitShard> todo;
     if (!options.shard.empty()) {
-        const std::optional<video::ClothFitShard> shard = parse_shard(options.shard);
+        const std::optional<cloth_fit::ClothFitShard> shard = parse_shard(options.shard);
         if (!shard) return kExitUsage;
         todo.push_back(*shard);
     } else {
@@ -316,28 +316,28 @@ int run_shards(const FitClothOptions& options, const GlobalOptions& global, vide
     std::vector<formats::FitShardFile> results;
     {
         const InterruptWatch interrupt;
-        for (const video::ClothFitShard& shard : todo) {
+        for (const cloth_fit::ClothFitShard& shard : todo) {
             const std::string split = std::to_string(shard.index) + "/" + std::to_string(shard.count);
             ProgressBar progress(global, "fit cloth shard " + split);
             request.shard = shard;
-            request.progress = [&](const video::ClothFitProgress& p) {
+            request.progress = [&](const cloth_fit::ClothFitProgress& p) {
                 progress.update(p.fraction, p.phase + ", " + std::to_string(p.evaluations) + " evaluations");
                 return !interrupt.requested();
             };
-            video::ClothFitOutcome outcome;
+            cloth_fit::ClothFitOutcome outcome;
             try {
-                outcome = video::fit_cloth(request);
+                outcome = cloth_fit::fit_cloth(request);
             } catch (const std::invalid_argument& error) {
                 log_message("error: --shard " + split + ": " + error.what() +
                             " (use fewer shards, or more --evaluations: the design has about a quarter of them)");
                 return kExitUsage;
             }
             progress.done();
-            if (outcome.status == video::ClothFitOutcome::Status::cancelled) {
+            if (outcome.status == cloth_fit::ClothFitOutcome::Status::cancelled) {
                 log_message("interrupted: nothing written");
                 return kExitInterrupted;
             }
-            results.push_back({"shard " + split + " (this run)", video::cloth_fit_shard(request, outcome)});
+            results.push_back({"shard " + split + " (this run)", cloth_fit::cloth_fit_shard(request, outcome)});
             if (!global.quiet && options.shards > 0)
                 log_message("shard " + split + ": error " + std::to_string(outcome.search.annealing.best_value) + " after " +
                             std::to_string(outcome.evaluations) + " evaluations");
@@ -500,7 +500,7 @@ const RegisterFitKind registration{FitKind{
         CLI::Option* half_life = app.get_option("--half-life-frames");
         return [options, variability_runs, frames, half_life](const GlobalOptions& global) {
             options->variability_runs_given = variability_runs->count() > 0;
-            apply_shape_target_frame_defaults(video::fit_target_from_name(options->fit_to).value_or(video::FitTarget::footage),
+            apply_shape_target_frame_defaults(cloth_fit::fit_target_from_name(options->fit_to).value_or(cloth_fit::FitTarget::footage),
                                               frames, half_life, options->frames, options->half_life_frames);
             return run_fit_cloth(*options, global);
         };

@@ -8,7 +8,7 @@
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/cloth/swatch_output.hpp"
-#include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/cloth_fit/cloth_fit.hpp"
 
 #include <filesystem>
 #include <iostream>
@@ -67,9 +67,9 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
     swatch->equilibrium.cancel = interrupt.flag();
     swatch->simulation.cancel = interrupt.flag();
     if (options.match_footage) {
-        video::ClothFitSettings settings;
+        cloth_fit::ClothFitSettings settings;
         settings.swatch = *swatch;
-        const Eigen::VectorXd start = video::matching_equilibrium(video::load_trial(capture, {}), material, settings);
+        const Eigen::VectorXd start = cloth_fit::matching_equilibrium(cloth_fit::load_trial(capture, {}), material, settings);
         if (start.size() > 0) swatch->initial_positions = start;
     }
 

@@ -4,7 +4,7 @@
 #include "flowvid/cloth/swatch.hpp"
 #include "flowvid/error.hpp"
 #include "flowvid/progress.hpp"
-#include "flowvid/video/fit_cloth.hpp"
+#include "flowvid/cloth_fit/fit_cloth.hpp"
 
 #include <pybind11/functional.h>
 #include <pybind11/stl.h>
@@ -96,12 +96,12 @@ py::list frames_to_python(const std::vector<Eigen::MatrixX3d>& frames) {
     return result;
 }
 
-// flowvid fit cloth, in process: captures to a fitted preset (video::fit_cloth).
+// flowvid fit cloth, in process: captures to a fitted preset (cloth_fit::fit_cloth).
 py::object fit_cloth(const std::vector<std::string>& captures, const std::string& out, const std::string& name,
                      long long evaluations, double budget_seconds, std::uint64_t seed, int rows, int cols,
                      const std::string& integrator, const std::string& fit_to, const std::string& search,
                      int variability_runs, int floor_members, int threads, const py::object& progress) {
-    video::ClothFitRequest request;
+    cloth_fit::ClothFitRequest request;
     for (const std::string& path : captures)
         request.captures.push_back(formats::read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid.cloth.fit"));
     request.name = name;
@@ -112,12 +112,12 @@ py::object fit_cloth(const std::vector<std::string>& captures, const std::string
     if (named == cloth::integrators_by_short_name().end())
         throw Error("<options>", "integrator", "unknown integrator '" + integrator + "'", "use rk4, dopri54, bs32, implicit or bdf2");
     request.problem.swatch = cloth::run_swatch_options(rows, cols, named->second, 1.0, threads);
-    const std::optional<video::FitTarget> target = video::fit_target_from_name(fit_to);
+    const std::optional<cloth_fit::FitTarget> target = cloth_fit::fit_target_from_name(fit_to);
     if (!target) throw Error("<options>", "fit_to", "unknown target '" + fit_to + "'", "use footage, scan or tracks");
     request.load.target = *target;
-    if (*target != video::FitTarget::footage) {  // shape targets compare fewer, faster-fading frames (as the CLI)
-        request.load.waving_frames = video::kTracksWavingFrames;
-        request.load.half_life_frames = video::kTracksHalfLifeFrames;
+    if (*target != cloth_fit::FitTarget::footage) {  // shape targets compare fewer, faster-fading frames (as the CLI)
+        request.load.waving_frames = cloth_fit::kTracksWavingFrames;
+        request.load.half_life_frames = cloth_fit::kTracksHalfLifeFrames;
     }
     const std::optional<optim::SearchMethod> method = optim::search_method_from_name(search);
     if (!method) throw Error("<options>", "search", "unknown search '" + search + "'", "use cmaes or annealing");
@@ -126,19 +126,19 @@ py::object fit_cloth(const std::vector<std::string>& captures, const std::string
     request.floor_members = floor_members;
     request.threads = threads;
     if (!progress.is_none())
-        request.progress = [progress](const video::ClothFitProgress& p) {
+        request.progress = [progress](const cloth_fit::ClothFitProgress& p) {
             py::gil_scoped_acquire hold;
             char message[160];
             std::snprintf(message, sizeof message, "%lld evaluations, best %.4g", p.evaluations, p.best_error);
             const py::object answer = progress(p.phase, p.fraction, std::string(message));
             return answer.is_none() || answer.cast<bool>();
         };
-    video::ClothFitOutcome outcome;
+    cloth_fit::ClothFitOutcome outcome;
     {
         py::gil_scoped_release release;  // minutes of simulation: the interpreter (Blender's UI) keeps running
-        outcome = video::fit_cloth(request);
+        outcome = cloth_fit::fit_cloth(request);
     }
-    if (outcome.status == video::ClothFitOutcome::Status::cancelled) throw Cancelled();
+    if (outcome.status == cloth_fit::ClothFitOutcome::Status::cancelled) throw Cancelled();
     if (!out.empty() && outcome.preset) formats::write_fabric_preset(out, *outcome.preset);
     py::dict result;
     result["preset"] = outcome.preset ? json_to_python(formats::fabric_preset_to_json(*outcome.preset)) : py::none();
@@ -226,7 +226,7 @@ progress(frame, frame_count) -> bool may cancel (status "cancelled"); initial_po
                      py::arg("rows") = 24, py::arg("cols") = 24, py::arg("integrator") = "implicit",
                      py::arg("fit_to") = "footage", py::arg("search") = "cmaes", py::arg("variability_runs") = 4,
                      py::arg("floor_members") = 4, py::arg("threads") = 0, py::arg("progress") = py::none(),
-                     R"(Fit a fabric preset to cloth captures, as `flowvid fit cloth` does (video::fit_cloth).
+                     R"(Fit a fabric preset to cloth captures, as `flowvid fit cloth` does (cloth_fit::fit_cloth).
 
 captures: the static drape(s) and waving test(s) of one fabric (capture folders); out: write the
 preset there too (*.fabric.json); fit_to: footage, scan or tracks; progress(phase, fraction, message)

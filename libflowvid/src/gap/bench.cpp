@@ -3,7 +3,7 @@
 
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/gap/cloth_model.hpp"
-#include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/cloth_fit/cloth_fit.hpp"
 #include "flowvid/video/stripe_render.hpp"
 
 #include <opencv2/imgcodecs.hpp>
@@ -120,8 +120,8 @@ cv::Mat rgb_frame(const video::ImageF& linear, const cv::Mat& noise) {
     return out;
 }
 
-video::ClothTrial scene_trial(const formats::Capture& scene, int frames) {
-    video::ClothTrial trial;
+cloth_fit::ClothTrial scene_trial(const formats::Capture& scene, int frames) {
+    cloth_fit::ClothTrial trial;
     trial.name = scene.folder;
     trial.experiment = cloth::experiment_from_capture(scene);
     trial.camera = *scene.camera;
@@ -213,7 +213,7 @@ void write_cloth_case(const std::string& folder, const BenchCase& c, const forma
     namespace fs = std::filesystem;
     fs::create_directories(fs::path(folder) / "frames");
     fs::create_directories(fs::path(folder) / "masks");
-    const video::ClothTrial trial = scene_trial(scene, settings.frames);
+    const cloth_fit::ClothTrial trial = scene_trial(scene, settings.frames);
     // drag_nonlinear's values are the fabric's own: the base lacks them.
     EffectValues effects = c.values;
     if (c.effect == "drag_nonlinear")
@@ -225,9 +225,9 @@ void write_cloth_case(const std::string& folder, const BenchCase& c, const forma
     for (const double bow : {1.0, -1.0, 0.0}) {
         scenario.options.initial_bow = bow;
         run = cloth::simulate_swatch(scenario.experiment, scenario.material, scenario.options);
-        if (video::usable_frames(run) >= settings.frames) break;
+        if (cloth_fit::usable_frames(run) >= settings.frames) break;
     }
-    if (video::usable_frames(run) < settings.frames)
+    if (cloth_fit::usable_frames(run) < settings.frames)
         throw std::runtime_error(c.id + ": the footage simulation failed: " + run.simulation.report.reason);
 
     video::StripeRenderSettings look;
@@ -269,10 +269,10 @@ void write_cloth_case(const std::string& folder, const BenchCase& c, const forma
 double measure_effect_to_noise(const std::string& folder, const BenchCase& c, const cloth::ClothMaterial& fabric,
                                const BenchSettings& settings, int threads) {
     const formats::Capture capture = formats::read_capture(folder);
-    video::TrialLoadSettings load;
+    cloth_fit::TrialLoadSettings load;
     load.waving_frames = settings.frames;
     load.full_weight_frames = settings.frames;
-    std::vector<video::ClothTrial> trials{video::load_trial(capture, load)};
+    std::vector<cloth_fit::ClothTrial> trials{cloth_fit::load_trial(capture, load)};
     ClothGapSettings gap;
     gap.fit.swatch = fine_options(settings, capture, threads);
     gap.threads = threads;

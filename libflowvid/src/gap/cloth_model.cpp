@@ -74,7 +74,7 @@ std::vector<Eigen::Vector3d> rolling_vertices(const ClothScenario& scenario, con
 
 }  // namespace
 
-ClothScenario apply_cloth_effects(const video::ClothTrial& trial, const cloth::ClothMaterial& material,
+ClothScenario apply_cloth_effects(const cloth_fit::ClothTrial& trial, const cloth::ClothMaterial& material,
                                   const cloth::SwatchOptions& options, const EffectValues& effects) {
     ClothScenario s{trial.experiment, material, options, trial.camera, 0.0, 0.0};
     for (const auto& [name, values] : effects) {
@@ -137,7 +137,7 @@ ClothScenario apply_cloth_effects(const video::ClothTrial& trial, const cloth::C
 
 video::StripeImage film_frame(const ClothScenario& scenario, const cloth::SwatchRun& run, int index,
                               video::StripeRenderer& renderer) {
-    const int usable = video::usable_frames(run);
+    const int usable = cloth_fit::usable_frames(run);
     const auto& triangles = run.swatch.mesh.triangles;
     if (scenario.exposure_s <= 0.0)
         return renderer.render(rolling_vertices(scenario, run, usable, index), triangles);
@@ -178,7 +178,7 @@ std::vector<float> residual_image(const video::ReferenceFrame& reference, const 
     return out;
 }
 
-ClothGapModel::ClothGapModel(std::vector<video::ClothTrial> trials, cloth::ClothMaterial base, ClothGapSettings settings)
+ClothGapModel::ClothGapModel(std::vector<cloth_fit::ClothTrial> trials, cloth::ClothMaterial base, ClothGapSettings settings)
     : m_trials(std::move(trials)), m_base(std::move(base)), m_settings(std::move(settings)) {
     if (m_trials.empty()) throw std::invalid_argument("ClothGapModel: no trials");
     // A linear-drag base refits its linear drag; the nonlinear one is the effect.
@@ -190,33 +190,33 @@ ClothGapModel::ClothGapModel(std::vector<video::ClothTrial> trials, cloth::Cloth
     m_warm_starts.resize(m_trials.size());
     m_floors.resize(m_trials.size());
     m_pin_speeds.resize(m_trials.size());
-    video::ClothFitSettings fit = m_settings.fit;
+    cloth_fit::ClothFitSettings fit = m_settings.fit;
     fit.base = m_base;
     for (std::size_t t = 0; t < m_trials.size(); ++t) {
-        const video::ClothTrial& trial = m_trials[t];
-        m_warm_starts[t] = video::matching_equilibrium(trial, m_base, fit);
+        const cloth_fit::ClothTrial& trial = m_trials[t];
+        m_warm_starts[t] = cloth_fit::matching_equilibrium(trial, m_base, fit);
         // From the equilibrium just found: no second search over the bows.
-        video::ClothFitSettings floor_fit = fit;
+        cloth_fit::ClothFitSettings floor_fit = fit;
         floor_fit.swatch.initial_positions = m_warm_starts[t];
-        const video::PredictabilityFloor ensemble = video::estimate_floor(trial, m_base, floor_fit, m_settings.floor, threads);
+        const cloth_fit::PredictabilityFloor ensemble = cloth_fit::estimate_floor(trial, m_base, floor_fit, m_settings.floor, threads);
         std::vector<double> floor = ensemble.metric;
         if (m_settings.floor_resolution_step > 0) {
             // The same fabric on a finer mesh, filmed as footage: what the
             // model's own discretisation leaves unexplained.
             const cloth::SwatchRun nominal = run_scenario(t, apply_cloth_effects(trial, m_base, fit.swatch, {}), threads);
-            if (video::usable_frames(nominal) >= static_cast<int>(trial.frames.size())) {
-                const video::ClothTrial as_footage = video::simulated_trial(
+            if (cloth_fit::usable_frames(nominal) >= static_cast<int>(trial.frames.size())) {
+                const cloth_fit::ClothTrial as_footage = cloth_fit::simulated_trial(
                     trial, nominal, fit.metric.silhouette_term == video::SilhouetteTerm::edge_distance);
                 cloth::SwatchOptions finer = fit.swatch;
                 finer.rows += m_settings.floor_resolution_step;
                 finer.cols += m_settings.floor_resolution_step;
                 finer.simulation.threads = threads;
-                video::ClothFitSettings finer_fit = fit;
+                cloth_fit::ClothFitSettings finer_fit = fit;
                 finer_fit.swatch = finer;
-                const Eigen::VectorXd start = video::matching_equilibrium(trial, m_base, finer_fit);
+                const Eigen::VectorXd start = cloth_fit::matching_equilibrium(trial, m_base, finer_fit);
                 if (start.size() > 0) finer.initial_positions = start;
                 const cloth::SwatchRun fine = cloth::simulate_swatch(trial.experiment, m_base, finer);
-                const std::vector<video::FrameError> errors = video::compare_run(as_footage, fine, fit.metric);
+                const std::vector<video::FrameError> errors = cloth_fit::compare_run(as_footage, fine, fit.metric);
                 for (std::size_t k = 0; k < floor.size() && k < errors.size(); ++k) floor[k] = std::max(floor[k], errors[k].total);
             }
         }
@@ -240,13 +240,13 @@ ClothGapModel::ClothGapModel(std::vector<video::ClothTrial> trials, cloth::Cloth
 
 std::vector<std::string> ClothGapModel::trial_names() const {
     std::vector<std::string> names;
-    for (const video::ClothTrial& t : m_trials) names.push_back(t.name);
+    for (const cloth_fit::ClothTrial& t : m_trials) names.push_back(t.name);
     return names;
 }
 
 std::vector<std::string> ClothGapModel::candidate_effects() const {
     std::vector<std::string> names;
-    const bool waving = std::any_of(m_trials.begin(), m_trials.end(), [](const video::ClothTrial& t) { return !t.is_static; });
+    const bool waving = std::any_of(m_trials.begin(), m_trials.end(), [](const cloth_fit::ClothTrial& t) { return !t.is_static; });
     for (const Effect& e : effect_catalogue()) {
         if (e.domain == EffectDomain::rigid) continue;
         if (e.name == "drag_nonlinear" && m_base.drag_normal_kg_per_m3 > 0.0) continue;  // already modelled
@@ -273,15 +273,15 @@ cloth::SwatchRun ClothGapModel::run_scenario(const ClothScenario& scenario, cons
 std::optional<DiscretisationControl> ClothGapModel::discretisation_control(const std::vector<BaseParameterChange>& base) const {
     if (m_settings.control_resolution_step <= 0) return std::nullopt;
     cloth::ClothMaterial material = m_base;
-    for (const BaseParameterChange& change : base) video::set_material_parameter(material, change.key, change.after);
-    video::ClothFitSettings finer = m_settings.fit;
+    for (const BaseParameterChange& change : base) cloth_fit::set_material_parameter(material, change.key, change.after);
+    cloth_fit::ClothFitSettings finer = m_settings.fit;
     finer.base = material;
     finer.swatch.rows += m_settings.control_resolution_step;
     finer.swatch.cols += m_settings.control_resolution_step;
     finer.swatch.simulation.threads = std::max(1, m_settings.threads);
     // The finer mesh's own equilibrium (the model's warm starts are its mesh's).
     std::vector<Eigen::VectorXd> starts;
-    for (const video::ClothTrial& trial : m_trials) starts.push_back(video::matching_equilibrium(trial, material, finer));
+    for (const cloth_fit::ClothTrial& trial : m_trials) starts.push_back(cloth_fit::matching_equilibrium(trial, material, finer));
     DiscretisationControl control;
     control.description = "a " + std::to_string(finer.swatch.rows) + "x" + std::to_string(finer.swatch.cols) + " mesh";
     control.residuals = evaluate_on(material, {}, finer.swatch, starts);
@@ -290,7 +290,7 @@ std::optional<DiscretisationControl> ClothGapModel::discretisation_control(const
 
 Residuals ClothGapModel::evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>& base) const {
     cloth::ClothMaterial material = m_base;
-    for (const BaseParameterChange& change : base) video::set_material_parameter(material, change.key, change.after);
+    for (const BaseParameterChange& change : base) cloth_fit::set_material_parameter(material, change.key, change.after);
     return evaluate_material(material, effects);
 }
 
@@ -307,10 +307,10 @@ Residuals ClothGapModel::evaluate_on(const cloth::ClothMaterial& material, const
     const int workers = std::min<int>(threads, static_cast<int>(m_trials.size()));
     const int per_simulation = std::max(1, threads / std::max(1, workers));
     auto one = [&](std::size_t t) {
-        const video::ClothTrial& trial = m_trials[t];
+        const cloth_fit::ClothTrial& trial = m_trials[t];
         const ClothScenario scenario = apply_cloth_effects(trial, material, swatch, effects);
         const cloth::SwatchRun run = run_scenario(scenario, t < warm_starts.size() ? warm_starts[t] : Eigen::VectorXd(), per_simulation);
-        const int usable = video::usable_frames(run);
+        const int usable = cloth_fit::usable_frames(run);
         if (!run.simulation.report.ok()) failures[t] = trial.name + ": " + run.simulation.report.reason;
         video::StripeRenderer renderer(scenario.camera, trial.projector);
         video::AngleMapper mapper(trial.angle_map);
@@ -334,7 +334,7 @@ Residuals ClothGapModel::evaluate_on(const cloth::ClothMaterial& material, const
                 const double sigma = trial.angle_map.blur_sigma_px;
                 r.observations = std::max(1.0, static_cast<double>(fe.overlap_px) / (std::numbers::pi * 4.0 * sigma * sigma));
             } else {
-                r.error = video::missing_frame_error(reference, m_settings.fit.metric);
+                r.error = cloth_fit::missing_frame_error(reference, m_settings.fit.metric);
             }
             per_trial[t].push_back(r);
         }
@@ -357,13 +357,13 @@ Residuals ClothGapModel::evaluate_on(const cloth::ClothMaterial& material, const
 
 namespace {
 
-const video::FittedParameter* waving_range(const std::string& key) {
-    static const std::vector<video::FittedParameter> table = [] {
-        std::vector<video::FittedParameter> t = video::waving_test_parameters();
+const cloth_fit::FittedParameter* waving_range(const std::string& key) {
+    static const std::vector<cloth_fit::FittedParameter> table = [] {
+        std::vector<cloth_fit::FittedParameter> t = cloth_fit::waving_test_parameters();
         t.push_back({"drag_linear_normal_kg_per_m2_s", 0.01, 10.0, true});
         return t;
     }();
-    for (const video::FittedParameter& p : table)
+    for (const cloth_fit::FittedParameter& p : table)
         if (p.key == key) return &p;
     return nullptr;
 }
@@ -383,8 +383,8 @@ RefitResult ClothGapModel::refit(const EffectValues& start, int max_evaluations,
     }
     std::vector<std::string> base_keys;
     for (const std::string& key : m_settings.refit_base) {
-        const video::FittedParameter* range = waving_range(key);
-        const double value = video::material_parameter(m_base, key);
+        const cloth_fit::FittedParameter* range = waving_range(key);
+        const double value = cloth_fit::material_parameter(m_base, key);
         if (!range || !(value > 0.0)) continue;  // a term the base does not use stays off
         base_keys.push_back(key);
         parameters.push_back({"base." + key, std::min(range->lower, value), std::max(range->upper, value), true});
@@ -398,7 +398,7 @@ RefitResult ClothGapModel::refit(const EffectValues& start, int max_evaluations,
             i += count;
         }
         material = m_base;
-        for (const std::string& key : base_keys) video::set_material_parameter(material, key, values(i++));
+        for (const std::string& key : base_keys) cloth_fit::set_material_parameter(material, key, values(i++));
     };
     Eigen::VectorXd start_values(space.size());
     {
@@ -408,7 +408,7 @@ RefitResult ClothGapModel::refit(const EffectValues& start, int max_evaluations,
             i += count;
         }
         for (const std::string& key : base_keys) {
-            double value = video::material_parameter(m_base, key);
+            double value = cloth_fit::material_parameter(m_base, key);
             for (const BaseParameterChange& c : base_start)
                 if (c.key == key) value = c.after;
             start_values(i++) = value;
@@ -433,7 +433,7 @@ RefitResult ClothGapModel::refit(const EffectValues& start, int max_evaluations,
     cloth::ClothMaterial material;
     unpack(result.best_values, out.effects, material);
     for (const std::string& key : base_keys)
-        out.base.push_back({key, video::material_parameter(m_base, key), video::material_parameter(material, key)});
+        out.base.push_back({key, cloth_fit::material_parameter(m_base, key), cloth_fit::material_parameter(material, key)});
     out.residuals = evaluate_material(material, out.effects);
     out.evaluations = result.evaluations + 1;
     return out;
@@ -442,7 +442,7 @@ RefitResult ClothGapModel::refit(const EffectValues& start, int max_evaluations,
 std::vector<RegionMap> ClothGapModel::localise(const EffectValues& effects) const {
     constexpr int kImageCellPx = 20;
     constexpr int kUvCells = 12;
-    const video::ClothTrial& first = m_trials.front();
+    const cloth_fit::ClothTrial& first = m_trials.front();
     const int width = first.camera.width, height = first.camera.height;
     RegionMap image{"image", "E_k per pixel, summed over frames", (height + kImageCellPx - 1) / kImageCellPx,
                     (width + kImageCellPx - 1) / kImageCellPx, {}};
@@ -450,11 +450,11 @@ std::vector<RegionMap> ClothGapModel::localise(const EffectValues& effects) cons
     RegionMap uv{"swatch uv", "mean E_k per pixel near the surface point (row 0 at v = 0)", kUvCells, kUvCells, {}};
     std::vector<double> uv_sum(static_cast<std::size_t>(kUvCells * kUvCells), 0.0), uv_count(uv_sum.size(), 0.0);
     for (std::size_t t = 0; t < m_trials.size(); ++t) {
-        const video::ClothTrial& trial = m_trials[t];
+        const cloth_fit::ClothTrial& trial = m_trials[t];
         if (trial.camera.width != width || trial.camera.height != height) continue;  // one image grid per map
         const ClothScenario scenario = apply_cloth_effects(trial, m_base, m_settings.fit.swatch, effects);
         const cloth::SwatchRun run = run_scenario(t, scenario, std::max(1, m_settings.threads));
-        const int usable = video::usable_frames(run);
+        const int usable = cloth_fit::usable_frames(run);
         video::StripeRenderer renderer(scenario.camera, trial.projector);
         video::AngleMapper mapper(trial.angle_map);
         video::AngleMap angles;

@@ -7,7 +7,7 @@
 #include "flowvid/gap/rigid_model.hpp"
 #include "flowvid/rigid/fit_file.hpp"
 #include "flowvid/threads.hpp"
-#include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/cloth_fit/cloth_fit.hpp"
 
 #include <cmath>
 #include <string>
@@ -25,12 +25,12 @@ ClothGapRequest::ClothGapRequest() {
 OpenedGapModel open_cloth_model(const ClothGapRequest& request) {
     OpenedGapModel out;
     const formats::FabricPreset preset = cloth::read_preset_for_simulation(request.preset_path, &out.warnings);
-    video::TrialLoadSettings load;
+    cloth_fit::TrialLoadSettings load;
     load.waving_frames = request.frames;
     load.full_weight_frames = request.frames;  // every frame counts; the floors do the weighting
-    std::vector<video::ClothTrial> trials;
+    std::vector<cloth_fit::ClothTrial> trials;
     for (const std::string& path : request.capture_paths)
-        trials.push_back(video::load_trial(
+        trials.push_back(cloth_fit::load_trial(
             formats::read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid diagnose"), load));
     ClothGapSettings settings;
     settings.fit.swatch = request.swatch;
@@ -40,7 +40,7 @@ OpenedGapModel open_cloth_model(const ClothGapRequest& request) {
     settings.floor_resolution_step = request.floor_resolution_step;
     settings.control_resolution_step = request.control_resolution_step;
     if (request.floor == ClothFloorKind::chaos) {  // the model's own steps, a 0.5 mm start jitter
-        video::FloorSettings chaos;
+        cloth_fit::FloorSettings chaos;
         chaos.members = settings.floor.members;
         chaos.jitter_m = 5e-4;
         settings.floor = chaos;

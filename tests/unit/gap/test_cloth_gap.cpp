@@ -46,20 +46,20 @@ ClothGapSettings small_settings() {
 // A trial of the Blender waving capture's experiment whose "footage" is this
 // project's simulation of `material` with `effects` (10x10 mesh, same
 // camera), so that the only gap is the effect.
-video::ClothTrial synthetic_trial(const EffectValues& effects, const ClothGapSettings& settings) {
+cloth_fit::ClothTrial synthetic_trial(const EffectValues& effects, const ClothGapSettings& settings) {
     const formats::Capture capture = formats::read_capture(shared_path("captures/cloth-cotton-waving-1"));
-    video::TrialLoadSettings load;
+    cloth_fit::TrialLoadSettings load;
     load.waving_frames = kFrames;
     load.full_weight_frames = kFrames;
-    video::ClothTrial trial = video::load_trial(capture, load);
-    video::ClothFitSettings fit = settings.fit;
+    cloth_fit::ClothTrial trial = cloth_fit::load_trial(capture, load);
+    cloth_fit::ClothFitSettings fit = settings.fit;
     fit.base = cotton();
     const ClothScenario scenario = apply_cloth_effects(trial, cotton(), fit.swatch, effects);
     cloth::SwatchOptions options = scenario.options;
-    const Eigen::VectorXd start = video::matching_equilibrium(trial, cotton(), fit);
+    const Eigen::VectorXd start = cloth_fit::matching_equilibrium(trial, cotton(), fit);
     if (start.size() > 0) options.initial_positions = start;
     const cloth::SwatchRun run = cloth::simulate_swatch(scenario.experiment, scenario.material, options);
-    return video::simulated_trial(trial, run, false);
+    return cloth_fit::simulated_trial(trial, run, false);
 }
 
 TEST(ClothGap, NeutralEffectsReproduceTheBaseModelExactly) {
@@ -90,7 +90,7 @@ TEST(ClothGap, NeutralEffectsReproduceTheBaseModelExactly) {
 TEST(ClothGap, PinLagShiftsThePinsByTheLag) {
     if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
     const formats::Capture capture = formats::read_capture(shared_path("captures/cloth-cotton-waving-1"));
-    video::ClothTrial trial;
+    cloth_fit::ClothTrial trial;
     trial.experiment = cloth::experiment_from_capture(capture);
     trial.camera = *capture.camera;
     const double fps = trial.experiment.fps;
@@ -110,7 +110,7 @@ TEST(ClothGap, PinLagShiftsThePinsByTheLag) {
 TEST(ClothGap, CameraRollRotatesTheImageAboutThePrincipalPoint) {
     if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
     const formats::Capture capture = formats::read_capture(shared_path("captures/cloth-cotton-waving-1"));
-    video::ClothTrial trial;
+    cloth_fit::ClothTrial trial;
     trial.experiment = cloth::experiment_from_capture(capture);
     trial.camera = *capture.camera;
     const double roll = 0.05;
@@ -128,7 +128,7 @@ TEST(ClothGap, CameraRollRotatesTheImageAboutThePrincipalPoint) {
 TEST(ClothGap, MotionBlurAndRollingShutterOfAStillSwatchChangeNothing) {
     if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
     const formats::Capture capture = formats::read_capture(shared_path("captures/cloth-cotton-waving-1"));
-    video::ClothTrial trial;
+    cloth_fit::ClothTrial trial;
     trial.experiment = cloth::experiment_from_capture(capture);
     trial.experiment.frame_count = 3;
     for (cloth::PinTrajectory& pin : trial.experiment.pins) pin.positions_m.assign(3, pin.positions_m.front());
@@ -191,7 +191,7 @@ ClothGapSettings finer_footage_settings() {
 
 // The share of the held-out gap that the true effect closes in a model on a
 // coarser mesh than the footage's.
-double true_effect_closes(const video::ClothTrial& footage, const EffectValues& truth, const ClothGapSettings& settings) {
+double true_effect_closes(const cloth_fit::ClothTrial& footage, const EffectValues& truth, const ClothGapSettings& settings) {
     const ClothGapModel model({footage}, cotton(), settings);
     return held_out_gap_closed(model.evaluate({}), model.evaluate(truth));
 }
@@ -203,7 +203,7 @@ TEST(ClothGap, TheDiagnosisMetricLetsTheTrueEffectCloseMoreOfAFinerMeshGap) {
     if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
     const ClothGapSettings fine = finer_footage_settings();
     const EffectValues truth = {{"pin_lag", Eigen::VectorXd::Constant(1, 0.1)}};
-    const video::ClothTrial footage = synthetic_trial(truth, fine);
+    const cloth_fit::ClothTrial footage = synthetic_trial(truth, fine);
 
     ClothGapSettings as_the_fit = small_settings();
     as_the_fit.fit.metric.alpha = video::AngleMapMetricSettings{}.alpha;  // the fit's (thesis) weight
@@ -222,7 +222,7 @@ TEST(ClothGap, TheDiscretisationControlClosesAFinerMeshsGapButNotAnEffects) {
     const ClothGapSettings fine = finer_footage_settings();
     ClothGapSettings settings = small_settings();
     settings.control_resolution_step = 5;
-    auto control_closes = [&](const video::ClothTrial& footage) {
+    auto control_closes = [&](const cloth_fit::ClothTrial& footage) {
         const ClothGapModel model({footage}, cotton(), settings);
         const std::optional<DiscretisationControl> control = model.discretisation_control({});
         EXPECT_TRUE(control);

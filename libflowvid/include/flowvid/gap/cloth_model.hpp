@@ -12,8 +12,8 @@
 // difference, so that neither chaos nor discretisation counts as a gap.
 
 #include "flowvid/gap/model.hpp"
-#include "flowvid/video/cloth_eval.hpp"
-#include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/cloth_fit/cloth_eval.hpp"
+#include "flowvid/cloth_fit/cloth_fit.hpp"
 #include "flowvid/video/stripe_render.hpp"
 
 #include <memory>
@@ -33,20 +33,20 @@ struct ClothGapSettings {
     ClothGapSettings() { fit.metric.alpha = kDiagnosisSilhouetteWeight; }
 
     // Swatch options (resolution, integrator), metric; fit.base is ignored.
-    video::ClothFitSettings fit;
+    cloth_fit::ClothFitSettings fit;
     // The floor as eval cloth reports it: how repeatable the experiment is
     // (pixel-footprint start jitter, backward Euler at 20 substeps a frame,
     // which matches Blender's trial-to-trial spread: docs/cloth_fitting.md).
     // The chaos of the model's own few substeps is far smaller than that,
     // and counting against it made every discretisation difference a gap.
-    video::FloorSettings floor = video::reported_floor(4);
+    cloth_fit::FloorSettings floor = cloth_fit::reported_floor(4);
     int floor_resolution_step = 0; // a floor member on a mesh this much finer (0: none; it swamps the floor: docs/gap.md)
     // The discretisation control (GapModel::discretisation_control): the base
     // on a mesh this many rows and columns finer (0: none).
     int control_resolution_step = 8;
     int threads = 1;
     // Base parameters a refit moves with the effect (keys of
-    // video::set_material_parameter; ranges from the waving test's).
+    // cloth_fit::set_material_parameter; ranges from the waving test's).
     std::vector<std::string> refit_base = {"bend_stiffness_N_m", "stretch_stiffness_N_per_m", "drag_normal_kg_per_m3"};
 };
 
@@ -59,7 +59,7 @@ struct ClothScenario {
     double readout_s = 0.0;   // rolling shutter: bottom row minus top row exposure time
     double exposure_s = 0.0;  // motion blur: shutter open time, centred on the frame time
 };
-ClothScenario apply_cloth_effects(const video::ClothTrial& trial, const cloth::ClothMaterial& material,
+ClothScenario apply_cloth_effects(const cloth_fit::ClothTrial& trial, const cloth::ClothMaterial& material,
                                   const cloth::SwatchOptions& options, const EffectValues& effects);
 
 // The frame at `index` (0-based) of a run as the scenario's camera films it:
@@ -77,7 +77,7 @@ class ClothGapModel : public GapModel {
 public:
     // `base`: the fitted fabric (a preset's material). Computes the floors
     // (one ensemble per trial) and the equilibrium warm starts up front.
-    ClothGapModel(std::vector<video::ClothTrial> trials, cloth::ClothMaterial base, ClothGapSettings settings);
+    ClothGapModel(std::vector<cloth_fit::ClothTrial> trials, cloth::ClothMaterial base, ClothGapSettings settings);
 
     std::string kind() const override { return "cloth"; }
     std::vector<std::string> trial_names() const override;
@@ -99,7 +99,7 @@ private:
     cloth::SwatchRun run_scenario(std::size_t trial, const ClothScenario& scenario, int threads) const;
     cloth::SwatchRun run_scenario(const ClothScenario& scenario, const Eigen::VectorXd& warm_start, int threads) const;
 
-    std::vector<video::ClothTrial> m_trials;
+    std::vector<cloth_fit::ClothTrial> m_trials;
     cloth::ClothMaterial m_base;
     ClothGapSettings m_settings;
     std::vector<Eigen::VectorXd> m_warm_starts;        // per trial

@@ -1,4 +1,4 @@
-#include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/cloth_fit/cloth_fit.hpp"
 
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/thread_pool.hpp"
@@ -14,7 +14,7 @@
 #include <numbers>
 #include <stdexcept>
 
-namespace flowvid::video {
+namespace flowvid::cloth_fit {
 
 namespace {
 
@@ -125,7 +125,7 @@ int compared_frame_count(const ClothTrial& trial, const TrialLoadSettings& setti
 
 std::vector<double> frame_weights(const ClothTrial& trial, const TrialLoadSettings& settings, int count) {
     return trial.is_static ? std::vector<double>(static_cast<std::size_t>(count), settings.static_weight)
-                           : decaying_frame_weights(count, settings.full_weight_frames, settings.half_life_frames);
+                           : video::decaying_frame_weights(count, settings.full_weight_frames, settings.half_life_frames);
 }
 
 // A tracks trial: the capture's measured 3D points instead of its footage.
@@ -152,7 +152,7 @@ ClothTrial load_tracks_trial(const formats::Capture& capture, const TrialLoadSet
     const double diagonal_mm = 1000.0 * std::hypot(trial.experiment.width_m, trial.experiment.height_m);
     reference.missing_frame_error_mm2 = diagonal_mm * diagonal_mm;
     for (int k = 0; k < count; ++k) {
-        ReferenceFrame frame;
+        video::ReferenceFrame frame;
         frame.number = k + 1;
         frame.weight = weights[static_cast<std::size_t>(k)];
         trial.frames.push_back(std::move(frame));
@@ -166,7 +166,7 @@ ClothTrial load_tracks_trial(const formats::Capture& capture, const TrialLoadSet
 }
 
 // What every trial compared with footage shares: name, test, experiment and calibration.
-ClothTrial footage_trial(const formats::Capture& capture, const ClothFootage& footage) {
+ClothTrial footage_trial(const formats::Capture& capture, const video::ClothFootage& footage) {
     ClothTrial trial;
     trial.name = capture.folder;
     trial.is_static = capture.kind == "cloth.static";
@@ -179,21 +179,21 @@ ClothTrial footage_trial(const formats::Capture& capture, const ClothFootage& fo
 // A scan trial: the footage's frames scanned in order (each references its
 // stripe periods by the one before), sampled every stride pixels.
 ClothTrial load_scan_trial(const formats::Capture& capture, const TrialLoadSettings& settings) {
-    ClothFootage footage(capture, settings.segmentation);
+    video::ClothFootage footage(capture, settings.segmentation);
     ClothTrial trial = footage_trial(capture, footage);
     const int count = compared_frame_count(trial, settings, footage.count());
     const std::vector<double> weights = frame_weights(trial, settings, count);
-    StripeScanner scanner = scanner_for(capture);
+    video::StripeScanner scanner = video::scanner_for(capture);
     ScanReference reference;
     reference.cap_m = settings.scan_cap_m;
     reference.period_units = trial.projector.pattern.period_px;
     const int stride = std::max(1, settings.scan_stride_px);
     reference.stride_px = stride;
     reference.outside_band = settings.scan_outside;
-    StripeScan previous;
+    video::StripeScan previous;
     for (int k = 0; k < count; ++k) {
-        const ClothFrame frame = footage.frame(footage.first() + k);
-        StripeScan scan = scanner.scan(frame.gray, frame.silhouette, pin_positions_at(capture, k + 1),
+        const video::ClothFrame frame = footage.frame(footage.first() + k);
+        video::StripeScan scan = scanner.scan(frame.gray, frame.silhouette, video::pin_positions_at(capture, k + 1),
                                        previous.width > 0 ? &previous : nullptr);
         std::vector<ScanReference::Sample> samples;
         for (int y = 0; y < scan.height; y += stride)
@@ -214,7 +214,7 @@ ClothTrial load_scan_trial(const formats::Capture& capture, const TrialLoadSetti
             reference.height = scan.height;
             reference.first_frame_points_m = scan.points_m;
         }
-        ReferenceFrame compared;
+        video::ReferenceFrame compared;
         compared.number = k + 1;
         compared.weight = weights[static_cast<std::size_t>(k)];
         trial.frames.push_back(std::move(compared));
@@ -227,7 +227,7 @@ ClothTrial load_scan_trial(const formats::Capture& capture, const TrialLoadSetti
 
 }  // namespace
 
-std::vector<double> scan_residuals_m(const ScanReference& scan, std::size_t frame, const StripeImage& rendered) {
+std::vector<double> scan_residuals_m(const ScanReference& scan, std::size_t frame, const video::StripeImage& rendered) {
     std::vector<double> r;
     r.reserve(scan.samples[frame].size());
     for (const ScanReference::Sample& s : scan.samples[frame]) {
@@ -281,28 +281,28 @@ double track_frame_error_mm2(const Eigen::MatrixX3d& measured_m, const Eigen::Ma
 
 double tracks_rms_mm(const ClothTrial& trial, double weighted_error) {
     double weights = 0.0;
-    for (const ReferenceFrame& f : trial.frames) weights += f.weight;
+    for (const video::ReferenceFrame& f : trial.frames) weights += f.weight;
     return weights > 0.0 ? std::sqrt(std::max(0.0, weighted_error) / weights) : 0.0;
 }
 
 ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& settings) {
     if (settings.target == FitTarget::tracks) return load_tracks_trial(capture, settings);
     if (settings.target == FitTarget::scan) return load_scan_trial(capture, settings);
-    ClothFootage footage(capture, settings.segmentation);
+    video::ClothFootage footage(capture, settings.segmentation);
     ClothTrial trial = footage_trial(capture, footage);
-    const double period = settings.stripe_period_px.value_or(expected_stripe_period_px(capture));
-    trial.angle_map = AngleMapSettings::for_stripe_period(period);
+    const double period = settings.stripe_period_px.value_or(video::expected_stripe_period_px(capture));
+    trial.angle_map = video::AngleMapSettings::for_stripe_period(period);
     const int count = compared_frame_count(trial, settings, footage.count());
     const std::vector<double> weights = frame_weights(trial, settings, count);
-    AngleMapper mapper(trial.angle_map);
+    video::AngleMapper mapper(trial.angle_map);
     for (int k = 0; k < count; ++k) {
-        const ClothFrame frame = footage.frame(footage.first() + k);
-        ReferenceFrame reference;
+        const video::ClothFrame frame = footage.frame(footage.first() + k);
+        video::ReferenceFrame reference;
         reference.number = k + 1;
         reference.weight = weights[static_cast<std::size_t>(k)];
         reference.silhouette = frame.silhouette;
         mapper.compute(frame.gray, frame.silhouette, reference.angles);
-        if (settings.silhouette_term == SilhouetteTerm::edge_distance) prepare_reference(reference);
+        if (settings.silhouette_term == video::SilhouetteTerm::edge_distance) video::prepare_reference(reference);
         trial.frames.push_back(std::move(reference));
     }
     truncate_experiment(trial, count);
@@ -319,14 +319,14 @@ int usable_frames(const cloth::SwatchRun& run) {
 
 namespace {
 
-std::vector<FrameError> compare_tracks(const ClothTrial& trial, const cloth::SwatchRun& run) {
+std::vector<video::FrameError> compare_tracks(const ClothTrial& trial, const cloth::SwatchRun& run) {
     const TrackReference& tracks = *trial.tracks;
     const int usable = usable_frames(run);
     const cloth::UvSampler sampler(run.swatch.mesh, tracks.rows, tracks.cols);
-    std::vector<FrameError> errors;
+    std::vector<video::FrameError> errors;
     for (std::size_t k = 0; k < trial.frames.size(); ++k) {
         const int index = trial.frames[k].number - 1;
-        FrameError fe;
+        video::FrameError fe;
         fe.total = index >= 0 && index < usable
                        ? track_frame_error_mm2(tracks.positions_m[k], sampler.sample(run.simulation.frames[static_cast<std::size_t>(index)]))
                        : tracks.missing_frame_error_mm2;
@@ -336,23 +336,23 @@ std::vector<FrameError> compare_tracks(const ClothTrial& trial, const cloth::Swa
 }
 
 // A renderer of the simulation's projector coordinates for a scan trial.
-StripeRenderer scan_renderer(const ClothTrial& trial) {
-    StripeRenderSettings settings;
+video::StripeRenderer scan_renderer(const ClothTrial& trial) {
+    video::StripeRenderSettings settings;
     settings.projector_coordinates = true;
-    return StripeRenderer(trial.camera, trial.projector, settings);
+    return video::StripeRenderer(trial.camera, trial.projector, settings);
 }
 
-std::vector<FrameError> compare_scan(const ClothTrial& trial, const cloth::SwatchRun& run) {
+std::vector<video::FrameError> compare_scan(const ClothTrial& trial, const cloth::SwatchRun& run) {
     const ScanReference& scan = *trial.scan;
     const int usable = usable_frames(run);
-    StripeRenderer renderer = scan_renderer(trial);
-    StripeImage rendered;
-    std::vector<FrameError> errors;
+    video::StripeRenderer renderer = scan_renderer(trial);
+    video::StripeImage rendered;
+    std::vector<video::FrameError> errors;
     for (std::size_t k = 0; k < trial.frames.size(); ++k) {
         const int index = trial.frames[k].number - 1;
-        FrameError fe;
+        video::FrameError fe;
         if (index >= 0 && index < usable) {
-            renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
+            renderer.render(video::vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
                             run.swatch.mesh.triangles, rendered);
             const std::vector<double> r = scan_residuals_m(scan, k, rendered);
             double sum = 0.0;
@@ -369,25 +369,25 @@ std::vector<FrameError> compare_scan(const ClothTrial& trial, const cloth::Swatc
 
 }  // namespace
 
-std::vector<FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
-                                             const AngleMapMetricSettings& metric) {
+std::vector<video::FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
+                                             const video::AngleMapMetricSettings& metric) {
     if (trial.tracks) return compare_tracks(trial, run);
     if (trial.frames.empty()) return {};  // nothing compared (no camera needed)
     if (trial.scan) return compare_scan(trial, run);
     const int usable = usable_frames(run);
-    StripeRenderer renderer(trial.camera, trial.projector);
-    AngleMapper mapper(trial.angle_map);
-    StripeImage rendered;
-    AngleMap angles;
-    std::vector<FrameError> errors;
-    for (const ReferenceFrame& reference : trial.frames) {
+    video::StripeRenderer renderer(trial.camera, trial.projector);
+    video::AngleMapper mapper(trial.angle_map);
+    video::StripeImage rendered;
+    video::AngleMap angles;
+    std::vector<video::FrameError> errors;
+    for (const video::ReferenceFrame& reference : trial.frames) {
         const int index = reference.number - 1;
-        FrameError fe;
+        video::FrameError fe;
         if (index >= 0 && index < usable) {
-            renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
+            renderer.render(video::vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
                             run.swatch.mesh.triangles, rendered);
             mapper.compute(rendered.image, rendered.silhouette, angles);
-            fe = angle_map_frame_error(reference, angles, rendered.silhouette, metric);
+            fe = video::angle_map_frame_error(reference, angles, rendered.silhouette, metric);
         } else {
             fe.total = missing_frame_error(reference, metric);
         }
@@ -412,13 +412,13 @@ ClothTrial simulated_trial(const ClothTrial& trial, const cloth::SwatchRun& run,
     if (trial.scan) {
         // The simulation's own projector coordinates at the samples (NaN where it does not cover).
         const int usable = usable_frames(run);
-        StripeRenderer renderer = scan_renderer(trial);
-        StripeImage rendered;
+        video::StripeRenderer renderer = scan_renderer(trial);
+        video::StripeImage rendered;
         for (std::size_t k = 0; k < out.frames.size(); ++k) {
             const int index = out.frames[k].number - 1;
             if (index < 0 || index >= usable)
                 throw std::invalid_argument("simulated_trial: the run has no frame " + std::to_string(out.frames[k].number));
-            renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
+            renderer.render(video::vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
                             run.swatch.mesh.triangles, rendered);
             for (ScanReference::Sample& sample : out.scan->samples[k])
                 sample.projector_coordinate = rendered.projector_coordinate.at(sample.x, sample.y);
@@ -427,19 +427,19 @@ ClothTrial simulated_trial(const ClothTrial& trial, const cloth::SwatchRun& run,
         }
         return out;
     }
-    StripeRenderer renderer(trial.camera, trial.projector);
-    AngleMapper mapper(trial.angle_map);
-    StripeImage rendered;
+    video::StripeRenderer renderer(trial.camera, trial.projector);
+    video::AngleMapper mapper(trial.angle_map);
+    video::StripeImage rendered;
     const int usable = usable_frames(run);
-    for (ReferenceFrame& reference : out.frames) {
+    for (video::ReferenceFrame& reference : out.frames) {
         const int index = reference.number - 1;
         if (index < 0 || index >= usable) throw std::invalid_argument("simulated_trial: the run has no frame " + std::to_string(reference.number));
-        renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
+        renderer.render(video::vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]),
                         run.swatch.mesh.triangles, rendered);
         mapper.compute(rendered.image, rendered.silhouette, reference.angles);
         reference.silhouette = rendered.silhouette;
         reference.edge_distance = {};
-        if (edge_distance) prepare_reference(reference);
+        if (edge_distance) video::prepare_reference(reference);
     }
     return out;
 }
@@ -615,7 +615,7 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
         if (!run.equilibrium.converged || run.simulation.frames.empty()) continue;
         if (index < bows) bow_equilibria[index] = run.simulation.frames.front();
         double error = 0.0;
-        for (const FrameError& e : compare_run(first_frame, run, settings.metric)) error += e.total;
+        for (const video::FrameError& e : compare_run(first_frame, run, settings.metric)) error += e.total;
         if (!choose || candidates.size() == 1) error = 0.0;  // nothing to choose by
         if (error < best_error) {
             best_error = error;
@@ -626,11 +626,11 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
     return best;
 }
 
-double missing_frame_error(const ReferenceFrame& reference, const AngleMapMetricSettings& settings) {
+double missing_frame_error(const video::ReferenceFrame& reference, const video::AngleMapMetricSettings& settings) {
     const double quarter_turn = 0.5 * std::numbers::pi;
     const double fold = static_cast<double>(reference.angles.mask_count()) * quarter_turn * quarter_turn;
     double silhouette = 0.0;
-    if (settings.silhouette_term == SilhouetteTerm::pixel_xor) {
+    if (settings.silhouette_term == video::SilhouetteTerm::pixel_xor) {
         silhouette = static_cast<double>(reference.silhouette.area_px());
     } else {
         const double far = static_cast<double>(reference.silhouette.width + reference.silhouette.height);
@@ -720,8 +720,8 @@ namespace {
 void append_scan_residuals(const ClothTrial& trial, const cloth::SwatchRun& run, std::vector<double>& out) {
     const ScanReference& scan = *trial.scan;
     const int usable = usable_frames(run);
-    StripeRenderer renderer = scan_renderer(trial);
-    StripeImage rendered;
+    video::StripeRenderer renderer = scan_renderer(trial);
+    video::StripeImage rendered;
     for (std::size_t k = 0; k < trial.frames.size(); ++k) {
         const long long measured = scan_measured_count(scan, k);
         if (measured == 0) continue;
@@ -734,7 +734,7 @@ void append_scan_residuals(const ClothTrial& trial, const cloth::SwatchRun& run,
             out.insert(out.end(), outside, 0.0);  // same length as a simulated frame's
             continue;
         }
-        renderer.render(vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]), run.swatch.mesh.triangles,
+        renderer.render(video::vertices_from_vector(run.simulation.frames[static_cast<std::size_t>(index)]), run.swatch.mesh.triangles,
                         rendered);
         const double scale = 1000.0 * std::sqrt(weight / static_cast<double>(measured));
         for (const double r : scan_residuals_m(scan, k, rendered)) out.push_back(scale * r);
@@ -829,7 +829,7 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
     prov.created_utc = stamp;
     for (const formats::Capture& c : captures)
         prov.captures.push_back({c.folder, c.capture_json_sha256, c.kind == "cloth.static" ? "static" : "waving"});
-    const AngleMapMetricSettings& metric = problem.settings().metric;
+    const video::AngleMapMetricSettings& metric = problem.settings().metric;
     if (problem.trials().front().tracks) {
         // E_k in mm^2: the mean squared distance of the seen track points.
         prov.metric = "tracks_mean_square_mm2";
@@ -842,7 +842,7 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
             prov.metric_weights["outside_max_px"] = scan->outside_band.max_px;
         }
     } else {
-        prov.metric = metric.silhouette_term == SilhouetteTerm::pixel_xor ? "angle_map+silhouette_xor"
+        prov.metric = metric.silhouette_term == video::SilhouetteTerm::pixel_xor ? "angle_map+silhouette_xor"
                                                                                      : "angle_map+silhouette_edge_distance";
         prov.metric_weights["alpha"] = metric.alpha;
         if (metric.planar_weight > 0.0) prov.metric_weights["planar_weight"] = metric.planar_weight;
@@ -859,4 +859,4 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
     return preset;
 }
 
-}  // namespace flowvid::video
+}  // namespace flowvid::cloth_fit

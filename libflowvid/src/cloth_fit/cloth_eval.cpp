@@ -1,4 +1,4 @@
-#include "flowvid/video/cloth_eval.hpp"
+#include "flowvid/cloth_fit/cloth_eval.hpp"
 
 #include "flowvid/random.hpp"
 #include "flowvid/thread_pool.hpp"
@@ -8,7 +8,7 @@
 #include <limits>
 #include <stdexcept>
 
-namespace flowvid::video {
+namespace flowvid::cloth_fit {
 
 std::vector<FrameWindow> standard_windows(int frame_count) {
     std::vector<FrameWindow> windows;
@@ -114,7 +114,7 @@ PredictabilityFloor floor_around(const ClothTrial& trial, const cloth::ClothMate
     out.jitter_m = floor.jitter_m ? *floor.jitter_m : pixel_footprint_m(trial.camera, nominal.simulation.frames.front());
     const int frames = usable_frames(nominal);
     int needed = 0;
-    for (const ReferenceFrame& reference : trial.frames) needed = std::max(needed, reference.number);
+    for (const video::ReferenceFrame& reference : trial.frames) needed = std::max(needed, reference.number);
     if (frames < needed)
         throw std::runtime_error("predictability floor of " + trial.name + ": the unperturbed run stopped at frame " +
                                  std::to_string(frames) + " of " + std::to_string(needed) + " (" +
@@ -124,12 +124,12 @@ PredictabilityFloor floor_around(const ClothTrial& trial, const cloth::ClothMate
         std::vector<Eigen::VectorXd>(nominal.simulation.frames.begin(), nominal.simulation.frames.begin() + frames),
         nominal.swatch.rows, nominal.swatch.cols);
     const ClothTrial as_footage =
-        simulated_trial(trial, nominal, settings.metric.silhouette_term == SilhouetteTerm::edge_distance);
+        simulated_trial(trial, nominal, settings.metric.silhouette_term == video::SilhouetteTerm::edge_distance);
 
     // Drawn up front so members do not depend on the thread count.
     const std::vector<FloorMember> drawn = draw_floor_members(material, floor);
     std::vector<std::vector<double>> squared(static_cast<std::size_t>(floor.members));
-    std::vector<std::vector<FrameError>> errors(static_cast<std::size_t>(floor.members));
+    std::vector<std::vector<video::FrameError>> errors(static_cast<std::size_t>(floor.members));
     ThreadPool pool(std::max(1, threads));
     pool.run(static_cast<std::size_t>(floor.members), [&](std::size_t m, int) {
         cloth::SwatchOptions options = settings.swatch;
@@ -243,4 +243,4 @@ std::vector<WindowSummary> summarize_windows(const TrialAssessment& a, const std
     return out;
 }
 
-}  // namespace flowvid::video
+}  // namespace flowvid::cloth_fit

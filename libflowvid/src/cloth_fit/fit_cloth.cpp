@@ -1,9 +1,9 @@
-#include "flowvid/video/fit_cloth.hpp"
+#include "flowvid/cloth_fit/fit_cloth.hpp"
 #include "flowvid/threads.hpp"
 
 #include "flowvid/optim/design.hpp"
 #include "flowvid/thread_pool.hpp"
-#include "flowvid/video/cloth_eval.hpp"
+#include "flowvid/cloth_fit/cloth_eval.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -14,7 +14,7 @@
 #include <stdexcept>
 #include <thread>
 
-namespace flowvid::video {
+namespace flowvid::cloth_fit {
 
 const char* drag_model_name(DragModel model) { return model == DragModel::linear ? "linear" : "nonlinear"; }
 
@@ -495,4 +495,4 @@ ClothFitOutcome finish_cloth_fit(const ClothFitRequest& request, const std::vect
     return outcome;
 }
 
-}  // namespace flowvid::video
+}  // namespace flowvid::cloth_fit

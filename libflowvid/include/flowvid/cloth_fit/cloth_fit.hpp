@@ -31,7 +31,7 @@
 #include <string_view>
 #include <vector>
 
-namespace flowvid::video {
+namespace flowvid::cloth_fit {
 
 // One fitted quantity: a fabric preset key ("bend_stiffness_N_m", ...; see
 // formats::fabric_parameter_table) or a tie of two of them:
@@ -155,11 +155,11 @@ struct ClothTrial {
     cloth::SwatchExperiment experiment;    // frame_count: the frames to simulate (>= the last compared)
     formats::CameraModel camera;
     formats::Projector projector;
-    AngleMapSettings angle_map;
+    video::AngleMapSettings angle_map;
     // Compared frames; `number` is 1-based from the experiment's first frame
     // (the equilibrium is 1), `weight` is w_k. A tracks trial keeps only
     // their numbers and weights here (no angle maps).
-    std::vector<ReferenceFrame> frames;
+    std::vector<video::ReferenceFrame> frames;
     // Set for a tracks trial: compared with these instead of the footage.
     std::optional<TrackReference> tracks;
     // Set for a scan trial: compared with the footage's scanned shape.
@@ -180,12 +180,12 @@ struct TrialLoadSettings {
     int full_weight_frames = 10;  // waving: frames after these count less ...
     double half_life_frames = 0;  // ... halving every this many frames (0: all count fully)
     double static_weight = 1.0;   // weight of each compared static-drape frame (a waving frame's full weight is 1)
-    SegmentationSettings segmentation;
+    video::SegmentationSettings segmentation;
     std::optional<double> stripe_period_px;  // default: expected_stripe_period_px(capture)
     int scan_stride_px = 2;       // scan fits: every this many pixels in x and y is a sample
     double scan_cap_m = 0.03;     // scan fits: ScanReference::cap_m
     ScanOutsideBand scan_outside;  // scan fits: where ScanReference::outside samples lie
-    SilhouetteTerm silhouette_term = SilhouetteTerm::pixel_xor;  // prepares edge distances when needed
+    video::SilhouetteTerm silhouette_term = video::SilhouetteTerm::pixel_xor;  // prepares edge distances when needed
 };
 
 // Reads a cloth capture's footage (or, for FitTarget::tracks, its tracks)
@@ -196,7 +196,7 @@ ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& 
 
 struct ClothFitSettings {
     cloth::SwatchOptions swatch;              // mesh resolution, integrator, equilibrium options
-    AngleMapMetricSettings metric;
+    video::AngleMapMetricSettings metric;
     cloth::ClothMaterial base;                // values of the parameters that are not fitted
     bool warm_start = true;                   // equilibria start from the base material's (computed once)
     // Hung cloth has several equilibria (the slack between the pins bows to
@@ -209,7 +209,7 @@ struct ClothFitSettings {
 struct TrialEvaluation {
     std::string name;
     double error = 0.0;                       // sum_k w_k E_k
-    std::vector<FrameError> frames;  // per compared frame (a missing frame: the largest error)
+    std::vector<video::FrameError> frames;  // per compared frame (a missing frame: the largest error)
     cloth::SimulationReport report;
     int simulated_frames = 0;                 // good frames (before a blow-up)
 };
@@ -290,8 +290,8 @@ int usable_frames(const cloth::SwatchRun& run);
 
 // E_k of each of the trial's compared frames (in order) for one simulation
 // run of it; a frame the run did not reach costs missing_frame_error.
-std::vector<FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
-                                             const AngleMapMetricSettings& metric);
+std::vector<video::FrameError> compare_run(const ClothTrial& trial, const cloth::SwatchRun& run,
+                                             const video::AngleMapMetricSettings& metric);
 
 // The trial with its reference frames replaced by a simulation's own renders
 // (same frames, weights, camera): a run as the "footage" another run is
@@ -307,7 +307,7 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
 
 // E_k when a simulation produced no frame k (it blew up): every masked pixel
 // off by pi/2 and the silhouette term as if the swatch were missing.
-double missing_frame_error(const ReferenceFrame& reference, const AngleMapMetricSettings& settings);
+double missing_frame_error(const video::ReferenceFrame& reference, const video::AngleMapMetricSettings& settings);
 
 // E_k of a tracks frame: the mean squared distance (mm^2) between the seen
 // points (finite rows of `measured_m`) and `simulated_m` (same grid); 0 when
@@ -322,9 +322,9 @@ double tracks_rms_mm(const ClothTrial& trial, double weighted_error);
 // with projector coordinates (StripeRenderSettings::projector_coordinates),
 // then of each of its outside pixels (the cap where the render covers it,
 // else 0); samples without a measured v_p are left out.
-std::vector<double> scan_residuals_m(const ScanReference& scan, std::size_t frame, const StripeImage& rendered);
+std::vector<double> scan_residuals_m(const ScanReference& scan, std::size_t frame, const video::StripeImage& rendered);
 
 // The scan samples of a frame with a measured v_p: what E_k divides by.
 long long scan_measured_count(const ScanReference& scan, std::size_t frame);
 
-}  // namespace flowvid::video
+}  // namespace flowvid::cloth_fit

@@ -12,7 +12,7 @@
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/optim/annealing.hpp"
 #include "flowvid/optim/least_squares.hpp"
-#include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/cloth_fit/cloth_fit.hpp"
 
 #include <atomic>
 #include <cstdint>
@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-namespace flowvid::video {
+namespace flowvid::cloth_fit {
 
 // Which drag law the fit uses: the thesis's nonlinear one (kN, kf, kT), or
 // linear drag only (kL on the normal, kT on the tangential velocity, like
@@ -204,4 +204,4 @@ ClothFitOutcome finish_cloth_fit(const ClothFitRequest& request, const std::vect
 // The trials of captures with the request's load settings (in order).
 std::vector<ClothTrial> load_trials(const std::vector<formats::Capture>& captures, const TrialLoadSettings& load);
 
-}  // namespace flowvid::video
+}  // namespace flowvid::cloth_fit

@@ -7,7 +7,7 @@
 // hanging start's equilibria, both against truth.
 
 #include "flowvid/cloth/swatch_output.hpp"
-#include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/cloth_fit/cloth_fit.hpp"
 #include "flowvid/video/stripe_render.hpp"
 #include "flowvid/video/stripe_scan.hpp"
 
@@ -21,6 +21,7 @@
 
 using namespace flowvid;
 using namespace flowvid::video;
+using namespace flowvid::cloth_fit;
 
 namespace {
 

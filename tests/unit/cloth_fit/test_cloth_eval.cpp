@@ -1,7 +1,7 @@
 // The predictability floor's ingredients: how members are drawn around a
 // fabric, its time windows, and the pixel footprint that sets the jitter.
 
-#include "flowvid/video/cloth_eval.hpp"
+#include "flowvid/cloth_fit/cloth_eval.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,6 +10,7 @@
 
 using namespace flowvid;
 using namespace flowvid::video;
+using namespace flowvid::cloth_fit;
 
 TEST(ClothFloor, MembersDrawParametersWithinTheirUncertaintyAndKeepTies) {
     cloth::ClothMaterial fabric;

@@ -6,8 +6,8 @@
 // the noise floor.
 
 #include "flowvid/optim/annealing.hpp"
-#include "flowvid/video/cloth_fit.hpp"
-#include "flowvid/video/fit_cloth.hpp"
+#include "flowvid/cloth_fit/cloth_fit.hpp"
+#include "flowvid/cloth_fit/fit_cloth.hpp"
 #include "flowvid/video/stripe_render.hpp"
 
 #include "test_support.hpp"
@@ -21,6 +21,7 @@
 
 using namespace flowvid;
 using namespace flowvid::video;
+using namespace flowvid::cloth_fit;
 
 namespace {
 

@@ -1,4 +1,4 @@
-#include "flowvid/video/fit_cloth_shards.hpp"
+#include "flowvid/cloth_fit/fit_cloth_shards.hpp"
 
 #include "flowvid/cloth/simulator.hpp"
 #include "flowvid/formats/json_fields.hpp"
@@ -9,11 +9,11 @@
 #include <initializer_list>
 #include <limits>
 
-namespace flowvid::video {
+namespace flowvid::cloth_fit {
 
 namespace {
 
-const char* metric_name(SilhouetteTerm term) { return term == SilhouetteTerm::edge_distance ? "edge" : "xor"; }
+const char* metric_name(video::SilhouetteTerm term) { return term == video::SilhouetteTerm::edge_distance ? "edge" : "xor"; }
 
 }  // namespace
 
@@ -31,8 +31,8 @@ ClothFitRequest cloth_fit_request_from_shard(const formats::FitShardFile& file) 
     };
     ClothFitRequest request;
     request.drag = one_of("drag", {"nonlinear", "linear"}, "nonlinear") == "linear" ? DragModel::linear : DragModel::nonlinear;
-    const SilhouetteTerm term =
-        one_of("metric", {"xor", "edge"}, "xor") == "edge" ? SilhouetteTerm::edge_distance : SilhouetteTerm::pixel_xor;
+    const video::SilhouetteTerm term =
+        one_of("metric", {"xor", "edge"}, "xor") == "edge" ? video::SilhouetteTerm::edge_distance : video::SilhouetteTerm::pixel_xor;
     request.problem.metric.silhouette_term = term;
     request.load.silhouette_term = term;
     // Shards older than tracks fits have no "fit-to" (footage), older than the search choice no "search" (annealing).
@@ -160,4 +160,4 @@ ClothMergeOutcome merge_cloth_fit_shards(const ClothMergeRequest& merge) {
     return out;
 }
 
-}  // namespace flowvid::video
+}  // namespace flowvid::cloth_fit

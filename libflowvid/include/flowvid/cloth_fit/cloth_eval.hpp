@@ -9,7 +9,7 @@
 
 #include "flowvid/cloth/swatch_output.hpp"
 #include "flowvid/formats/vertex_animation.hpp"
-#include "flowvid/video/cloth_fit.hpp"
+#include "flowvid/cloth_fit/cloth_fit.hpp"
 
 #include <cstdint>
 #include <map>
@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-namespace flowvid::video {
+namespace flowvid::cloth_fit {
 
 struct FrameWindow {
     int first = 1;  // 1-based capture frames, inclusive
@@ -97,7 +97,7 @@ struct TrialAssessment {
     bool is_static = false;
     cloth::SimulationReport report;
     std::vector<int> frame_numbers;            // compared frames (1-based)
-    std::vector<FrameError> frames;   // E_k per compared frame
+    std::vector<video::FrameError> frames;   // E_k per compared frame
     std::vector<double> weights;               // w_k used by the fit
     double weighted_error = 0.0;               // sum w_k E_k
     cloth::GridFrames predicted;               // the run at the truth's grid (or the mesh's), per simulated frame
@@ -125,4 +125,4 @@ struct WindowSummary {
 };
 std::vector<WindowSummary> summarize_windows(const TrialAssessment& assessment, const std::vector<FrameWindow>& windows);
 
-}  // namespace flowvid::video
+}  // namespace flowvid::cloth_fit

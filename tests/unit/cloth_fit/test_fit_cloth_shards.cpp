@@ -1,10 +1,10 @@
 // A shard records the options that change a fit by their command-line names;
-// the merge rebuilds the request from them (video/fit_cloth_shards.hpp). The
+// the merge rebuilds the request from them (cloth_fit/fit_cloth_shards.hpp). The
 // two directions must agree to the byte with the shards already written.
 
 #include "flowvid/error.hpp"
 #include "flowvid/formats/fit_shard.hpp"
-#include "flowvid/video/fit_cloth_shards.hpp"
+#include "flowvid/cloth_fit/fit_cloth_shards.hpp"
 
 #include <gtest/gtest.h>
 
@@ -23,14 +23,14 @@ formats::FitShardFile example_shard() {
 
 TEST(FitClothShards, TheExampleShardsOptionsRebuildItsRequestAndGiveTheSameBytesBack) {
     const formats::FitShardFile file = example_shard();
-    const video::ClothFitRequest request = video::cloth_fit_request_from_shard(file);
+    const cloth_fit::ClothFitRequest request = cloth_fit::cloth_fit_request_from_shard(file);
     EXPECT_EQ(request.problem.swatch.rows, 8);
     EXPECT_EQ(request.problem.swatch.simulation.integrator, cloth::Integrator::implicit_euler);
     EXPECT_EQ(request.evaluations, 16);
     EXPECT_EQ(request.seed, 5u);
     // No "search" in a shard: the annealing, which shards used before the search could be chosen.
     EXPECT_EQ(request.search, optim::SearchMethod::annealing);
-    EXPECT_EQ(video::cloth_fit_result_options(request).dump(), file.shard.options.dump());
+    EXPECT_EQ(cloth_fit::cloth_fit_result_options(request).dump(), file.shard.options.dump());
 }
 
 TEST(FitClothShards, EveryOptionTravelsThroughAShardAndBack) {
@@ -40,12 +40,12 @@ TEST(FitClothShards, EveryOptionTravelsThroughAShardAndBack) {
                           {"full-weight-frames", 3}, {"half-life-frames", 5.0},  {"resolution", "30x20"},
                           {"integrator", "rk4"},     {"initial-bow", -1.0},       {"fit-to", "tracks"},
                           {"static-weight", 2.5},    {"min-bending", 1e-5},       {"search", "cmaes"}};
-    const video::ClothFitRequest request = video::cloth_fit_request_from_shard(file);
-    EXPECT_EQ(request.drag, video::DragModel::linear);
-    EXPECT_EQ(request.load.target, video::FitTarget::tracks);
+    const cloth_fit::ClothFitRequest request = cloth_fit::cloth_fit_request_from_shard(file);
+    EXPECT_EQ(request.drag, cloth_fit::DragModel::linear);
+    EXPECT_EQ(request.load.target, cloth_fit::FitTarget::tracks);
     EXPECT_EQ(request.problem.swatch.cols, 20);
     EXPECT_DOUBLE_EQ(request.problem.swatch.simulation.position_tolerance_m, 1e-4);  // an adaptive integrator's
-    EXPECT_EQ(video::cloth_fit_result_options(request).dump(), file.shard.options.dump());
+    EXPECT_EQ(cloth_fit::cloth_fit_result_options(request).dump(), file.shard.options.dump());
 }
 
 TEST(FitClothShards, AnOptionThisFlowvidDoesNotKnowIsNamedWithTheShardsFileAndField) {
@@ -53,7 +53,7 @@ TEST(FitClothShards, AnOptionThisFlowvidDoesNotKnowIsNamedWithTheShardsFileAndFi
     file.shard.options["integrator"] = "verlet";
     file.shard.options["resolution"] = "8 by 8";
     try {
-        video::cloth_fit_request_from_shard(file);
+        cloth_fit::cloth_fit_request_from_shard(file);
         FAIL() << "accepted an unknown integrator";
     } catch (const ValidationError& error) {
         ASSERT_EQ(error.problems().size(), 2u);

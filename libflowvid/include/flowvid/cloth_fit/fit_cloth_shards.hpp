@@ -11,14 +11,14 @@
 
 #include "flowvid/formats/fit_shard.hpp"
 #include "flowvid/progress.hpp"
-#include "flowvid/video/fit_cloth.hpp"
+#include "flowvid/cloth_fit/fit_cloth.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <string>
 #include <vector>
 
-namespace flowvid::video {
+namespace flowvid::cloth_fit {
 
 // The options of `request` that change a fit's result, named as on the
 // command line: the shards of one fit must agree on every one (threads,
@@ -59,4 +59,4 @@ struct ClothMergeOutcome {
 // not one fit, a changed capture or options this flowvid does not know.
 ClothMergeOutcome merge_cloth_fit_shards(const ClothMergeRequest& request);
 
-}  // namespace flowvid::video
+}  // namespace flowvid::cloth_fit
