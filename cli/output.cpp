@@ -49,7 +49,8 @@ std::string human_readable(const nlohmann::json& value, int indent) {
     return text.str();
 }
 
-ProgressBar::ProgressBar(const GlobalOptions& options, std::string task) : m_task(std::move(task)) {
+ProgressBar::ProgressBar(const GlobalOptions& options, std::string task, std::string stage)
+    : m_task(std::move(task)), m_stage(std::move(stage)) {
     m_mode = options.progress;
     if (options.quiet) m_mode = "none";
     if (m_mode == "auto") m_mode = ::isatty(STDERR_FILENO) ? "bar" : "none";
@@ -61,18 +62,23 @@ void ProgressBar::update(double fraction, const std::string& detail) {
     m_last_percent = percent;
     if (m_mode == "json") {
         nlohmann::json event = {{"event", "progress"}, {"task", m_task}, {"fraction", fraction}};
+        if (!m_stage.empty()) event["stage"] = m_stage;
         if (!detail.empty()) event["detail"] = detail;
         std::cerr << event.dump() << std::endl;
     } else if (m_mode == "bar") {
         const int width = 30;
         const int filled = percent * width / 100;
-        std::cerr << '\r' << m_task << " [" << std::string(filled, '#') << std::string(width - filled, ' ') << "] "
+        std::cerr << '\r' << m_task << (m_stage.empty() ? "" : ": " + m_stage) << " [" << std::string(filled, '#') << std::string(width - filled, ' ') << "] "
                   << percent << "% " << detail << std::flush;
     }
 }
 
 void ProgressBar::done() {
-    if (m_mode == "json") std::cerr << nlohmann::json{{"event", "done"}, {"task", m_task}}.dump() << std::endl;
+    if (m_mode == "json") {
+        nlohmann::json event = {{"event", "done"}, {"task", m_task}};
+        if (!m_stage.empty()) event["stage"] = m_stage;
+        std::cerr << event.dump() << std::endl;
+    }
     else if (m_mode == "bar") std::cerr << '\n';
 }
 
@@ -188,7 +194,7 @@ flowvid::Progress TerminalProgress::callback() {
         }
         if (!m_bar || report.stage != m_stage) {
             if (m_bar) m_bar->done();
-            m_bar = std::make_unique<ProgressBar>(m_options, m_task + ": " + report.stage);
+            m_bar = std::make_unique<ProgressBar>(m_options, m_task, report.stage);
             m_stage = report.stage;
         }
         m_bar->update(report.fraction, report.message);

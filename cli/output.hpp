@@ -19,15 +19,18 @@ void print_problems(const std::vector<Problem>& problems);  // stderr, one line 
 // A JSON summary as indented "key: value" lines for people.
 std::string human_readable(const nlohmann::json& value, int indent = 0);
 
-// Progress on stderr: a bar on a terminal, JSON lines with --progress=json.
+// Progress on stderr: a bar on a terminal ("task: stage"), JSON lines with
+// --progress=json ({"event": "progress", "task", "stage" when there is one,
+// "fraction", "detail"}).
 class ProgressBar {
 public:
-    ProgressBar(const GlobalOptions& options, std::string task);
+    ProgressBar(const GlobalOptions& options, std::string task, std::string stage = {});
     void update(double fraction, const std::string& detail = {});
     void done();
 
 private:
     std::string m_task;
+    std::string m_stage;
     std::string m_mode;
     int m_last_percent = -1;
 };

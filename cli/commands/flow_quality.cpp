@@ -200,9 +200,8 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     compare.threads = options.threads;
     compare.region_lines = flow::drawn_input_polylines(prepared.drawing);
     compare.region.region_px = options.region_px;
-    const flowvid::Progress report = progress.callback();
-    const flow::Comparison result = flow::compare_with_baselines(
-        clip, *prepared.streams, *prepared.synthesizer, plate, compare, [&](double f) { return report({"measure", f, {}}); });
+    const flow::Comparison result =
+        flow::compare_with_baselines(clip, *prepared.streams, *prepared.synthesizer, plate, compare, progress.callback());
     progress.finish();
     if (!options.series_csv.empty()) write_series_csv(options.series_csv, result);
 

@@ -57,23 +57,12 @@ int track_with(const TrackOptions& options, const GlobalOptions& global, const f
 // correct. With a drawing as well, says how far the two are apart (px, both ways).
 int propose_lines(const TrackOptions& options, const GlobalOptions& global, const formats::Capture& capture,
                   const formats::FlowLineSet* drawn, formats::FlowLineSet& proposed, nlohmann::json& summary) {
-    InterruptWatch interrupt;
     flow::CameraMotion camera;
     flow::AutoLines lines;
     {
-        std::unique_ptr<ProgressBar> progress;  // one bar per stage
-        std::string shown;
+        TerminalProgress progress(global, "auto lines");
         try {
-            lines = flow::propose_input_lines_steadied(capture, options.frames, camera, {},
-                                                       [&](const std::string& stage, double fraction) {
-                                                           if (stage != shown) {
-                                                               if (progress) progress->done();
-                                                               progress = std::make_unique<ProgressBar>(global, stage);
-                                                               shown = stage;
-                                                           }
-                                                           progress->update(fraction);
-                                                           return !interrupt.requested();
-                                                       });
+            lines = flow::propose_input_lines_steadied(capture, options.frames, camera, {}, progress.callback());
         } catch (const flowvid::Cancelled&) {
             log_message("interrupted: no lines written");
             return kExitInterrupted;
@@ -81,7 +70,7 @@ int propose_lines(const TrackOptions& options, const GlobalOptions& global, cons
             log_message("error: " + options.capture + ": " + e.what());
             return kExitInvalidInput;
         }
-        if (progress) progress->done();
+        progress.finish();
     }
     if (lines.drawing.inputs.empty()) {
         log_message("error: " + options.capture +
@@ -225,38 +214,26 @@ int track_with(const TrackOptions& options, const GlobalOptions& global, const f
         }
     }
 
-    std::optional<InterruptWatch> interrupt;  // Ctrl-C stops the work cleanly while it runs
-    interrupt.emplace();
+    std::optional<TerminalProgress> progress;  // Ctrl-C stops the work cleanly while it runs
+    progress.emplace(global, "track");
     // A drifting camera is tracked in the first frame's view (stabilise.hpp).
-    flow::CameraMotion camera;
-    {
-        ProgressBar measuring(global, "camera drift");
-        camera = flow::estimate_camera_motion(frames, flow::drawn_input_polylines(drawing), {}, [&](double f) {
-            measuring.update(f);
-            return !interrupt->requested();
-        });
-        measuring.done();
-    }
-    if (interrupt->requested()) {
+    const flow::CameraMotion camera =
+        flow::estimate_camera_motion(frames, flow::drawn_input_polylines(drawing), {}, progress->callback());
+    if (progress->interrupted()) {
         log_message("interrupted: no bank written");
         return kExitInterrupted;
     }
+    progress->finish();
     log_message(flow::describe(camera));
     flow::StabilisedFrames stabilised(frames, camera);
-    ProgressBar progress(global, "track");
     flow::TrackingResult result;
     try {
-        result = flow::track_particles(stabilised, lines, settings, [&](const flow::TrackingProgress& p) {
-            progress.update(static_cast<double>(p.frame) / std::max(1, p.frame_count),
-                            "frame " + std::to_string(p.frame) + "/" + std::to_string(p.frame_count));
-            return !interrupt->requested();
-        });
+        result = flow::track_particles(stabilised, lines, settings, progress->callback());
     } catch (const std::invalid_argument& e) {  // the clip, the lines and the options do not fit together
         log_message("error: " + frames.source() + " with " + lines_path + ": " + e.what());
         return kExitInvalidInput;
     }
-    interrupt.reset();
-    progress.done();
+    progress.reset();
     if (result.report.status == flow::TrackingReport::Status::cancelled) {
         log_message("interrupted: no bank written");
         return kExitInterrupted;

@@ -98,7 +98,7 @@ class CliBackend:
                 if event is None:
                     messages.append(line.rstrip("\n"))
                 elif progress is not None and event.get("event") == "progress":
-                    stage = event.get("task", "").split(": ", 1)[-1]
+                    stage = event.get("stage") or event.get("task", "")
                     if progress(stage, float(event.get("fraction", 0.0)), event.get("detail", "")) is False:
                         process.send_signal(signal.SIGINT)
             code = process.wait()

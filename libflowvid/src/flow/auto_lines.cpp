@@ -278,16 +278,17 @@ std::vector<Eigen::Vector2d> simplify_polyline(const std::vector<Eigen::Vector2d
 
 AutoLines propose_input_lines_steadied(const formats::Capture& capture, int max_frames, CameraMotion& camera,
                                        const AutoLineSettings& settings,
-                                       const std::function<bool(const std::string& stage, double fraction)>& progress) {
+                                       const Progress& progress) {
     const auto stage = [&](const std::string& name) {
-        return [&progress, name](double fraction) { return !progress || progress(name, fraction); };
+        return Progress([&progress, name](const ProgressReport& r) { return !progress || progress({name, r.fraction, r.message}); });
     };
     CaptureFrames filmed(capture, max_frames);
     AutoLines lines = propose_input_lines(filmed, settings, stage("optical flow"));
     CaptureFrames again(capture, max_frames);
     bool cancelled = false;
-    camera = estimate_camera_motion(again, drawn_input_polylines(lines.drawing), {}, [&](double fraction) {
-        cancelled = !stage("camera drift")(fraction);
+    const Progress drift = stage("camera drift");
+    camera = estimate_camera_motion(again, drawn_input_polylines(lines.drawing), {}, [&](const ProgressReport& r) {
+        cancelled = !drift(r);
         return !cancelled;
     });
     if (cancelled) throw Cancelled();
@@ -298,7 +299,7 @@ AutoLines propose_input_lines_steadied(const formats::Capture& capture, int max_
 }
 
 AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& settings,
-                              const std::function<bool(double)>& progress) {
+                              const Progress& progress) {
     check_settings(settings);
     const int width = frames.width();
     const int height = frames.height();
@@ -350,7 +351,7 @@ AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& set
             }
         }
         ++pairs;
-        if (progress && !progress(kFlowProgressShare * pairs / pairs_total)) throw Cancelled();
+        report_progress(progress, "optical flow", kFlowProgressShare * pairs / pairs_total);
     }
 
     // ---- temporal aggregate: mean vector, its speed, direction consistency
@@ -419,7 +420,7 @@ AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& set
     }
     const double min_length_px = settings.min_length_px > 0.0 ? settings.min_length_px : 2.0 * result.spacing_px;
     if (region_speeds.empty()) {
-        if (progress && !progress(1.0)) throw Cancelled();
+        report_progress(progress, "optical flow", 1.0);
         return result;
     }
 
@@ -470,7 +471,7 @@ AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& set
         out.points = detail::simplify_polyline(full, kSimplifyTolerancePx);
         result.drawing.inputs.push_back(std::move(out));
     }
-    if (progress && !progress(1.0)) throw Cancelled();
+    report_progress(progress, "optical flow", 1.0);
     return result;
 }
 

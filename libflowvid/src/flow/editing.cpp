@@ -194,7 +194,7 @@ std::vector<Eigen::MatrixXd> overlap_errors(const ParticleStreams& streams, cons
 }
 
 EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& streams, const EditSettings& settings,
-                   const std::function<bool(const EditProgress&)>& progress) {
+                   const Progress& progress) {
     if (drawing.outputs.empty()) throw std::invalid_argument("the drawing has no output line to edit with");
     EditPlan plan;
     const int patch = streams.patch_size();
@@ -394,7 +394,9 @@ EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& s
         }
         plan.total_cost += assignment.cost;
         plan.chains.push_back(indices);
-        if (progress && !progress(EditProgress{static_cast<int>(plan.chains.size()), static_cast<int>(sparse_chains.size())}))
+        // Stage "correspondence": chains solved of all; false stops with the chains so far.
+        if (progress && !progress({"correspondence",
+                                   static_cast<double>(plan.chains.size()) / std::max<std::size_t>(1, sparse_chains.size()), {}}))
             break;
     }
     return plan;

@@ -159,12 +159,12 @@ RgbImage CaptureFrames::frame(int index) {
 ClipFrames::ClipFrames(int width, int height, double fps, std::string source)
     : m_width(width), m_height(height), m_fps(fps), m_source(std::move(source)) {}
 
-ClipFrames ClipFrames::read_all(FrameSequence& frames, int max_frames, const std::function<bool(double)>& progress) {
+ClipFrames ClipFrames::read_all(FrameSequence& frames, int max_frames, const Progress& progress) {
     ClipFrames clip(frames.width(), frames.height(), frames.fps(), frames.source());
     const int count = max_frames > 0 ? std::min(max_frames, frames.count()) : frames.count();
     for (int i = 0; i < count; ++i) {
         clip.append(frames.frame(i));
-        if (progress && !progress(static_cast<double>(i + 1) / count)) break;
+        if (progress && !progress({"read clip", static_cast<double>(i + 1) / count, {}})) break;
     }
     return clip;
 }

@@ -279,7 +279,7 @@ RgbImage FlowMapBaseline::render(int frame) const {
 
 Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams& streams, const Synthesizer& synth,
                                   const RgbImage& plate, const ComparisonSettings& settings,
-                                  const std::function<bool(double)>& progress) {
+                                  const Progress& progress) {
     const int width = clip.width(), height = clip.height(), count = clip.count();
     if (count < 2) throw std::invalid_argument("the clip needs at least two frames to be compared with");
     if (synth.width() != width || synth.height() != height)
@@ -292,7 +292,7 @@ Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams&
     double done = 0.0;
     const auto tick = [&] {
         done += 1.0;
-        if (progress && !progress(done / total)) throw Cancelled();
+        report_progress(progress, "measure", done / total);
     };
     std::vector<std::vector<float>> clip_luma, ours, loop, flowmap;
     for (int i = 0; i < count; ++i) {

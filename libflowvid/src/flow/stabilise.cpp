@@ -101,7 +101,7 @@ const char* to_string(CameraMotion::Model model) {
 }
 
 CameraMotion estimate_camera_motion(FrameSequence& frames, const std::vector<std::vector<Eigen::Vector2d>>& input_lines,
-                                    const CameraMotionSettings& settings, const std::function<bool(double)>& progress) {
+                                    const CameraMotionSettings& settings, const Progress& progress) {
     CameraMotion still;
     still.first_to_frame.assign(static_cast<std::size_t>(std::max(0, frames.count())), Eigen::Matrix<double, 2, 3>::Identity());
     if (frames.count() < 2) return still;
@@ -111,14 +111,14 @@ CameraMotion estimate_camera_motion(FrameSequence& frames, const std::vector<std
     gray.reserve(static_cast<std::size_t>(frames.count()));
     for (int i = 0; i < frames.count(); ++i) {
         gray.push_back(gray_for_estimate(frames.frame(i), scale));
-        if (progress && !progress(0.5 * (i + 1) / frames.count())) return still;
+        if (progress && !progress({"camera drift", 0.5 * (i + 1) / frames.count(), {}})) return still;
     }
     const cv::Mat mask = background_mask(gray[0].cols, gray[0].rows, scale, input_lines, settings.exclude_around_lines_px);
     if (cv::countNonZero(mask) < mask.rows * mask.cols / 20) return still;  // no background to see the camera by
 
     // Translation first: robust, and what tells a still camera from a moving one.
     auto [shifts, shift_correlation] = estimate_with(gray, mask, cv::MOTION_TRANSLATION, scale, nullptr);
-    if (progress && !progress(0.75)) return still;
+    if (progress && !progress({"camera drift", 0.75, {}})) return still;
     double largest = 0.0;
     for (const auto& m : shifts) largest = std::max(largest, largest_corner_offset(m, width, height));
     if (largest < settings.still_below_px || shift_correlation < settings.min_correlation) {
@@ -143,7 +143,7 @@ CameraMotion estimate_camera_motion(FrameSequence& frames, const std::vector<std
         motion.worst_correlation = affine_correlation;
     }
     for (const auto& m : motion.first_to_frame) motion.largest_offset_px = std::max(motion.largest_offset_px, largest_corner_offset(m, width, height));
-    if (progress) progress(1.0);
+    if (progress) progress({"camera drift", 1.0, {}});
     return motion;
 }
 
@@ -191,9 +191,11 @@ std::vector<std::vector<Eigen::Vector2d>> drawn_input_polylines(const formats::F
 }
 
 ClipFrames read_clip_stabilised(FrameSequence& frames, const formats::FlowLineSet& drawing, CameraMotion& motion,
-                                const std::function<bool(double)>& progress, ClipFrames* as_filmed) {
+                                const Progress& progress, ClipFrames* as_filmed) {
     const auto part = [&](double from, double to) {
-        return [&progress, from, to](double f) { return !progress || progress(from + (to - from) * f); };
+        return Progress([&progress, from, to](const ProgressReport& r) {
+            return !progress || progress({"read clip", from + (to - from) * r.fraction, r.message});
+        });
     };
     ClipFrames seen = ClipFrames::read_all(frames, 0, part(0.0, 0.5));
     motion = estimate_camera_motion(seen, drawn_input_polylines(drawing), {}, part(0.5, 0.8));

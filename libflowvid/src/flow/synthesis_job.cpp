@@ -127,7 +127,7 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& pro
         bool cancelled = false;  // the reader stops early; what it read is not the clip
         out.clip = std::make_shared<const ClipFrames>(read_clip_stabilised(
             frames, out.drawing, camera,
-            [&](double f) { return !(cancelled = progress && !progress({"read clip", f, {}})); },
+            [&](const ProgressReport& r) { return !(cancelled = progress && !progress(r)); },
             background_to_choose ? &footage : nullptr));
         if (cancelled) throw Cancelled();
         out.camera = camera;
@@ -172,10 +172,7 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& pro
         } else {
             EditSettings edit_settings = job.edit_settings;
             edit_settings.mapping = settings.mapping;
-            out.plan = plan_edit(out.drawing, *out.streams, edit_settings, [&](const EditProgress& p) {
-                return !progress ||
-                       progress({"correspondence", static_cast<double>(p.pairs_done) / std::max(1, p.pair_count), {}});
-            });
+            out.plan = plan_edit(out.drawing, *out.streams, edit_settings, progress);
             report_progress(progress, "correspondence", 1.0);
             for (const std::string& w : out.plan->warnings) say(log, "warning: " + w);
             out.outputs = output_lines(*out.plan);

@@ -374,7 +374,7 @@ struct PassOptions {
 // One pass over the clip, advancing every line's particles frame by frame.
 // Returns false when cancelled.
 bool run_pass(FrameSequence& frames, std::vector<LineState>& states, const RgbImage& plate,
-              const TrackingSettings& settings, const PassOptions& pass, const TrackingProgressCallback& progress) {
+              const TrackingSettings& settings, const PassOptions& pass, const Progress& progress) {
     const int frame_count = frames.count();
     const int patch = settings.patch_size_px;
     const bool stationary = settings.dynamics == formats::ParticleDynamics::stationary;
@@ -526,7 +526,9 @@ bool run_pass(FrameSequence& frames, std::vector<LineState>& states, const RgbIm
         }
         for (LineState& st : states) std::swap(st.current, st.next);
         display = std::move(display_next);
-        if (progress && !progress(TrackingProgress{pass.progress_offset + f + 1, pass.progress_total}))
+        const int done = pass.progress_offset + f + 1;
+        if (progress && !progress({"track", static_cast<double>(done) / std::max(1, pass.progress_total),
+                                   "frame " + std::to_string(done) + "/" + std::to_string(pass.progress_total)}))
             return false;
     }
     return true;
@@ -588,7 +590,7 @@ std::vector<double> travel_times(const std::vector<double>& speeds, double min_s
 }  // namespace
 
 TrackingResult track_particles(FrameSequence& frames, const std::vector<formats::FlowLine>& lines,
-                               const TrackingSettings& settings, const TrackingProgressCallback& progress) {
+                               const TrackingSettings& settings, const Progress& progress) {
     if (settings.patch_size_px < 4 || settings.patch_size_px > formats::kMaxBankPatchSizePx)
         throw std::invalid_argument("patch size must be 4.." + std::to_string(formats::kMaxBankPatchSizePx) + " px");
     if (!(settings.max_speed_px > 0.0) || !(settings.search_radius_px > 0.0))

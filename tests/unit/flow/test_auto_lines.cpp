@@ -149,10 +149,11 @@ TEST(AutoLines, AStillClipGetsNoLines) {
 
 TEST(AutoLines, ProgressCanCancelAndReachesOne) {
     MemoryFrames clip = vertical_band(true).clip();
-    EXPECT_THROW(propose_input_lines(clip, {}, [](double) { return false; }), flowvid::Cancelled);
+    EXPECT_THROW(propose_input_lines(clip, {}, [](const flowvid::ProgressReport&) { return false; }), flowvid::Cancelled);
     std::vector<double> fractions;
-    propose_input_lines(clip, {}, [&](double f) {
-        fractions.push_back(f);
+    propose_input_lines(clip, {}, [&](const flowvid::ProgressReport& r) {
+        EXPECT_EQ(r.stage, "optical flow");
+        fractions.push_back(r.fraction);
         return true;
     });
     ASSERT_FALSE(fractions.empty());

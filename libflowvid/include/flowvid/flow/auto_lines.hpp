@@ -68,7 +68,7 @@ struct AutoLines {
 // clip and settings give the same lines. Throws std::invalid_argument for a
 // clip with fewer than step_frames + 1 frames (of those used) or bad settings.
 AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& settings = {},
-                              const std::function<bool(double)>& progress = {});
+                              const Progress& progress = {});
 
 // The lines `flowvid track --auto-lines` proposes for a clip (its first
 // max_frames frames; 0: all), in the view of its first frame, where the bank
@@ -80,7 +80,7 @@ AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& set
 // false cancels (flowvid::Cancelled).
 AutoLines propose_input_lines_steadied(const formats::Capture& capture, int max_frames, CameraMotion& camera,
                                        const AutoLineSettings& settings = {},
-                                       const std::function<bool(const std::string& stage, double fraction)>& progress = {});
+                                       const Progress& progress = {});
 
 // Mean distance, px, from points sampled every `step_px` of arc along each
 // polyline of `from` (first and last points included) to the nearest point of

@@ -14,6 +14,7 @@
 // with particles. Chains of neighbours are formed as in flow/geometry.hpp.
 // Time-varying drawn lines give time-varying interpolated lines.
 
+#include "flowvid/progress.hpp"
 #include "flowvid/flow/synthesis.hpp"
 #include "flowvid/formats/flowlines.hpp"
 
@@ -78,15 +79,10 @@ struct EditPlan {
     std::vector<std::string> warnings;
 };
 
-struct EditProgress {
-    int pairs_done = 0;
-    int pair_count = 0;
-};
-
 // Interpolates the drawing's output lines into a dense set and assigns inputs.
 // Throws std::invalid_argument when the drawing has no output line.
 EditPlan plan_edit(const formats::FlowLineSet& drawing, const ParticleStreams& streams, const EditSettings& settings,
-                   const std::function<bool(const EditProgress&)>& progress = {});
+                   const Progress& progress = {});
 
 // The plan's lines as Synthesizer outputs.
 std::vector<OutputLine> output_lines(const EditPlan& plan);

@@ -10,6 +10,7 @@
 // sees them) and *linear* light (particle textures in the bank, rendering and
 // blending). Functions say which they take.
 
+#include "flowvid/progress.hpp"
 #include "flowvid/formats/capture.hpp"
 
 #include <cstdint>
@@ -97,7 +98,7 @@ public:
     // gets the fraction read and may return false to stop early (the clip
     // then holds the frames read so far).
     static ClipFrames read_all(FrameSequence& frames, int max_frames = 0,
-                               const std::function<bool(double)>& progress = {});
+                               const Progress& progress = {});
     void append(const RgbImage& display);
 
     int width() const override { return m_width; }

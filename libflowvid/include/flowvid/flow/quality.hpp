@@ -263,6 +263,6 @@ struct Comparison {
 // flowvid::Cancelled).
 Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams& streams, const Synthesizer& synth,
                                   const RgbImage& plate, const ComparisonSettings& settings = {},
-                                  const std::function<bool(double)>& progress = {});
+                                  const Progress& progress = {});
 
 }  // namespace flowvid::flow

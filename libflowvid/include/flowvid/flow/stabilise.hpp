@@ -10,6 +10,7 @@
 // line: water and flames move on their own) by enhanced correlation
 // (OpenCV's ECC), which ignores a global change of gain and offset.
 
+#include "flowvid/progress.hpp"
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/formats/flowlines.hpp"
 
@@ -58,7 +59,7 @@ const char* to_string(CameraMotion::Model model);
 // stop (the motion then says still).
 CameraMotion estimate_camera_motion(FrameSequence& frames, const std::vector<std::vector<Eigen::Vector2d>>& input_lines,
                                     const CameraMotionSettings& settings = {},
-                                    const std::function<bool(double)>& progress = {});
+                                    const Progress& progress = {});
 
 // The frames of `source` seen from the first frame's camera: each frame is
 // resampled (Lanczos, 8 x 8 taps: bilinear would halve the fine detail of
@@ -95,7 +96,7 @@ std::vector<std::vector<Eigen::Vector2d>> drawn_input_polylines(const formats::F
 // softens the finest detail). For a still camera it is left as it was: the
 // frames returned are the footage.
 ClipFrames read_clip_stabilised(FrameSequence& frames, const formats::FlowLineSet& drawing, CameraMotion& motion,
-                                const std::function<bool(double)>& progress = {}, ClipFrames* as_filmed = nullptr);
+                                const Progress& progress = {}, ClipFrames* as_filmed = nullptr);
 
 // A one-line account for logs: "camera still" or "camera drifts up to 10.4 px
 // (translation): tracked and rendered in the first frame's view".

@@ -32,6 +32,7 @@
 // particles. Segments meet seamlessly in synthesis: at any output frame all
 // particles show the same input frame (except across the ladder step).
 
+#include "flowvid/progress.hpp"
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/formats/flowlines.hpp"
 #include "flowvid/formats/particle_bank.hpp"
@@ -100,13 +101,6 @@ struct TrackingReport {
     std::vector<LineTrackingStats> lines;  // per tracked line (segments)
 };
 
-struct TrackingProgress {
-    int frame = 0;        // frames processed, over both passes (probe, then tracking)
-    int frame_count = 0;  // frames of both passes
-};
-// Called after every frame; return false to cancel.
-using TrackingProgressCallback = std::function<bool(const TrackingProgress&)>;
-
 struct TrackingResult {
     formats::ParticleBank bank;  // may hold no particle (then nothing completed: see the report)
     TrackingReport report;
@@ -116,11 +110,13 @@ struct TrackingResult {
 // Tracks particles along `lines` (input lines, fixed points, in the frames'
 // pixel coordinates) through every frame of `frames`. Deterministic: the same
 // input gives the same bank whatever the thread count.
-// Throws std::invalid_argument for settings out of range, a line with keys,
-// a clip of fewer than 2 frames, a patch larger than the frame, or a line
-// lying wholly off the frame.
+// Progress: stage "track", after every frame of both passes (a probe, then
+// the tracking), with "frame i/n" as its message; false cancels (the report
+// then says cancelled). Throws std::invalid_argument for settings out of
+// range, a line with keys, a clip of fewer than 2 frames, a patch larger
+// than the frame, or a line lying wholly off the frame.
 TrackingResult track_particles(FrameSequence& frames, const std::vector<formats::FlowLine>& lines,
-                               const TrackingSettings& settings, const TrackingProgressCallback& progress = {});
+                               const TrackingSettings& settings, const Progress& progress = {});
 
 // The stationary speed profile of a line from a bank: the mean step (px per
 // frame) of its particles as a function of arc length, in bins of bin_px.
