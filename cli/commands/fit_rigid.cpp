@@ -68,7 +68,7 @@ int run_fit_rigid(const FitRigidOptions& options, const GlobalOptions& global) {
                                            "angular_velocity_cam, or set \"initial_frame\": " + std::to_string(frames->first)}});
     }
     ProgressBar progress(global, "fit rigid");
-    settings.progress = [&](const rigid::FitProgress& p) {
+    settings.progress = [&](const ProgressReport& p) {
         progress.update(p.fraction, p.stage);
         return true;
     };

@@ -73,14 +73,10 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
         if (start.size() > 0) swatch->initial_positions = start;
     }
 
-    ProgressBar progress(global, "simulate");
-    const cloth::SwatchRun run = cloth::simulate_swatch(
-        experiment, material, *swatch, [&](const cloth::SimulationProgress& p) {
-            progress.update(static_cast<double>(p.frame) / std::max(1, p.frame_count),
-                            "frame " + std::to_string(p.frame) + "/" + std::to_string(p.frame_count));
-            return !interrupt.requested();
-        });
-    progress.done();
+    std::optional<TerminalProgress> progress;
+    progress.emplace(global, "simulate");
+    const cloth::SwatchRun run = cloth::simulate_swatch(experiment, material, *swatch, progress->callback());
+    progress.reset();
     const cloth::SimulationReport& report = run.simulation.report;
     if (report.status == cloth::SimulationReport::Status::cancelled) {
         log_message("interrupted at frame " + std::to_string(report.frame) + ": nothing written");

@@ -190,10 +190,11 @@ void bind_cloth(py::module_& module) {
                         options.initial_positions[3 * static_cast<Eigen::Index>(i) + k] = initial_positions[i][k];
                 }
             }
-            cloth::ProgressCallback callback;
+            Progress callback;  // the module's progress(frame, frame_count), as before
             if (!progress.is_none())
-                callback = [&progress](const cloth::SimulationProgress& p) {
-                    return progress(p.frame, p.frame_count).cast<bool>();
+                callback = [&progress, &parsed](const ProgressReport& p) {
+                    const int frame = static_cast<int>(std::lround(p.fraction * parsed.frame_count));
+                    return progress(frame, parsed.frame_count).cast<bool>();
                 };
             const auto start = std::chrono::steady_clock::now();
             cloth::SwatchRun run = cloth::simulate_swatch(parsed, material, options, callback);

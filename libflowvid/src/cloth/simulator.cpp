@@ -587,7 +587,7 @@ SimulationReport ClothSimulator::advance_implicit(double end_time_s) {
 
 SimulationResult simulate(ClothModel& model, const std::vector<PinnedVertex>& pins, const Eigen::VectorXd& x0,
                           const Eigen::VectorXd& v0, double start_time_s, double fps, int frame_count,
-                          const SimulationSettings& settings, const ProgressCallback& progress) {
+                          const SimulationSettings& settings, const Progress& progress) {
     SimulationResult result;
     ClothSimulator sim(model, pins, settings);
     sim.set_state(x0, v0, start_time_s);
@@ -606,8 +606,8 @@ SimulationResult simulate(ClothModel& model, const std::vector<PinnedVertex>& pi
         result.report.frame = k + 1;
         result.report.time_s = sim.time_s();
         if (progress) {
-            const SimulationProgress p{k + 1, frame_count, sim.time_s(), &sim.statistics()};
-            if (!progress(p)) {
+            if (!progress({"simulate", static_cast<double>(k + 1) / frame_count,
+                           "frame " + std::to_string(k + 1) + "/" + std::to_string(frame_count)})) {
                 result.report.status = SimulationReport::Status::cancelled;
                 result.report.reason = "cancelled by the caller after frame " + std::to_string(k + 1);
                 break;

@@ -250,7 +250,7 @@ SwatchOptions run_swatch_options(int rows, int cols, Integrator integrator, doub
 }
 
 SwatchRun simulate_swatch(const SwatchExperiment& experiment, const ClothMaterial& material, const SwatchOptions& options,
-                          const ProgressCallback& progress) {
+                          const Progress& progress) {
     SwatchRun run;
     run.swatch = build_swatch(experiment, options.rows, options.cols);
     ClothModel model(run.swatch.mesh, experiment_material(experiment, material), options.environment);

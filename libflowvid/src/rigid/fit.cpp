@@ -309,7 +309,7 @@ FitResult fit_rigid_once(const RigidBody& body, const formats::CameraModel& came
     };
     std::atomic<bool> cancelled{false};
     auto progress = [&](const char* stage, double fraction) {
-        if (settings.progress && !settings.progress(FitProgress{stage, fraction})) cancelled = true;
+        if (settings.progress && !settings.progress({stage, fraction, {}})) cancelled = true;
         return !cancelled;
     };
     auto finish = [&]() {
@@ -476,7 +476,7 @@ FitResult fit_rigid_once(const RigidBody& body, const formats::CameraModel& came
     };
     std::vector<Track> alive;
     for (const FlightParameters& s : starts) alive.push_back({s, 0.0, {}});
-    const auto cancel = [&]() { return cancelled.load(); };
+    const Progress cancel = [&](const ProgressReport&) { return !cancelled.load(); };
     for (std::size_t stage = 0; stage < windows.size(); ++stage) {
         const int limit = keep[std::min(stage, keep.size() - 1)];
         if (stage > 0 && static_cast<int>(alive.size()) > limit) alive.resize(static_cast<std::size_t>(limit));
@@ -490,7 +490,7 @@ FitResult fit_rigid_once(const RigidBody& body, const formats::CameraModel& came
                 LmSettings lm;
                 lm.max_iterations = settings.max_iterations;
                 lm.free = mask;
-                lm.cancel = cancel;
+                lm.progress = cancel;
                 lm.relative_tolerance = stage + 1 == windows.size() ? 1e-6 : 1e-4;
                 r = levenberg_marquardt(problem, alive[i].parameters, lm, s);
             } else {
@@ -498,7 +498,7 @@ FitResult fit_rigid_once(const RigidBody& body, const formats::CameraModel& came
                 hybrid.max_iterations = 5 * settings.max_iterations;
                 hybrid.free = mask;
                 hybrid.metric = settings.hybrid_metric;
-                hybrid.cancel = cancel;
+                hybrid.progress = cancel;
                 if (settings.hybrid_metric == HybridMetric::xor_pixels) {
                     // The XOR count moves in whole pixels: step about a pixel.
                     hybrid.position_step_m = 0.005;

@@ -156,7 +156,8 @@ OptimizerResult levenberg_marquardt(const FlightProblem& problem, const FlightPa
     double lambda = settings.initial_lambda;
     report.status = OptimizerReport::Status::max_iterations;
     for (report.iterations = 0; report.iterations < settings.max_iterations; ++report.iterations) {
-        if (settings.cancel && settings.cancel()) {
+        if (settings.progress &&
+            !settings.progress({"optimize", static_cast<double>(report.iterations) / settings.max_iterations, {}})) {
             report.status = OptimizerReport::Status::cancelled;
             report.reason = "cancelled";
             break;
@@ -307,7 +308,7 @@ OptimizerResult hybrid_gradient(const FlightProblem& problem, const FlightParame
     int small_steps = 0;
     report.status = OptimizerReport::Status::max_iterations;
     for (report.iterations = 0; report.iterations < s.max_iterations; ++report.iterations) {
-        if (s.cancel && s.cancel()) {
+        if (s.progress && !s.progress({"optimize", static_cast<double>(report.iterations) / s.max_iterations, {}})) {
             report.status = OptimizerReport::Status::cancelled;
             report.reason = "cancelled";
             break;

@@ -50,7 +50,7 @@ Drop drop_on(const fc::Collider& body, const std::function<double(const Eigen::V
     s.integrator = integrator;
     Drop drop;
     const fc::SimulationResult r = fc::simulate(model, {}, x, Eigen::VectorXd::Zero(x.size()), 0.0, 30.0, 22, s,
-                                                [](const fc::SimulationProgress&) { return true; });
+                                                [](const flowvid::ProgressReport&) { return true; });
     drop.report = r.report;
     for (const Eigen::VectorXd& f : r.frames)
         for (int i = 0; i < mesh.vertex_count(); ++i)

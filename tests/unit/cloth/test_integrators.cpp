@@ -217,10 +217,11 @@ TEST(ClothIntegrators, ProgressCanCancel) {
     int calls = 0;
     const fc::SimulationResult r =
         fc::simulate(model, swing.pins, swing.x0, Eigen::VectorXd::Zero(swing.x0.size()), 0.0, 30.0, 20, {},
-                     [&](const fc::SimulationProgress& p) {
+                     [&](const flowvid::ProgressReport& p) {
                          ++calls;
-                         EXPECT_EQ(p.frame_count, 20);
-                         return p.frame < 3;
+                         EXPECT_EQ(p.stage, "simulate");
+                         EXPECT_EQ(p.message, "frame " + std::to_string(calls + 1) + "/20");
+                         return p.fraction < 3.0 / 20.0;
                      });
     EXPECT_EQ(r.report.status, fc::SimulationReport::Status::cancelled);
     EXPECT_EQ(r.report.frame, 3);

@@ -213,7 +213,7 @@ TEST(RigidFit, TooFewFramesIsAReportedFailure) {
 TEST(RigidFit, CancellingStopsTheFit) {
     const Toss& t = toss("rigid-toss-major");
     FitSettings settings;
-    settings.progress = [](const FitProgress& p) { return p.stage != "refine"; };
+    settings.progress = [](const flowvid::ProgressReport& p) { return p.stage != "refine"; };
     const FitResult fit = fit_frames(t, 1, 12, settings);
     EXPECT_EQ(fit.report.status, OptimizerReport::Status::cancelled);
 }

@@ -17,6 +17,7 @@
 #include "flowvid/cloth/linear_solve.hpp"
 #include "flowvid/cloth/model.hpp"
 #include "flowvid/cloth/pins.hpp"
+#include "flowvid/progress.hpp"
 
 #include <Eigen/Core>
 
@@ -98,14 +99,6 @@ struct SimulationStatistics {
     double wall_time_s = 0.0;
 };
 
-struct SimulationProgress {
-    int frame = 0;
-    int frame_count = 0;
-    double time_s = 0.0;
-    const SimulationStatistics* statistics = nullptr;
-};
-// Called after each frame; return false to cancel.
-using ProgressCallback = std::function<bool(const SimulationProgress&)>;
 
 class ClothSimulator {
 public:
@@ -166,8 +159,11 @@ struct SimulationResult {
 };
 
 // Runs `frame_count` frames (the first is the initial state itself).
+// Progress: stage "simulate" after each frame, fraction frames done of all,
+// message "frame i/n"; false cancels (the report then says cancelled and the
+// frames so far are kept).
 SimulationResult simulate(ClothModel& model, const std::vector<PinnedVertex>& pins, const Eigen::VectorXd& x0,
                           const Eigen::VectorXd& v0, double start_time_s, double fps, int frame_count,
-                          const SimulationSettings& settings, const ProgressCallback& progress = {});
+                          const SimulationSettings& settings, const Progress& progress = {});
 
 }  // namespace flowvid::cloth

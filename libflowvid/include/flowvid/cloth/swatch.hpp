@@ -107,7 +107,7 @@ struct SwatchRun {
 // positions, then simulates frame_count frames. If the equilibrium does not
 // converge the run is reported as blew_up at frame 1 (with the reason).
 SwatchRun simulate_swatch(const SwatchExperiment& experiment, const ClothMaterial& material,
-                          const SwatchOptions& options, const ProgressCallback& progress = {});
+                          const SwatchOptions& options, const Progress& progress = {});
 
 // Samples every frame at a rows x cols uv grid (row 0 at v = 0): one
 // (rows*cols) x 3 matrix per frame, comparable to truth/positions.exr rows.

@@ -22,6 +22,7 @@
 //     between windows. Starts run on parallel threads; the result does not
 //     depend on the thread count.
 
+#include "flowvid/progress.hpp"
 #include "flowvid/rigid/dynamics.hpp"
 #include "flowvid/rigid/optimize.hpp"
 #include "flowvid/rigid/silhouette_residuals.hpp"
@@ -49,11 +50,6 @@ struct InitialGuess {
     bool complete() const { return origin_m && orientation && com_velocity_m_per_s && angular_velocity_rad_per_s; }
 };
 
-struct FitProgress {
-    std::string stage;      // "trajectory", "candidates", "starts", "refine"
-    double fraction = 0.0;  // of the whole fit, 0..1
-};
-
 struct FitSettings {
     OptimizerKind optimizer = OptimizerKind::levenberg_marquardt;
     HybridMetric hybrid_metric = HybridMetric::edge_distance;
@@ -72,8 +68,9 @@ struct FitSettings {
     int max_iterations = 40;          // per window (LM); hybrid: 5x this
     double gravity_magnitude_m_per_s2 = kStandardGravity_m_per_s2;
     double corner_radius_px = 1.5;    // see SilhouetteModel::set_corner_radius
-    // Called between steps; return false to cancel (the result then has status cancelled).
-    std::function<bool(const FitProgress&)> progress;
+    // Stages "trajectory", "candidates", "starts", "refine", fractions of the
+    // whole fit; false cancels (the result then has status cancelled).
+    Progress progress;
     std::function<void(const std::string&)> log;  // the library never prints
 };
 

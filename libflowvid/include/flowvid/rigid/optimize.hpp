@@ -19,6 +19,7 @@
 //
 // Expected numerical outcomes are reported, never thrown.
 
+#include "flowvid/progress.hpp"
 #include "flowvid/rigid/dynamics.hpp"
 #include "flowvid/rigid/silhouette_residuals.hpp"
 
@@ -89,7 +90,7 @@ struct LmSettings {
     double initial_lambda = 1e-3;
     // Converged when an accepted step lowers E by less than this fraction.
     double relative_tolerance = 1e-5;
-    std::function<bool()> cancel;  // polled once per iteration; true stops
+    Progress progress;  // polled between iterations (stage "optimize"); false cancels
 };
 
 struct HybridSettings {
@@ -107,7 +108,7 @@ struct HybridSettings {
     double angular_velocity_scale_rad_per_s = 0.5;
     double gravity_scale_rad = 0.01;
     double relative_tolerance = 1e-5;
-    std::function<bool()> cancel;
+    Progress progress;  // polled between iterations (stage "optimize"); false cancels
 };
 
 struct OptimizerResult {
