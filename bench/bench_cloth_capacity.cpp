@@ -39,6 +39,7 @@
 #include "flowvid/formats/vertex_animation.hpp"
 #include "flowvid/cloth_fit/cloth_eval.hpp"
 #include "flowvid/optim/least_squares.hpp"
+#include "fit_curve.hpp"
 #include "flowvid/cloth_fit/fit_cloth.hpp"
 
 #include <nlohmann/json.hpp>
@@ -579,20 +580,20 @@ int main(int argc, char** argv) {
                 request.threads = o.threads;
                 const std::string tag = fabric + "/" + variant + "/" + std::to_string(evaluations);
                 auto last = std::make_shared<long long>(-1000);
-                // Progress reports (evaluations, best training error), as often as the fit reports.
-                auto curve = std::make_shared<nlohmann::json>(nlohmann::json::array());
-                request.progress = [tag, last, curve](const cf::ClothFitProgress& p) {
-                    if (p.evaluations > 0 && (curve->empty() || curve->back()[0].get<long long>() != p.evaluations))
-                        curve->push_back({p.evaluations, p.best_error});
-                    if (p.evaluations - *last >= 50 || p.phase == "polish") {
-                        std::fprintf(stderr, "  [%s] %s, %lld evaluations, best %.4g\n", tag.c_str(), p.phase.c_str(), p.evaluations,
-                                     p.best_error);
-                        *last = p.evaluations;
+                request.progress = [tag, last](const flowvid::ProgressReport& p) {
+                    const long long percent = static_cast<long long>(100 * p.fraction);
+                    if (percent - *last >= 10 || p.stage == "polish") {
+                        std::fprintf(stderr, "  [%s] %s, %s\n", tag.c_str(), p.stage.c_str(), p.message.c_str());
+                        *last = percent;
                     }
                     return true;
                 };
                 std::fprintf(stderr, "fitting %s\n", tag.c_str());
                 cf::ClothFitOutcome fit = cf::fit_cloth(request);
+                // Evaluations and the best training error so far, as the fit went.
+                nlohmann::json curve = nlohmann::json::array();
+                for (const flowvid::bench::CurvePoint& point : flowvid::bench::curve_of(fit))
+                    curve.push_back({point.evaluations, point.best});
                 nlohmann::json rounds = nlohmann::json::array();
                 for (const cf::ClothFitRound& r : fit.rounds) {
                     std::fprintf(stderr, "  [%s] round %zu: %.4g -> %.4g, %lld evaluations, %.0f s\n", tag.c_str(), rounds.size() + 1,
@@ -663,7 +664,7 @@ int main(int argc, char** argv) {
                     {"training_error", fit.final_evaluation.total},
                     {"rounds", rounds},
                     {"fit_to", cf::fit_target_name(o.fit_to)},
-                    {"curve", *curve},
+                    {"curve", curve},
                     {"held_out_waving", windows_json(held_out)},
                     {"start_waving", windows_json(start)},
                     {"training_waving", windows_json(training_waving)},

@@ -59,11 +59,14 @@ cf::ClothFitRequest request_for(const std::string& name, const std::vector<std::
     request.seed = 1;
     request.threads = 2;
     auto last_print = std::make_shared<long long>(-1000);
-    request.progress = [last_print, name](const cf::ClothFitProgress& p) {
-        if (p.evaluations - *last_print >= 50 || p.phase != "annealing") {
-            std::fprintf(stderr, "  [%s] %s %.0f%%, %lld evaluations, best %.1f\n", name.c_str(), p.phase.c_str(),
-                         100 * p.fraction, p.evaluations, p.best_error);
-            *last_print = p.evaluations;
+    auto last_stage = std::make_shared<std::string>();
+    request.progress = [last_print, last_stage, name](const flowvid::ProgressReport& p) {
+        // A line every 5 % of the fit, and at every change of stage.
+        const long long percent = static_cast<long long>(100 * p.fraction);
+        if (percent - *last_print >= 5 || p.stage != *last_stage) {
+            std::fprintf(stderr, "  [%s] %s %lld%%, %s\n", name.c_str(), p.stage.c_str(), percent, p.message.c_str());
+            *last_print = percent;
+            *last_stage = p.stage;
         }
         return true;
     };

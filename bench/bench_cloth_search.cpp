@@ -21,6 +21,7 @@
 
 #include "flowvid/cloth/simulator.hpp"
 #include "flowvid/formats/capture.hpp"
+#include "fit_curve.hpp"
 #include "flowvid/cloth_fit/fit_cloth.hpp"
 
 #include <nlohmann/json.hpp>
@@ -40,6 +41,8 @@
 namespace cf = flowvid::cloth_fit;
 namespace fs = std::filesystem;
 namespace optim = flowvid::optim;
+using flowvid::bench::CurvePoint;
+using flowvid::bench::curve_of;
 
 namespace {
 
@@ -50,34 +53,6 @@ std::string env_text(const char* name, const std::string& fallback) {
 double env_number(const char* name, double fallback) {
     const char* text = std::getenv(name);
     return text && *text ? std::atof(text) : fallback;
-}
-
-struct CurvePoint {
-    long long evaluations = 0;
-    double best = 0.0;
-};
-
-// Best error after each evaluation count: the design's points in order, then
-// the search's stages (or generations), then the polish's accepted steps.
-std::vector<CurvePoint> curve_of(const cf::ClothFitOutcome& outcome) {
-    std::vector<CurvePoint> curve;
-    double best = std::numeric_limits<double>::infinity();
-    long long evaluations = 0;
-    // A design cut short by its time budget skipped its last points (+inf, not evaluated).
-    const long long design = outcome.search.evaluations - outcome.search.annealing.evaluations;
-    for (double value : outcome.search.design.values) {
-        if (evaluations == design) break;
-        ++evaluations;
-        best = std::min(best, value);
-        curve.push_back({evaluations, best});
-    }
-    for (const optim::AnnealingStage& stage : outcome.search.annealing.history)
-        curve.push_back({design + stage.evaluations, std::min(best, stage.best_value)});
-    if (outcome.polish) {
-        const long long searched = outcome.search.evaluations;
-        curve.push_back({searched + outcome.polish->evaluations, std::min(curve.back().best, outcome.polish->best_value)});
-    }
-    return curve;
 }
 
 // Evaluations until the curve first reaches `target` (-1: never).
@@ -227,12 +202,12 @@ int main() {
         request.search = *search;
         long long last = -1000;
         std::string phase;
-        request.progress = [&](const cf::ClothFitProgress& p) {
-            if (p.evaluations - last >= 25 || p.phase != phase) {
-                phase = p.phase;
-                std::fprintf(stderr, "  [%s] %s %.0f%%, %lld evaluations, best %.1f\n", method.c_str(), p.phase.c_str(),
-                             100 * p.fraction, p.evaluations, p.best_error);
-                last = p.evaluations;
+        request.progress = [&](const flowvid::ProgressReport& p) {
+            const long long percent = static_cast<long long>(100 * p.fraction);
+            if (percent - last >= 5 || p.stage != phase) {
+                phase = p.stage;
+                std::fprintf(stderr, "  [%s] %s %lld%%, %s\n", method.c_str(), p.stage.c_str(), percent, p.message.c_str());
+                last = percent;
             }
             return true;
         };

@@ -156,11 +156,8 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
     if (sharded) return run_shards(options, global, std::move(request));
     ProgressBar progress(global, "fit cloth");
     const InterruptWatch interrupt;
-    request.progress = [&](const cloth_fit::ClothFitProgress& p) {
-        char detail[160];
-        std::snprintf(detail, sizeof detail, "%s, %lld evaluations, best %.4g, T %.3g, ETA %.0f s", p.phase.c_str(),
-                      p.evaluations, p.best_error, p.temperature, p.eta_s);
-        progress.update(p.fraction, detail);
+    request.progress = [&](const ProgressReport& p) {
+        progress.update(p.fraction, p.stage + ", " + p.message);
         return !interrupt.requested();
     };
     const cloth_fit::ClothFitOutcome outcome = cloth_fit::fit_cloth(request);
@@ -260,8 +257,8 @@ int merge_cloth(const MergeRequest& merge, const GlobalOptions& global) {
     request.threads = merge.threads;
     ProgressBar progress(global, "merge cloth");
     const InterruptWatch interrupt;
-    request.progress = [&](const cloth_fit::ClothFitProgress& p) {
-        progress.update(p.fraction, p.phase);
+    request.progress = [&](const ProgressReport& p) {
+        progress.update(p.fraction, p.stage);
         return !interrupt.requested();
     };
     const cloth_fit::ClothMergeOutcome merged = cloth_fit::merge_cloth_fit_shards(request);
@@ -320,8 +317,8 @@ int run_shards(const FitClothOptions& options, const GlobalOptions& global, clot
             const std::string split = std::to_string(shard.index) + "/" + std::to_string(shard.count);
             ProgressBar progress(global, "fit cloth shard " + split);
             request.shard = shard;
-            request.progress = [&](const cloth_fit::ClothFitProgress& p) {
-                progress.update(p.fraction, p.phase + ", " + std::to_string(p.evaluations) + " evaluations");
+            request.progress = [&](const ProgressReport& p) {
+                progress.update(p.fraction, p.stage + ", " + p.message);
                 return !interrupt.requested();
             };
             cloth_fit::ClothFitOutcome outcome;

@@ -126,11 +126,9 @@ py::object fit_cloth(const std::vector<std::string>& captures, const std::string
     request.floor_members = floor_members;
     request.threads = threads;
     if (!progress.is_none())
-        request.progress = [progress](const cloth_fit::ClothFitProgress& p) {
+        request.progress = [progress](const ProgressReport& p) {
             py::gil_scoped_acquire hold;
-            char message[160];
-            std::snprintf(message, sizeof message, "%lld evaluations, best %.4g", p.evaluations, p.best_error);
-            const py::object answer = progress(p.phase, p.fraction, std::string(message));
+            const py::object answer = progress(p.stage, p.fraction, text_to_python(p.message));
             return answer.is_none() || answer.cast<bool>();
         };
     cloth_fit::ClothFitOutcome outcome;

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <functional>
 #include <optional>
 #include <stdexcept>
@@ -67,15 +68,34 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
-using Reporter = std::function<bool(const ClothFitProgress&)>;
+// What the fit reports at each step, before it becomes a flowvid::Progress report.
+struct FitStep {
+    std::string phase;
+    double fraction = 0.0;      // of the whole fit
+    long long evaluations = 0;  // objective evaluations so far
+    double best_error = 0.0;
+    double temperature = 0.0;
+    double eta_s = 0.0;
+};
+using Reporter = std::function<bool(const FitStep&)>;
+
+std::string step_message(const FitStep& p) {
+    char text[160];
+    if (p.temperature > 0.0 || p.eta_s > 0.0)
+        std::snprintf(text, sizeof text, "%lld evaluations, best %.4g, T %.3g, ETA %.0f s", p.evaluations, p.best_error,
+                      p.temperature, p.eta_s);
+    else
+        std::snprintf(text, sizeof text, "%lld evaluations, best %.4g", p.evaluations, p.best_error);
+    return text;
+}
 
 // Cancellation and progress of one fit: the request's cancel flag, or its
 // progress callback returning false, stops it.
 struct FitControl {
     explicit FitControl(const ClothFitRequest& request)
         : stop_requested([this, &request] { return cancelled.load() || (request.cancel && request.cancel->load()); }),
-          report([this, &request](const ClothFitProgress& p) {
-              if (request.progress && !request.progress(p)) cancelled = true;
+          report([this, &request](const FitStep& p) {
+              if (request.progress && !request.progress({p.phase, p.fraction, step_message(p)})) cancelled = true;
               return !stop_requested();
           }) {}
     std::atomic<bool> cancelled{false};

@@ -8,6 +8,7 @@
 // perturbed starts for the variability analysis, and produce the fabric
 // preset. Used by `flowvid fit cloth`, the fit benchmarks and the tests.
 
+#include "flowvid/progress.hpp"
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/optim/annealing.hpp"
@@ -49,14 +50,6 @@ std::vector<FittedParameter> parameters_for(const std::vector<ClothTrial>& trial
 // of its range (no hand tuning, the same for every fabric).
 cloth::ClothMaterial middle_of_ranges(const cloth::ClothMaterial& base, const std::vector<FittedParameter>& parameters);
 
-struct ClothFitProgress {
-    std::string phase;          // "loading", "design", "annealing", "polish", "refining", "variability", "final"
-    double fraction = 0.0;      // of the whole fit, in [0, 1]
-    long long evaluations = 0;  // objective evaluations so far (each simulates every trial)
-    double best_error = 0.0;
-    double temperature = 0.0;
-    double eta_s = 0.0;
-};
 
 // One of `count` independent tasks a fit is split into for a render farm or
 // a cluster (1-based `index`): its share of the design (points index - 1,
@@ -132,7 +125,12 @@ struct ClothFitRequest {
     // std::invalid_argument when there are more shards than design points.
     std::optional<ClothFitShard> shard;
     int threads = 0;                       // 0: all cores; results do not depend on it
-    std::function<bool(const ClothFitProgress&)> progress;  // return false to cancel
+    // Stages "loading", "design", "annealing", "polish", "refining",
+    // "variability", "floors", "final", with fractions of the whole fit and
+    // "N evaluations, best E[, T t, ETA s]" as the message (each evaluation
+    // simulates every trial); false cancels (status cancelled). The
+    // convergence itself is in the outcome (search history, rounds).
+    Progress progress;
     const std::atomic<bool>* cancel = nullptr;
 };
 

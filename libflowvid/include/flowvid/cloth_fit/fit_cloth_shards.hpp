@@ -42,7 +42,7 @@ struct ClothMergeRequest {
     long long variability_evaluations = 40;
     int floor_members = 0;                      // as ClothFitRequest::floor_members
     int threads = 0;                            // the result does not depend on it
-    std::function<bool(const ClothFitProgress&)> progress;  // return false to cancel
+    Progress progress;  // as ClothFitRequest::progress
 };
 
 struct ClothMergeOutcome {
