@@ -125,12 +125,7 @@ py::object fit_cloth(const std::vector<std::string>& captures, const std::string
     request.variability_runs = variability_runs;
     request.floor_members = floor_members;
     request.threads = threads;
-    if (!progress.is_none())
-        request.progress = [progress](const ProgressReport& p) {
-            py::gil_scoped_acquire hold;
-            const py::object answer = progress(p.stage, p.fraction, text_to_python(p.message));
-            return answer.is_none() || answer.cast<bool>();
-        };
+    request.progress = progress_from_python(progress);
     cloth_fit::ClothFitOutcome outcome;
     {
         py::gil_scoped_release release;  // minutes of simulation: the interpreter (Blender's UI) keeps running

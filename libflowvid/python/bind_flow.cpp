@@ -15,18 +15,6 @@ namespace flowvid::python {
 
 namespace {
 
-// A Python progress(stage, fraction, message) as the library's Progress: it
-// runs with the interpreter's lock held (the work itself runs without), and
-// returning False cancels (None or True go on).
-flowvid::Progress progress_from_python(const py::object& progress) {
-    if (progress.is_none()) return {};
-    return [progress](const ProgressReport& report) {
-        py::gil_scoped_acquire hold;
-        const py::object answer = progress(report.stage, report.fraction, text_to_python(report.message));
-        return answer.is_none() || answer.cast<bool>();
-    };
-}
-
 // flowvid synth and flowvid edit, in process.
 py::object synthesize(const std::string& bank, const std::string& out, const std::pair<int, int>& frames, bool edit,
                       const std::string& flowlines, const std::string& capture, const std::string& background,

@@ -33,12 +33,7 @@ py::object diagnose(const std::vector<std::string>& captures, const std::string&
     gap::DiagnoseSettings settings;
     settings.effects = effects;
     settings.seed = seed;
-    if (!progress.is_none())
-        settings.progress = [progress](const ProgressReport& report) {
-            py::gil_scoped_acquire hold;
-            const py::object answer = progress(report.stage, report.fraction, text_to_python(report.message));
-            return answer.is_none() || answer.cast<bool>();
-        };
+    settings.progress = progress_from_python(progress);
     if (!out.empty()) formats::create_parent_folder((std::filesystem::path(out) / "diagnosis.json").string());
     nlohmann::json document;
     {

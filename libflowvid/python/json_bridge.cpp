@@ -22,4 +22,13 @@ nlohmann::json python_to_json(const pybind11::object& value) {
     return parsed ? *parsed : nlohmann::json();
 }
 
+Progress progress_from_python(const pybind11::object& progress) {
+    if (progress.is_none()) return {};
+    return [progress](const ProgressReport& report) {
+        pybind11::gil_scoped_acquire hold;
+        const pybind11::object answer = progress(report.stage, report.fraction, text_to_python(report.message));
+        return answer.is_none() || answer.cast<bool>();
+    };
+}
+
 }  // namespace flowvid::python
