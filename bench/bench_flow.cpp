@@ -15,6 +15,7 @@
 #include "flowvid/flow/synthesis.hpp"
 #include "flowvid/flow/synthetic.hpp"
 #include "flowvid/flow/tracking.hpp"
+#include "flowvid/flow/tracking_job.hpp"
 #include "flowvid/formats/particle_bank.hpp"
 
 #include <benchmark/benchmark.h>
@@ -419,18 +420,15 @@ void quality_on(const std::string& name, formats::ParticleDynamics dynamics) {
     }
     const formats::Capture capture = open_clip(capture_dir);
     const formats::FlowLineSet drawing = formats::import_flowlines_svg(capture.resolve(capture.flowlines));
-    const int patch_px = patch_size_from_lines(drawn_input_polylines(drawing)).patch_px;
-    const double densify_px = 2.0 * patch_px;
     CaptureFrames frames(capture);
-    const CameraMotion camera = estimate_camera_motion(frames, drawn_input_polylines(drawing));
-    CaptureFrames again(capture);
-    StabilisedFrames stabilised(again, camera);
-    TrackingSettings tracking;
-    tracking.dynamics = dynamics;
-    tracking.patch_size_px = patch_px;
-    const auto start = std::chrono::steady_clock::now();
-    const TrackingResult tracked =
-        track_particles(stabilised, densify_input_lines(drawing, densify_px, 6.0 * patch_px), tracking);
+    TrackingJob tracking;
+    tracking.drawing = drawing;
+    tracking.settings.dynamics = dynamics;
+    tracking.settings.patch_size_px = 0;  // from the drawing, as `flowvid track`
+    const auto start = std::chrono::steady_clock::now();  // the camera's drift included
+    const TrackingOutcome outcome = track_clip(frames, tracking);
+    const TrackingResult& tracked = outcome.result;
+    const int patch_px = outcome.patch_px;
     const double track_seconds = seconds_since(start);
     const std::string bank_path =
         (std::filesystem::temp_directory_path() / ("flowvid_bench_" + name + ".bank.exr")).string();
@@ -458,7 +456,7 @@ void quality_on(const std::string& name, formats::ParticleDynamics dynamics) {
                   "%s (%s, defaults: patch %d px, lines added %.0f px apart, background %s): tracked %zu segments in %.1f s, "
                   "%zu particles; K = %d, step %d, period %d frames, %zu of %zu slots without a particle (%zu borrowing a "
                   "near one); %d output frames",
-                  name.c_str(), formats::to_string(dynamics), patch_px, densify_px, to_string(prepared.background),
+                  name.c_str(), formats::to_string(dynamics), patch_px, outcome.densify_px, to_string(prepared.background),
                   tracked.report.lines.size(), track_seconds, bank.particles.size(), schedule.particles_per_line,
                   schedule.start_every, schedule.period_frames, substituted,
                   schedule.lines.size() * static_cast<std::size_t>(schedule.particles_per_line), borrowed, frames_out);

@@ -131,32 +131,13 @@ void print_region_table(const std::vector<std::pair<std::string, flow::RegionQua
 // its own flow region, the output lines' (at every frame for moving lines),
 // against the clip's.
 int run_edit_quality(const QualityOptions& options, const flow::PreparedSynthesis& prepared, TerminalProgress& terminal) {
-    const flowvid::Progress progress = terminal.callback();
     const flow::ClipFrames& clip = *prepared.clip;
-    const flow::Synthesizer& synth = *prepared.synthesizer;
-    const int width = clip.width(), height = clip.height();
-    const int frames = options.frames > 0 ? options.frames : 2 * clip.count();
-    std::vector<std::vector<float>> clip_luma, output_luma;
-    for (int i = 0; i < clip.count(); ++i) clip_luma.push_back(clip.luma(i));
-    bool moving_lines = false;
-    for (const formats::FlowLine& line : prepared.drawing.outputs) moving_lines = moving_lines || line.is_time_varying();
-    std::vector<std::vector<std::uint8_t>> regions;
-    const int rendered = synth.render_frames(1, frames, options.threads, [&](int frame, const flow::RgbImage& image) {
-        output_luma.push_back(flow::luma(flow::to_display(image)));
-        if (moving_lines || regions.empty())
-            regions.push_back(flow::line_band_mask(prepared.drawn_lines_at(frame), width, height, options.region_px));
-        return progress({"measure", 0.8 * frame / frames, "frame " + std::to_string(frame)});
-    });
-    if (rendered < frames) throw flowvid::Cancelled();
-    flow::RegionSettings region_settings;
-    region_settings.region_px = options.region_px;
-    const flow::RegionMeter meter(clip_luma, width, height,
-                                  flow::line_band_mask(flow::drawn_input_polylines(prepared.drawing), width, height,
-                                                       options.region_px),
-                                  region_settings);
-    const flow::RegionQuality edit = meter.measure(output_luma, regions);
-    report_progress(progress, "measure", 1.0);
+    const flow::EditQuality measured =
+        flow::measure_edit(prepared, options.frames, options.region_px, options.threads, terminal.callback());
     terminal.finish();
+    const flow::RegionQuality& edit = measured.region;
+    const int frames = measured.output_frames;
+    const bool moving_lines = measured.moving_lines;
     nlohmann::json summary = {{"bank", options.bank},
                               {"clip", clip_frames_name(prepared)},
                               {"clip_frames", clip.count()},

@@ -10,6 +10,7 @@
 #include "flowvid/flow/geometry.hpp"
 #include "flowvid/flow/stabilise.hpp"
 #include "flowvid/flow/tracking.hpp"
+#include "flowvid/flow/tracking_job.hpp"
 #include "flowvid/formats/any_file.hpp"
 #include "flowvid/formats/flowlines.hpp"
 #include "flowvid/formats/particle_bank.hpp"
@@ -46,10 +47,6 @@ struct TrackOptions {
     int threads = 0;
     bool json = false;
 };
-
-int track_with(const TrackOptions& options, const GlobalOptions& global, const formats::Capture& capture,
-               const std::string& lines_path, const formats::FlowLineSet& drawing, flow::CaptureFrames& frames,
-               const nlohmann::json& auto_summary);
 
 // --auto-lines: input lines proposed from the clip's mean optical flow
 // (flow::propose_input_lines_steadied), in the first frame's view when the
@@ -152,97 +149,42 @@ int run_track(const TrackOptions& options, const GlobalOptions& global) {
     }
 
     flow::CaptureFrames frames(capture, options.frames);
-    if (drawing.width != frames.width() || drawing.height != frames.height())
-        log_message("warning: " + lines_path + ": drawn for " + std::to_string(drawing.width) + " x " +
-                    std::to_string(drawing.height) + " but the clip is " + std::to_string(frames.width()) + " x " +
-                    std::to_string(frames.height()));
-
-    TrackOptions chosen = options;  // the patch size decided below
-    if (chosen.patch <= 0) {
-        const flow::PatchSizeChoice choice = flow::patch_size_from_lines(flow::drawn_input_polylines(drawing));
-        chosen.patch = choice.patch_px;
-        char text[240];
-        if (choice.neighbour_pairs > 0)
-            std::snprintf(text, sizeof text,
-                          "patch: %d px (half the median gap of %.0f px between neighbouring drawn lines; --patch to choose)",
-                          choice.patch_px, choice.median_gap_px);
-        else
-            std::snprintf(text, sizeof text, "patch: %d px (no drawn line has a neighbour; --patch to choose)", choice.patch_px);
-        log_message(text);
-    }
-    if (chosen.densify_px < 0.0) {
-        chosen.densify_px = 2.0 * chosen.patch;
-        log_message("densify: " + std::to_string(static_cast<int>(chosen.densify_px)) +
-                    " px (lines added only between neighbours more than 2 patches apart, where synthesis would show "
-                    "the background; --densify 0 for the lines as drawn)");
-    }
-    return track_with(chosen, global, capture, lines_path, drawing, frames, auto_summary);
-}
-
-int track_with(const TrackOptions& options, const GlobalOptions& global, const formats::Capture& capture,
-               const std::string& lines_path, const formats::FlowLineSet& drawing, flow::CaptureFrames& frames,
-               const nlohmann::json& auto_summary) {
-    flow::TrackingSettings settings;
-    settings.patch_size_px = options.patch;
-    settings.dynamics = options.dynamics == "stationary" ? formats::ParticleDynamics::stationary
-                                                          : formats::ParticleDynamics::non_stationary;
-    settings.start_every = options.start_every;
-    settings.max_path_frames = options.max_path_frames;
-    settings.max_speed_px = options.max_speed_px;
-    settings.search_radius_px = options.search_radius_px;
-    settings.min_correlation = options.min_correlation;
-    settings.max_particles_per_line = options.particles_per_line;
-    settings.threads = options.threads;
-    const double max_gap = options.max_gap_px > 0.0 ? options.max_gap_px : 6.0 * options.patch;
-    const std::vector<formats::FlowLine> lines = flow::densify_input_lines(drawing, options.densify_px, max_gap);
-    // Synthesis covers about a patch around each line: neighbours much
-    // further apart leave the background showing between them (the fire's
-    // six drawn lines, ~100 px apart with 24 px patches, show mostly plate).
-    {
-        std::vector<std::vector<Eigen::Vector2d>> polylines;
-        for (const formats::FlowLine& l : lines) polylines.push_back(l.points);
-        const auto wide = flow::wide_neighbours(polylines, max_gap, 2.0 * options.patch);
-        if (!wide.empty()) {
-            char widest[64];
-            std::snprintf(widest, sizeof widest, "%.0f px", wide.front().mean_gap_px);
-            log_message("warning: " + std::to_string(wide.size()) + " pair(s) of neighbouring lines are more than 2 patches (" +
-                        std::to_string(2 * options.patch) + " px) apart (widest: " +
-                        lines[static_cast<std::size_t>(wide.front().a)].id + " and " +
-                        lines[static_cast<std::size_t>(wide.front().b)].id + ", " + widest +
-                        "): synthesis shows the background between them; draw lines closer, leave --densify automatic, "
-                        "or use a larger --patch");
-        }
-    }
-
+    flow::TrackingJob job;
+    job.drawing = drawing;
+    job.drawing_name = lines_path;
+    job.settings.patch_size_px = options.patch;
+    job.settings.dynamics = options.dynamics == "stationary" ? formats::ParticleDynamics::stationary
+                                                              : formats::ParticleDynamics::non_stationary;
+    job.settings.start_every = options.start_every;
+    job.settings.max_path_frames = options.max_path_frames;
+    job.settings.max_speed_px = options.max_speed_px;
+    job.settings.search_radius_px = options.search_radius_px;
+    job.settings.min_correlation = options.min_correlation;
+    job.settings.max_particles_per_line = options.particles_per_line;
+    job.settings.threads = options.threads;
+    job.densify_px = options.densify_px;
+    job.max_gap_px = options.max_gap_px;
     std::optional<TerminalProgress> progress;  // Ctrl-C stops the work cleanly while it runs
     progress.emplace(global, "track");
-    // A drifting camera is tracked in the first frame's view (stabilise.hpp).
-    const flow::CameraMotion camera =
-        flow::estimate_camera_motion(frames, flow::drawn_input_polylines(drawing), {}, progress->callback());
-    if (progress->interrupted()) {
-        log_message("interrupted: no bank written");
-        return kExitInterrupted;
-    }
-    progress->finish();
-    log_message(flow::describe(camera));
-    flow::StabilisedFrames stabilised(frames, camera);
-    flow::TrackingResult result;
+    flow::TrackingOutcome outcome;
     try {
-        result = flow::track_particles(stabilised, lines, settings, progress->callback());
+        outcome = flow::track_clip(frames, job, progress->callback());
     } catch (const std::invalid_argument& e) {  // the clip, the lines and the options do not fit together
         log_message("error: " + frames.source() + " with " + lines_path + ": " + e.what());
         return kExitInvalidInput;
     }
     progress.reset();
-    if (result.report.status == flow::TrackingReport::Status::cancelled) {
+    if (outcome.result.report.status == flow::TrackingReport::Status::cancelled) {
         log_message("interrupted: no bank written");
         return kExitInterrupted;
     }
+    flow::TrackingResult& result = outcome.result;
+    const flow::CameraMotion& camera = outcome.camera;
 
     nlohmann::json summary = {{"bank", options.out},
                               {"clip", frames.source()},
                               {"frames", frames.count()},
-                              {"patch_size_px", options.patch},
+                              {"patch_size_px", outcome.patch_px},
                               {"dynamics", options.dynamics},
                               {"start_every", result.report.start_every},
                               {"max_path_frames", result.report.max_path_frames},
@@ -255,7 +197,7 @@ int track_with(const TrackOptions& options, const GlobalOptions& global, const f
                           {"segments", p.segments},
                           {"untracked_segments", p.untracked}});
     summary["camera"] = {{"model", flow::to_string(camera.model)}, {"largest_drift_px", camera.largest_offset_px}};
-    summary["densify_px"] = options.densify_px;
+    summary["densify_px"] = outcome.densify_px;
     if (!auto_summary.is_null()) summary["auto_lines"] = auto_summary;
     summary["drawn_lines"] = probes;
     nlohmann::json tracked = nlohmann::json::array();

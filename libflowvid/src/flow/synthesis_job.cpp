@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <cstdio>
 
 namespace flowvid::flow {
@@ -226,6 +227,33 @@ SynthesisOutcome render_synthesis(const SynthesisJob& job, const SynthesisOutput
     if (outcome.complete()) writer.close();
     else writer.discard();  // an interrupted video is not published as if it were whole
     return outcome;
+}
+
+EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double region_px, int threads,
+                         const Progress& progress) {
+    if (!prepared.clip) throw std::invalid_argument("measure_edit: prepare the synthesis with keep_clip");
+    const ClipFrames& clip = *prepared.clip;
+    const int width = clip.width(), height = clip.height();
+    EditQuality out;
+    out.output_frames = frames > 0 ? frames : 2 * clip.count();
+    std::vector<std::vector<float>> clip_luma, output_luma;
+    for (int i = 0; i < clip.count(); ++i) clip_luma.push_back(clip.luma(i));
+    for (const formats::FlowLine& line : prepared.drawing.outputs) out.moving_lines = out.moving_lines || line.is_time_varying();
+    std::vector<std::vector<std::uint8_t>> regions;
+    const int rendered = prepared.synthesizer->render_frames(1, out.output_frames, threads, [&](int frame, const RgbImage& image) {
+        output_luma.push_back(luma(to_display(image)));
+        if (out.moving_lines || regions.empty())
+            regions.push_back(line_band_mask(prepared.drawn_lines_at(frame), width, height, region_px));
+        return !progress || progress({"measure", 0.8 * frame / out.output_frames, "frame " + std::to_string(frame)});
+    });
+    if (rendered < out.output_frames) throw Cancelled();
+    RegionSettings settings;
+    settings.region_px = region_px;
+    const RegionMeter meter(clip_luma, width, height,
+                            line_band_mask(drawn_input_polylines(prepared.drawing), width, height, region_px), settings);
+    out.region = meter.measure(output_luma, regions);
+    report_progress(progress, "measure", 1.0);
+    return out;
 }
 
 namespace {

@@ -7,6 +7,7 @@
 #include "flowvid/flow/sampling.hpp"
 #include "flowvid/flow/synthetic.hpp"
 #include "flowvid/flow/tracking.hpp"
+#include "flowvid/flow/tracking_job.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -319,4 +320,51 @@ TEST(FlowTracking, RealWaterfallTracksWithHighCorrelation) {
         EXPECT_LT(s.mean_speed_px_per_frame, 3.0) << s.id;
     }
     EXPECT_GE(with_particles, 8);
+}
+
+// flow::track_clip is the pipeline `flowvid track` runs: the same bank as its
+// steps taken by hand (patch from the drawing, lines densified two patches
+// apart, the camera's drift undone), and it says what it chose.
+TEST(FlowTrackingJob, TracksAsItsStepsByHandAndSaysWhatItChose) {
+    const std::string capture_dir = flowvid::testing::shared_path("captures/video-waterfall-cascade");
+    if (!std::filesystem::exists(capture_dir)) GTEST_SKIP() << "no shared captures";
+    const formats::Capture capture = open_clip(capture_dir);
+    const formats::FlowLineSet drawing = formats::import_flowlines_svg(capture.resolve(capture.flowlines));
+    const int frame_count = 12;
+
+    const int patch_px = patch_size_from_lines(drawn_input_polylines(drawing)).patch_px;
+    TrackingSettings settings;
+    settings.patch_size_px = patch_px;
+    settings.max_path_frames = frame_count;
+    CaptureFrames frames(capture, frame_count);
+    const CameraMotion camera = estimate_camera_motion(frames, drawn_input_polylines(drawing));
+    StabilisedFrames stabilised(frames, camera);
+    const std::vector<formats::FlowLine> lines = densify_input_lines(drawing, 2.0 * patch_px, 6.0 * patch_px);
+    const TrackingResult by_hand = track_particles(stabilised, lines, settings);
+
+    TrackingJob job;
+    job.drawing = drawing;
+    job.drawing_name = "flowlines.svg";
+    job.settings.max_path_frames = frame_count;
+    job.settings.patch_size_px = 0;  // chosen from the drawing
+    CaptureFrames again(capture, frame_count);
+    std::vector<std::string> messages;
+    std::vector<std::string> stages;
+    const TrackingOutcome outcome = track_clip(again, job, [&](const flowvid::ProgressReport& r) {
+        if (r.fraction < 0.0) messages.push_back(r.message);
+        else if (stages.empty() || stages.back() != r.stage) stages.push_back(r.stage);
+        return true;
+    });
+    EXPECT_EQ(outcome.patch_px, patch_px);
+    EXPECT_DOUBLE_EQ(outcome.densify_px, 2.0 * patch_px);
+    EXPECT_EQ(outcome.lines.size(), lines.size());
+    EXPECT_EQ(outcome.camera.largest_offset_px, camera.largest_offset_px);
+    ASSERT_EQ(outcome.result.bank.particles.size(), by_hand.bank.particles.size());
+    for (std::size_t i = 0; i < by_hand.bank.particles.size(); ++i)
+        EXPECT_EQ(outcome.result.bank.particles[i].arc_length_px, by_hand.bank.particles[i].arc_length_px) << i;
+    EXPECT_EQ(stages, (std::vector<std::string>{"camera drift", "track"}));
+    ASSERT_GE(messages.size(), 3u);
+    EXPECT_EQ(messages[0].rfind("patch: " + std::to_string(patch_px) + " px", 0), 0u) << messages[0];
+    EXPECT_EQ(messages[1].rfind("densify: ", 0), 0u) << messages[1];
+    EXPECT_EQ(messages.back(), describe(camera));
 }

@@ -13,6 +13,7 @@
 
 #include "flowvid/flow/editing.hpp"
 #include "flowvid/flow/frames.hpp"
+#include "flowvid/flow/quality.hpp"
 #include "flowvid/flow/stabilise.hpp"
 #include "flowvid/flow/synthesis.hpp"
 #include "flowvid/formats/capture.hpp"
@@ -123,6 +124,20 @@ struct SynthesisOutcome {
 // prepare_synthesis throws and IoError for an output that cannot be written,
 // before any long work where the name alone decides.
 SynthesisOutcome render_synthesis(const SynthesisJob& job, const SynthesisOutput& output, const Progress& progress = {});
+
+// How an edit looks against its clip (`flowvid quality --edit`): frames
+// 1..frames (0: twice the clip) rendered from a PreparedSynthesis prepared
+// with keep_clip, measured over the output lines' region (within region_px
+// of them, at every frame for keyed lines) against the clip's own over its
+// drawn input lines (quality.hpp RegionMeter). Progress: stage "measure";
+// cancelling throws flowvid::Cancelled.
+struct EditQuality {
+    RegionQuality region;
+    int output_frames = 0;
+    bool moving_lines = false;  // keyed output lines: the region follows them
+};
+EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double region_px, int threads,
+                         const Progress& progress = {});
 
 // What a render did, as `flowvid synth --json` and `flowvid edit --json`
 // print it (and the Python module returns it): output, frames, the window,
