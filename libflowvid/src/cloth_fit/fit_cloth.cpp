@@ -76,10 +76,12 @@ struct FitStep {
     double best_error = 0.0;
     double temperature = 0.0;
     double eta_s = 0.0;
+    std::string detail;  // the optimiser's own message, when a search or polish reports (its counts are its own)
 };
 using Reporter = std::function<bool(const FitStep&)>;
 
 std::string step_message(const FitStep& p) {
+    if (!p.detail.empty()) return p.detail;
     char text[160];
     if (p.temperature > 0.0 || p.eta_s > 0.0)
         std::snprintf(text, sizeof text, "%lld evaluations, best %.4g, T %.3g, ETA %.0f s", p.evaluations, p.best_error,
@@ -380,9 +382,9 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
             search.total_budget_seconds = std::max(2.0, round_seconds);
         }
         const double progress_span = main_share * share;
-        annealing.progress = [&](const optim::AnnealingProgress& p) {
-            return report({round > 0 ? "refining" : "annealing", progress_begin + progress_span * p.fraction_done,
-                           outcome.evaluations + p.evaluations, p.best_value, p.temperature, p.eta_s});
+        annealing.progress = [&](const ProgressReport& p) {
+            return report({round > 0 ? "refining" : "annealing", progress_begin + progress_span * p.fraction,
+                           outcome.evaluations, 0.0, 0.0, 0.0, p.message});
         };
         if (round == 0) report({"design", 0.02, 0, 0.0, 0.0, 0.0});
         if (request.cancel && request.cancel->load()) cancelled = true;
@@ -423,8 +425,8 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
             polish.cancel = &cancelled;
             if (budget > 0.0) polish.budget_seconds = polish_budget_seconds;
             const double polish_progress = progress_begin + progress_span;
-            polish.progress = [&](const optim::LeastSquaresProgress& p) {
-                return report({"polish", polish_progress, outcome.evaluations + p.evaluations, p.best_value, 0.0, 0.0});
+            polish.progress = [&](const ProgressReport& p) {
+                return report({"polish", polish_progress, outcome.evaluations, 0.0, 0.0, 0.0, p.message});
             };
             const optim::ResidualFunction residuals = [problem](const Eigen::VectorXd& values, int residual_threads) {
                 return problem->residuals(problem->material(values), residual_threads);

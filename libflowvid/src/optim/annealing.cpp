@@ -49,6 +49,7 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 using detail::Clock;
+using detail::progress_message;
 using detail::seconds_since;
 
 // The simplex and the search state of one run.
@@ -311,14 +312,7 @@ private:
 
     bool report_progress() {
         if (!m_s.progress) return true;
-        AnnealingProgress p;
-        p.run = m_run;
-        p.iteration = m_iterations;
-        p.stage = m_stages;
-        p.evaluations = used();
-        p.temperature = m_t;
-        p.best_value = m_best_value;
-        p.elapsed_s = seconds_since(m_start);
+        const double elapsed_s = seconds_since(m_start);
         // Evaluations the schedule still needs: the stages down to the final
         // temperature, plus a polish of about as many as one stage.
         double remaining = static_cast<double>(m_per_stage);
@@ -328,11 +322,11 @@ private:
         }
         if (m_s.max_evaluations > 0) remaining = std::min(remaining, static_cast<double>(m_s.max_evaluations - used()));
         remaining = std::max(remaining, 0.0);
-        const double per_evaluation = used() > 0 ? p.elapsed_s / static_cast<double>(used()) : 0.0;
-        p.eta_s = remaining * per_evaluation;
-        if (m_s.budget_seconds > 0.0) p.eta_s = std::min(p.eta_s, std::max(0.0, m_s.budget_seconds - p.elapsed_s));
-        p.fraction_done = p.elapsed_s + p.eta_s > 0.0 ? p.elapsed_s / (p.elapsed_s + p.eta_s) : 0.0;
-        return m_s.progress(p);
+        const double per_evaluation = used() > 0 ? elapsed_s / static_cast<double>(used()) : 0.0;
+        double eta_s = remaining * per_evaluation;
+        if (m_s.budget_seconds > 0.0) eta_s = std::min(eta_s, std::max(0.0, m_s.budget_seconds - elapsed_s));
+        const double fraction = elapsed_s + eta_s > 0.0 ? elapsed_s / (elapsed_s + eta_s) : 0.0;
+        return m_s.progress({"annealing", fraction, progress_message(used(), m_best_value, "T", m_t, eta_s)});
     }
 
     Evaluator& m_ev;
@@ -496,9 +490,9 @@ VariabilityReport variability_analysis(const Objective& objective, const Paramet
         AnnealingSettings s = settings.annealing;
         s.seed = derive_seed(settings.annealing.seed, i + 1);
         if (settings.annealing.progress) {
-            s.progress = [&](const AnnealingProgress& p) {
+            s.progress = [&, i](const ProgressReport& p) {
                 std::lock_guard<std::mutex> lock(progress_mutex);
-                return settings.annealing.progress(p);
+                return settings.annealing.progress({"variability", p.fraction, "run " + std::to_string(i + 1) + ": " + p.message});
             };
         }
         report.runs[i] = anneal(evaluator, space.to_unit(report.starts[i]), s, std::numeric_limits<double>::quiet_NaN(),

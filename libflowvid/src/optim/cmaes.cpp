@@ -18,6 +18,7 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 using detail::Clock;
+using detail::progress_message;
 using detail::seconds_since;
 
 // Standard normal numbers from the portable generator (Box-Muller, both
@@ -151,18 +152,12 @@ AnnealingResult cmaes(Evaluator& evaluator, const Eigen::VectorXd& start_unit, c
             break;
         }
         if (settings.progress) {
-            AnnealingProgress p;
-            p.iteration = generation;
-            p.stage = generation;
-            p.evaluations = used;
-            p.temperature = sigma;
-            p.best_value = best_value;
-            p.elapsed_s = seconds_since(started);
+            const double elapsed_s = seconds_since(started);
             const double left = settings.max_evaluations > 0 ? double(settings.max_evaluations - used) : 0.0;
-            p.eta_s = left * p.elapsed_s / std::max<double>(1.0, double(used));
-            if (settings.budget_seconds > 0.0) p.eta_s = std::min(p.eta_s, std::max(0.0, settings.budget_seconds - p.elapsed_s));
-            p.fraction_done = p.elapsed_s + p.eta_s > 0.0 ? p.elapsed_s / (p.elapsed_s + p.eta_s) : 1.0;
-            if (!settings.progress(p)) {
+            double eta_s = left * elapsed_s / std::max<double>(1.0, double(used));
+            if (settings.budget_seconds > 0.0) eta_s = std::min(eta_s, std::max(0.0, settings.budget_seconds - elapsed_s));
+            const double fraction = elapsed_s + eta_s > 0.0 ? elapsed_s / (elapsed_s + eta_s) : 1.0;
+            if (!settings.progress({"cmaes", fraction, progress_message(used, best_value, "sigma", sigma, eta_s)})) {
                 status = AnnealingResult::Status::cancelled;
                 break;
             }

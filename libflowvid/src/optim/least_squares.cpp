@@ -1,4 +1,6 @@
 #include "flowvid/optim/least_squares.hpp"
+
+#include "timing.hpp"
 #include "flowvid/threads.hpp"
 
 #include "flowvid/thread_pool.hpp"
@@ -123,7 +125,12 @@ LeastSquaresResult levenberg_marquardt(const ResidualFunction& residuals, const 
             }
             lambda *= 4.0;
         }
-        if (settings.progress && !settings.progress({result.iterations, result.evaluations, value, lambda})) {
+        if (settings.progress &&
+            !settings.progress({"least squares",
+                                settings.max_evaluations > 0
+                                    ? std::min(1.0, static_cast<double>(result.evaluations) / settings.max_evaluations)
+                                    : 0.0,
+                                detail::progress_message(result.evaluations, value, "damping", lambda)})) {
             result.status = LeastSquaresResult::Status::cancelled;
             break;
         }

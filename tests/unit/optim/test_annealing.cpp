@@ -146,8 +146,8 @@ TEST(Annealing, ReportsProgressAndStopsOnCancelAndLimits) {
     flowvid::ThreadPool pool(1);
     Evaluator evaluator(objective_of(f), f.space, &pool);
     AnnealingSettings s;
-    std::vector<AnnealingProgress> seen;
-    s.progress = [&](const AnnealingProgress& p) {
+    std::vector<flowvid::ProgressReport> seen;
+    s.progress = [&](const flowvid::ProgressReport& p) {
         seen.push_back(p);
         return seen.size() < 5;  // cancel after the fifth stage
     };
@@ -155,15 +155,19 @@ TEST(Annealing, ReportsProgressAndStopsOnCancelAndLimits) {
     const AnnealingResult r = anneal(evaluator, start, s);
     EXPECT_EQ(r.status, AnnealingResult::Status::cancelled);
     ASSERT_EQ(seen.size(), 5u);
+    // One report per stage, each stage in the history: cooler, no worse, more evaluations.
+    ASSERT_EQ(r.history.size(), seen.size());
     for (std::size_t i = 1; i < seen.size(); ++i) {
-        EXPECT_LT(seen[i].temperature, seen[i - 1].temperature);
-        EXPECT_LE(seen[i].best_value, seen[i - 1].best_value);
-        EXPECT_GT(seen[i].evaluations, seen[i - 1].evaluations);
-        EXPECT_GE(seen[i].eta_s, 0.0);
-        EXPECT_GT(seen[i].fraction_done, 0.0);
-        EXPECT_LE(seen[i].fraction_done, 1.0);
+        EXPECT_LT(r.history[i].temperature, r.history[i - 1].temperature);
+        EXPECT_LE(r.history[i].best_value, r.history[i - 1].best_value);
+        EXPECT_GT(r.history[i].evaluations, r.history[i - 1].evaluations);
+        EXPECT_EQ(seen[i].stage, "annealing");
+        EXPECT_GT(seen[i].fraction, 0.0);
+        EXPECT_LE(seen[i].fraction, 1.0);
+        EXPECT_EQ(seen[i].message.rfind(std::to_string(r.history[i].evaluations) + " evaluations, best ", 0), 0u)
+            << seen[i].message;
     }
-    EXPECT_EQ(seen.back().best_value, r.best_value);
+    EXPECT_EQ(r.history.back().best_value, r.best_value);
 
     AnnealingSettings limited;
     limited.max_evaluations = 500;

@@ -139,8 +139,9 @@ TEST(Cmaes, StaysInTheBoxAndStopsAtTheEvaluationLimitAndOnCancel) {
     Evaluator evaluator([&f](const Eigen::VectorXd& x, const EvaluationContext&) { return f(x); }, unit_space(4), nullptr);
     CmaesSettings s;
     int generations = 0;
-    s.progress = [&generations](const AnnealingProgress& p) {
-        EXPECT_EQ(p.stage, generations + 1);
+    s.progress = [&generations](const flowvid::ProgressReport& p) {
+        EXPECT_EQ(p.stage, "cmaes");
+        EXPECT_EQ(p.message.rfind(std::to_string(1 + 8 * (generations + 1)) + " evaluations", 0), 0u) << p.message;
         return ++generations < 3;
     };
     const AnnealingResult cancelled = cmaes(evaluator, Eigen::VectorXd::Constant(4, 0.5), s);

@@ -25,6 +25,7 @@
 // temperature, best error, ETA) that can cancel by returning false, and
 // `cancel` can be set from another thread.
 
+#include "flowvid/progress.hpp"
 #include "flowvid/optim/design.hpp"
 #include "flowvid/optim/objective.hpp"
 
@@ -40,20 +41,6 @@
 #include <vector>
 
 namespace flowvid::optim {
-
-struct AnnealingProgress {
-    int run = 0;                  // index of the run (variability analysis), else 0
-    int iteration = 0;            // simplex moves so far
-    int stage = 0;                // temperature steps so far
-    long long evaluations = 0;    // objective evaluations so far (this run)
-    double temperature = 0.0;
-    double best_value = 0.0;      // lowest objective value found so far
-    double elapsed_s = 0.0;
-    double eta_s = 0.0;           // estimated time to the end (schedule or limits, whichever is first)
-    double fraction_done = 0.0;   // in [0, 1]
-};
-// Return false to cancel.
-using AnnealingCallback = std::function<bool(const AnnealingProgress&)>;
 
 struct AnnealingSettings {
     std::uint64_t seed = 1;
@@ -84,7 +71,12 @@ struct AnnealingSettings {
     // Expected wall time of one evaluation, until the run has measured its
     // own: a budgeted run never starts evaluations it cannot finish in time.
     double evaluation_seconds_hint = 0.0;
-    AnnealingCallback progress;         // after every stage
+    // After every temperature stage: stage "annealing" ("variability" for the
+    // runs of a variability analysis, the run named in the message), the
+    // fraction done (the schedule or the limits, whichever ends first) and
+    // "N evaluations, best V, T t, ETA s" (this run's); false cancels. The
+    // stages themselves are in AnnealingResult::history.
+    Progress progress;
     const std::atomic<bool>* cancel = nullptr;
 };
 

@@ -44,9 +44,10 @@ struct CmaesSettings {
     // run has measured its own: a generation of lambda points costs
     // ceil(lambda / threads) rounds.
     double evaluation_seconds_hint = 0.0;
-    // After every generation; AnnealingProgress::temperature carries sigma
-    // and `stage` the generation. Return false to cancel.
-    AnnealingCallback progress;
+    // After every generation: stage "cmaes", the fraction done and
+    // "N evaluations, best V, sigma s, ETA s"; false cancels. The
+    // generations themselves are in AnnealingResult::history.
+    Progress progress;
     const std::atomic<bool>* cancel = nullptr;
 };
 

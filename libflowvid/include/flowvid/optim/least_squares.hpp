@@ -9,6 +9,7 @@
 // space) and keeps every step inside it. Deterministic: the result does not
 // depend on the thread count.
 
+#include "flowvid/progress.hpp"
 #include "flowvid/optim/parameter_space.hpp"
 
 #include <Eigen/Core>
@@ -23,13 +24,6 @@ namespace flowvid::optim {
 // large residuals, not a shorter vector).
 using ResidualFunction = std::function<Eigen::VectorXd(const Eigen::VectorXd& values, int threads)>;
 
-struct LeastSquaresProgress {
-    int iteration = 0;
-    long long evaluations = 0;
-    double best_value = 0.0;  // |r|^2
-    double damping = 0.0;     // lambda
-};
-
 struct LeastSquaresSettings {
     long long max_evaluations = 200;
     double budget_seconds = 0.0;              // 0: none
@@ -38,7 +32,9 @@ struct LeastSquaresSettings {
     double relative_tolerance = 1e-4;         // stop when an accepted step lowers E by less than this share
     int threads = 0;                          // 0: all cores
     const std::atomic<bool>* cancel = nullptr;
-    std::function<bool(const LeastSquaresProgress&)> progress;  // false: stop
+    // After every iteration: stage "least squares", evaluations over
+    // max_evaluations, "N evaluations, best |r|^2, damping lambda"; false stops.
+    Progress progress;
 };
 
 struct LeastSquaresResult {
