@@ -27,4 +27,5 @@ void bind_formats(pybind11::module_& module);
 void bind_cloth(pybind11::module_& module);
 void bind_flow(pybind11::module_& module);
 void bind_gap(pybind11::module_& module);
+void bind_rigid(pybind11::module_& module);
 }  // namespace flowvid::python

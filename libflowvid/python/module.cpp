@@ -14,4 +14,5 @@ PYBIND11_MODULE(flowvid, module) {
     flowvid::python::bind_cloth(module);
     flowvid::python::bind_flow(module);
     flowvid::python::bind_gap(module);
+    flowvid::python::bind_rigid(module);
 }

@@ -11,6 +11,9 @@ import flowvid
 
 SHARED = os.environ.get("FLOWVID_SHARED_DIR", "")
 SILK_STATIC = os.path.join(SHARED, "captures", "cloth-silk-static-1")
+TOSS = os.path.join(SHARED, "captures", "rigid-toss-major")
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+TOSS_FIT = os.path.join(REPO, "formats", "examples", "toss.rigid_fit.json")
 
 
 @unittest.skipUnless(os.environ.get("FLOWVID_CLI") and os.path.isdir(SILK_STATIC),
@@ -50,6 +53,27 @@ class PipelineTest(unittest.TestCase):
         with self.assertRaises(flowvid.Cancelled):
             flowvid.gap.diagnose([SILK_STATIC], preset=preset, frames=4, progress=lambda stage, f, m: False)
 
+
+    def test_predict_in_process_gives_the_tools_masks_and_agreement(self):
+        with tempfile.TemporaryDirectory() as folder:
+            completed = subprocess.run(
+                [os.environ["FLOWVID_CLI"], "predict", "rigid", "--fit", TOSS_FIT, "--capture", TOSS, "--out",
+                 os.path.join(folder, "tool"), "--frames", "3:8", "--json"], capture_output=True, text=True)
+            self.assertEqual(completed.returncode, 0, completed.stderr)
+            tool = json.loads(completed.stdout)
+            result = flowvid.rigid.predict(TOSS_FIT, TOSS, frames=(3, 8), masks=os.path.join(folder, "module"))
+            self.assertEqual([f["frame"] for f in result["frames"]], list(range(3, 9)))
+            self.assertEqual(result["iou_pooled"], tool["iou_pooled"])
+            self.assertEqual([f["iou"] for f in result["frames"]], [f["iou"] for f in tool["per_frame"]])
+            self.assertGreater(result["iou_min"], 0.5)  # the example fit is of this toss
+            for frame in range(3, 9):
+                name = "%06d.png" % frame
+                with open(os.path.join(folder, "tool", name), "rb") as a, \
+                        open(os.path.join(folder, "module", name), "rb") as b:
+                    self.assertEqual(a.read(), b.read(), name)
+            with self.assertRaises(flowvid.Error) as caught:
+                flowvid.rigid.predict(TOSS_FIT, TOSS, frames=(3, 10000))
+            self.assertIn("frames", str(caught.exception))
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)
