@@ -126,7 +126,7 @@ int run_bench_gap(const BenchGapOptions& options, const GlobalOptions& global) {
         return kExitUsage;
     }
     if (!options.out.empty()) return generate(options, global);
-    const std::optional<gap::ClothGapRequest> cloth = cloth_gap_request({}, "", options.diagnose);
+    const std::optional<gap::ClothGapRequest> cloth = cloth_gap_request(options.diagnose);
     if (!cloth) return kExitUsage;
     if (!options.diagnose_dir.empty()) {
         const int status = diagnose_all(options, *cloth, global);

@@ -35,13 +35,10 @@ void write_diagnosis(const std::string& folder, const nlohmann::json& diagnosis)
 
 std::string diagnoser_resolution() { return std::to_string(gap::kDiagnoserRows) + "x" + std::to_string(gap::kDiagnoserCols); }
 
-std::optional<gap::ClothGapRequest> cloth_gap_request(const std::vector<std::string>& capture_paths,
-                                                      const std::string& preset_path, const DiagnoseClothOptions& options) {
+std::optional<gap::ClothGapRequest> cloth_gap_request(const DiagnoseClothOptions& options) {
     const std::optional<cloth::SwatchOptions> swatch = swatch_options(options.run);
     if (!swatch) return std::nullopt;
     gap::ClothGapRequest request;
-    request.capture_paths = capture_paths;
-    request.preset_path = preset_path;
     request.swatch = *swatch;
     request.frames = options.frames;
     request.substeps_per_frame = options.substeps_per_frame;
@@ -76,20 +73,12 @@ int run_diagnose(DiagnoseOptions& options, const GlobalOptions& global) {
     }
     for (const std::string& name : options.effects) gap::find_effect(name);  // unknown names fail before the work
     formats::create_parent_folder((std::filesystem::path(options.out) / "diagnosis.json").string());  // the report folder
-    gap::OpenedGapModel opened;
-    if (rigid) {
-        gap::RigidGapRequest request;
-        request.capture_paths = options.captures;
-        request.fit_path = options.fit;
-        request.threads = options.cloth.run.threads;
-        opened = gap::open_rigid_model(request);
-    } else {
-        const std::optional<gap::ClothGapRequest> request = cloth_gap_request(options.captures, options.preset, options.cloth);
-        if (!request) return kExitUsage;
-        ProgressBar floors(global, "diagnose");
-        floors.update(0.0, "floors");
-        opened = gap::open_cloth_model(*request);
-    }
+    const std::optional<gap::ClothGapRequest> cloth = cloth_gap_request(options.cloth);
+    if (!cloth) return kExitUsage;
+    ProgressBar floors(global, "diagnose");  // the floors are computed as the model opens
+    floors.update(0.0, "floors");
+    const gap::OpenedGapModel opened = gap::open_gap_model(options.captures, options.preset, options.fit, *cloth);
+    floors.done();
     print_problems(opened.warnings);
     options.settings.effects = options.effects;
     TerminalProgress progress(global, "diagnose");

@@ -31,9 +31,9 @@ struct DiagnoseClothOptions {
 // gap::ClothGapRequest's mesh as --resolution text ("20x20").
 std::string diagnoser_resolution();
 
-// The gap model request of the options; nullopt (logged) for bad run options.
-std::optional<gap::ClothGapRequest> cloth_gap_request(const std::vector<std::string>& capture_paths,
-                                                      const std::string& preset_path, const DiagnoseClothOptions& options);
+// The cloth part of the gap model request (gap::open_gap_model sets the
+// captures and the preset); nullopt (logged) for bad run options.
+std::optional<gap::ClothGapRequest> cloth_gap_request(const DiagnoseClothOptions& options);
 
 // Writes FOLDER/diagnosis.json and FOLDER/report.html atomically.
 void write_diagnosis(const std::string& folder, const nlohmann::json& diagnosis);

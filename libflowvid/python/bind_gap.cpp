@@ -1,7 +1,6 @@
 #include "bindings.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
-#include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/diagnosis.hpp"
 #include "flowvid/gap/open_model.hpp"
 #include "flowvid/threads.hpp"
@@ -22,7 +21,6 @@ namespace {
 py::object diagnose(const std::vector<std::string>& captures, const std::string& preset, const std::string& fit,
                     const std::string& out, int frames, const std::vector<std::string>& effects, std::uint64_t seed,
                     int threads, const py::object& progress) {
-    if (captures.empty()) throw UsageError("", "captures", "no captures to diagnose", "give capture folders");
     for (const std::string& name : effects) {  // unknown names fail before the work
         try {
             gap::find_effect(name);
@@ -38,25 +36,11 @@ py::object diagnose(const std::vector<std::string>& captures, const std::string&
     nlohmann::json document;
     {
         py::gil_scoped_release release;  // floors and refits take minutes
-        gap::OpenedGapModel opened;
-        if (formats::read_capture(captures.front()).is_rigid()) {
-            gap::RigidGapRequest request;
-            request.capture_paths = captures;
-            request.fit_path = fit;
-            request.threads = threads;
-            opened = gap::open_rigid_model(request);
-        } else {
-            if (preset.empty())
-                throw UsageError("", "preset", "a cloth diagnosis needs the fitted fabric",
-                                 "give preset= a *.fabric.json (flowvid.cloth.fit makes one)");
-            gap::ClothGapRequest request;
-            request.capture_paths = captures;
-            request.preset_path = preset;
-            request.frames = frames;
-            request.threads = threads;
-            request.swatch.simulation.threads = resolve_thread_count(threads);
-            opened = gap::open_cloth_model(request);
-        }
+        gap::ClothGapRequest cloth;
+        cloth.frames = frames;
+        cloth.threads = threads;
+        cloth.swatch.simulation.threads = resolve_thread_count(threads);
+        const gap::OpenedGapModel opened = gap::open_gap_model(captures, preset, fit, cloth);
         document = gap::diagnosis_document(gap::diagnose(*opened.model, settings), opened.description);
     }
     if (!out.empty()) formats::write_diagnosis((std::filesystem::path(out) / "diagnosis.json").string(), document);

@@ -74,8 +74,6 @@ struct FitStep {
     double fraction = 0.0;      // of the whole fit
     long long evaluations = 0;  // objective evaluations so far
     double best_error = 0.0;
-    double temperature = 0.0;
-    double eta_s = 0.0;
     std::string detail;  // the optimiser's own message, when a search or polish reports (its counts are its own)
 };
 using Reporter = std::function<bool(const FitStep&)>;
@@ -83,11 +81,7 @@ using Reporter = std::function<bool(const FitStep&)>;
 std::string step_message(const FitStep& p) {
     if (!p.detail.empty()) return p.detail;
     char text[160];
-    if (p.temperature > 0.0 || p.eta_s > 0.0)
-        std::snprintf(text, sizeof text, "%lld evaluations, best %.4g, T %.3g, ETA %.0f s", p.evaluations, p.best_error,
-                      p.temperature, p.eta_s);
-    else
-        std::snprintf(text, sizeof text, "%lld evaluations, best %.4g", p.evaluations, p.best_error);
+    std::snprintf(text, sizeof text, "%lld evaluations, best %.4g", p.evaluations, p.best_error);
     return text;
 }
 
@@ -157,7 +151,7 @@ bool end_fit(const ClothFitRequest& request, const ClothFitProblem& problem, int
             variability.annealing.budget_seconds = restart_budget_seconds;
             variability.annealing.evaluation_seconds_hint = restart_evaluation_hint_seconds;
         }
-        report({"variability", main_share, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
+        report({"variability", main_share, outcome.evaluations, outcome.search.annealing.best_value});
         outcome.variability = optim::variability_analysis(problem.objective(), problem.space(), best, variability);
         for (const optim::AnnealingResult& run : outcome.variability->runs) {
             outcome.evaluations += run.evaluations;
@@ -180,7 +174,7 @@ bool end_fit(const ClothFitRequest& request, const ClothFitProblem& problem, int
         }
     }
 
-    report({"final", 0.99, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
+    report({"final", 0.99, outcome.evaluations, outcome.search.annealing.best_value});
     outcome.fitted = problem.material(best);
     outcome.final_evaluation = problem.evaluate(outcome.fitted, threads);
     outcome.preset = fitted_preset(request.name, problem, request.captures, outcome.fitted, outcome.final_evaluation,
@@ -226,7 +220,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     std::atomic<bool>& cancelled = control.cancelled;
     const std::function<bool()>& stop_requested = control.stop_requested;
     const Reporter& report = control.report;
-    report({"loading", 0.0, 0, 0.0, 0.0, 0.0});
+    report({"loading", 0.0, 0, 0.0});
     // What a cancelled fit returns: everything so far, marked cancelled.
     const auto cancelled_outcome = [&] {
         outcome.status = ClothFitOutcome::Status::cancelled;
@@ -323,7 +317,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
         const bool last_round = round + 1 == round_count;
         const double progress_begin = main_share * share_done;
         if (round > 0) {
-            report({"refining", progress_begin, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
+            report({"refining", progress_begin, outcome.evaluations, outcome.search.annealing.best_value});
             round_start = outcome.rounds.back().best;
             ClothFitSettings settings = problem->settings();
             settings.base = round_start;
@@ -384,9 +378,9 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
         const double progress_span = main_share * share;
         annealing.progress = [&](const ProgressReport& p) {
             return report({round > 0 ? "refining" : "annealing", progress_begin + progress_span * p.fraction,
-                           outcome.evaluations, 0.0, 0.0, 0.0, p.message});
+                           outcome.evaluations, 0.0, p.message});
         };
-        if (round == 0) report({"design", 0.02, 0, 0.0, 0.0, 0.0});
+        if (round == 0) report({"design", 0.02, 0, 0.0});
         if (request.cancel && request.cancel->load()) cancelled = true;
         // The annealer polls `cancelled`; an external cancel is forwarded by the progress callback.
         outcome.search = optim::minimize(problem->objective(), problem->space(), search);
@@ -403,7 +397,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
             outcome.seconds = seconds_since(started);
             outcome.rounds.push_back({outcome.fitted, round_start_evaluation.total, outcome.search.annealing.best_value,
                                       outcome.evaluations, outcome.seconds});
-            report({"final", 1.0, outcome.evaluations, outcome.search.annealing.best_value, 0.0, 0.0});
+            report({"final", 1.0, outcome.evaluations, outcome.search.annealing.best_value});
             return outcome;
         }
 
@@ -426,7 +420,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
             if (budget > 0.0) polish.budget_seconds = polish_budget_seconds;
             const double polish_progress = progress_begin + progress_span;
             polish.progress = [&](const ProgressReport& p) {
-                return report({"polish", polish_progress, outcome.evaluations, 0.0, 0.0, 0.0, p.message});
+                return report({"polish", polish_progress, outcome.evaluations, 0.0, p.message});
             };
             const optim::ResidualFunction residuals = [problem](const Eigen::VectorXd& values, int residual_threads) {
                 return problem->residuals(problem->material(values), residual_threads);
@@ -468,10 +462,10 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     }
     outcome.evaluations += 2;  // start and final evaluations
     outcome.simulations = outcome.evaluations * static_cast<long long>(problem->trials().size());
-    report({"floors", 0.995, outcome.evaluations, outcome.final_evaluation.total, 0.0, 0.0});
+    report({"floors", 0.995, outcome.evaluations, outcome.final_evaluation.total});
     report_floors(request, threads, outcome);
     outcome.seconds = seconds_since(started);
-    report({"final", 1.0, outcome.evaluations, outcome.final_evaluation.total, 0.0, 0.0});
+    report({"final", 1.0, outcome.evaluations, outcome.final_evaluation.total});
     return outcome;
 }
 
@@ -484,7 +478,7 @@ ClothFitOutcome finish_cloth_fit(const ClothFitRequest& request, const std::vect
     std::atomic<bool>& cancelled = control.cancelled;
     const std::function<bool()>& stop_requested = control.stop_requested;
     const Reporter& report = control.report;
-    report({"loading", 0.0, 0, 0.0, 0.0, 0.0});
+    report({"loading", 0.0, 0, 0.0});
 
     // The same problem fit_cloth builds for these captures and settings.
     std::vector<ClothTrial> trials = load_fit_trials(request, outcome);
@@ -510,10 +504,10 @@ ClothFitOutcome finish_cloth_fit(const ClothFitRequest& request, const std::vect
     }
     outcome.evaluations += 1;  // the final evaluation
     outcome.simulations = outcome.evaluations * static_cast<long long>(problem.trials().size());
-    report({"floors", 0.995, outcome.evaluations, outcome.final_evaluation.total, 0.0, 0.0});
+    report({"floors", 0.995, outcome.evaluations, outcome.final_evaluation.total});
     report_floors(request, threads, outcome);
     outcome.seconds = seconds_since(started);
-    report({"final", 1.0, outcome.evaluations, outcome.final_evaluation.total, 0.0, 0.0});
+    report({"final", 1.0, outcome.evaluations, outcome.final_evaluation.total});
     return outcome;
 }
 

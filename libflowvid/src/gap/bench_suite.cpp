@@ -200,16 +200,9 @@ std::vector<std::string> bench_case_folders(const std::string& dir) {
 }
 
 OpenedGapModel open_bench_case(const std::string& case_folder, const ClothGapRequest& cloth, int threads) {
-    if (formats::read_capture(case_folder).is_rigid()) {
-        RigidGapRequest rigid;
-        rigid.capture_paths = {case_folder};
-        rigid.threads = threads;
-        return open_rigid_model(rigid);
-    }
     ClothGapRequest request = cloth;
-    request.capture_paths = {case_folder};
-    request.preset_path = case_folder + "/base.fabric.json";
-    return open_cloth_model(request);
+    request.threads = threads;
+    return open_gap_model({case_folder}, case_folder + "/base.fabric.json", "", request);
 }
 
 const std::vector<std::string>& effect_to_noise_bins() {

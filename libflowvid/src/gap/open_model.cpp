@@ -76,6 +76,24 @@ OpenedGapModel open_rigid_model(const RigidGapRequest& request) {
     return out;
 }
 
+OpenedGapModel open_gap_model(const std::vector<std::string>& capture_paths, const std::string& preset_path,
+                              const std::string& fit_path, ClothGapRequest cloth) {
+    if (capture_paths.empty()) throw UsageError("", "captures", "no captures to diagnose", "give capture folders");
+    if (formats::read_capture(capture_paths.front()).is_rigid()) {
+        RigidGapRequest rigid;
+        rigid.capture_paths = capture_paths;
+        rigid.fit_path = fit_path;
+        rigid.threads = cloth.threads;
+        return open_rigid_model(rigid);
+    }
+    if (preset_path.empty())
+        throw UsageError("", "preset", "a cloth diagnosis needs the fitted fabric",
+                         "give the preset (*.fabric.json; `flowvid fit cloth` makes one)");
+    cloth.capture_paths = capture_paths;
+    cloth.preset_path = preset_path;
+    return open_cloth_model(cloth);
+}
+
 namespace {
 
 nlohmann::json number(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }

@@ -72,6 +72,14 @@ struct OpenedGapModel {
 OpenedGapModel open_cloth_model(const ClothGapRequest& request);
 OpenedGapModel open_rigid_model(const RigidGapRequest& request);
 
+// The model the captures call for, by the first one's kind: rigid tosses
+// (open_rigid_model, with `fit_path` when given), else cloth captures with
+// the preset (open_cloth_model; `cloth` gives the mesh, floors and threads,
+// the captures and preset are set here). Throws UsageError for cloth
+// captures without a preset.
+OpenedGapModel open_gap_model(const std::vector<std::string>& capture_paths, const std::string& preset_path,
+                              const std::string& fit_path, ClothGapRequest cloth);
+
 // diagnosis.json (format flowvid.diagnosis v1) of a diagnosis; `model` is
 // OpenedGapModel::description.
 nlohmann::json diagnosis_document(const Diagnosis& diagnosis, const nlohmann::json& model);
