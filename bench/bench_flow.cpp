@@ -17,6 +17,7 @@
 #include "flowvid/flow/tracking.hpp"
 #include "flowvid/flow/tracking_job.hpp"
 #include "flowvid/formats/particle_bank.hpp"
+#include "flowvid/random.hpp"
 
 #include <benchmark/benchmark.h>
 
@@ -28,7 +29,6 @@
 #include <ctime>
 #include <filesystem>
 #include <functional>
-#include <random>
 
 using namespace flowvid;
 using namespace flowvid::flow;
@@ -44,14 +44,51 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 // every frame at half a patch per frame and living 60 frames (crossing the
 // frame's height): 3180 patches on screen per frame. Textures are random
 // (tracking is not what is measured here). 1280 x 720 uses 24 px patches;
-// 1920 x 1080 scales lines, patches and speeds with the frame (36 px).
+// 1920 x 1080 scales lines, patches and speeds with the frame (36 px). The
+// scene is held in memory and goes through the same prepare_synthesis as
+// `flowvid synth` and `edit` (SynthesisSources): a still grey clip whose
+// median plate is the background, the drawing's input lines and, for edits,
+// every input line bent into a sine.
 struct Scene {
     int width = 0, height = 0, patch = 0;
     std::shared_ptr<formats::ParticleBank> bank;
-    std::vector<std::vector<Eigen::Vector2d>> inputs;
-    RgbImage plate;
-    std::shared_ptr<ParticleStreams> streams;
+    formats::FlowLineSet drawing;                 // input lines and the bent output lines
+    std::shared_ptr<const ClipFrames> grey_clip;  // median plate: grey 0.2
+    PreparedSynthesis synthesis;                  // defaults, plain synthesis
 };
+
+// Output lines for the edit benchmark: every input line bent into a sine.
+std::vector<formats::FlowLine> bent_lines(const formats::FlowLineSet& drawing, int patch, int height) {
+    const double scale = patch / 24.0;
+    std::vector<formats::FlowLine> out;
+    for (const formats::FlowLine& in : drawing.inputs) {
+        formats::FlowLine o;
+        o.id = "out-" + in.id.substr(3);
+        o.from = in.id;
+        for (int y = 0; y <= height; y += 20) o.points.emplace_back(in.points[0].x() + 20.0 * scale * std::sin(y / (90.0 * scale)), y);
+        out.push_back(o);
+    }
+    return out;
+}
+
+// The scene through prepare_synthesis: plain synthesis or the edit (drawn
+// output lines, as `flowvid edit --no-interpolate`), over `clip` (the grey
+// clip when null) with the background asked for.
+PreparedSynthesis prepare_scene(const Scene& s, const SynthesisSettings& settings, bool edit = false,
+                                const std::string& background = "median",
+                                std::shared_ptr<const ClipFrames> clip = nullptr) {
+    SynthesisSources sources;
+    sources.bank = s.bank;
+    sources.drawing = s.drawing;
+    sources.drawing_name = "bench scene";
+    sources.clip = clip ? std::move(clip) : s.grey_clip;
+    SynthesisJob job;
+    job.settings = settings;
+    job.background = background;
+    job.edit = edit;
+    job.interpolate = false;
+    return prepare_synthesis(std::move(sources), job);
+}
 
 Scene make_scene(int width, int height, int patch) {
     Scene s;
@@ -65,27 +102,36 @@ Scene make_scene(int width, int height, int patch) {
     bank->clip_width_px = width;
     bank->clip_height_px = height;
     bank->clip_frame_count = count + life;
-    std::mt19937 rng(1);
-    std::uniform_real_distribution<float> u(0.05f, 0.95f);
+    s.drawing.width = width;
+    s.drawing.height = height;
+    Random random(1);
     for (int l = 0; l < 53; ++l) {
         const double x = 2.0 * patch / 3.0 + spacing * l;
         const std::string id = "in-" + std::to_string(l);
         bank->lines.push_back({id, static_cast<float>(height)});
-        s.inputs.push_back({{x, 0.0}, {x, static_cast<double>(height)}});
+        s.drawing.inputs.push_back({id, {{x, 0.0}, {x, static_cast<double>(height)}}});
         for (int p = 0; p < count; ++p) {
             formats::TrackedParticle particle;
             particle.line_id = id;
             particle.start_frame = p;
             for (int a = 0; a < life; ++a) {
                 particle.arc_length_px.push_back(static_cast<float>(speed * a));
-                for (int t = 0; t < patch * patch; ++t) particle.texture_rgba.insert(particle.texture_rgba.end(), {u(rng), u(rng), u(rng), 1.0f});
+                for (int t = 0; t < patch * patch; ++t) {
+                    const float r = static_cast<float>(random.uniform(0.05, 0.95));
+                    const float g = static_cast<float>(random.uniform(0.05, 0.95));
+                    const float b = static_cast<float>(random.uniform(0.05, 0.95));
+                    particle.texture_rgba.insert(particle.texture_rgba.end(), {r, g, b, 1.0f});
+                }
             }
             bank->particles.push_back(std::move(particle));
         }
     }
+    s.drawing.outputs = bent_lines(s.drawing, patch, height);
     s.bank = bank;
-    s.plate = RgbImage(width, height, 0.2f);
-    s.streams = std::make_shared<ParticleStreams>(s.bank, s.inputs, SynthesisSettings{});
+    auto grey = std::make_shared<ClipFrames>(width, height, 25.0, "grey");
+    for (int i = 0; i < 3; ++i) grey->append(RgbImage(width, height, 0.2f));
+    s.grey_clip = grey;
+    s.synthesis = prepare_scene(s, SynthesisSettings{});
     return s;
 }
 
@@ -99,24 +145,9 @@ const Scene& scene_1080p() {
     return s;
 }
 
-std::shared_ptr<ParticleStreams> scene_streams() { return scene().streams; }
-
-// Output lines for the edit benchmark: every input line bent into a sine.
-std::vector<OutputLine> bent_outputs(const Scene& s = scene()) {
-    const double scale = s.patch / 24.0;
-    std::vector<OutputLine> out;
-    for (std::size_t l = 0; l < s.inputs.size(); ++l) {
-        OutputLine o;
-        o.line.id = "out-" + std::to_string(l);
-        o.from = "in-" + std::to_string(l);
-        for (int y = 0; y <= s.height; y += 20) o.line.points.emplace_back(s.inputs[l][0].x() + 20.0 * scale * std::sin(y / (90.0 * scale)), y);
-        out.push_back(o);
-    }
-    return out;
-}
-
 FlowMapBaseline make_flow_map(const Scene& s) {
-    return FlowMapBaseline(velocity_field(*s.streams, s.width, s.height, 0.5 * s.patch), s.plate, s.plate, 32);
+    const RgbImage plate = s.grey_clip->display(0);
+    return FlowMapBaseline(velocity_field(*s.synthesis.streams, s.width, s.height, 0.5 * s.patch), plate, plate, 32);
 }
 
 const FlowMapBaseline& flow_map() {
@@ -125,7 +156,7 @@ const FlowMapBaseline& flow_map() {
 }
 
 void BM_SynthesisFrame1280x720(benchmark::State& state) {
-    const Synthesizer synth(scene_streams(), {}, Background::plate(scene().plate), SynthesisSettings{});
+    const Synthesizer& synth = *scene().synthesis.synthesizer;
     int frame = 1;
     for (auto _ : state) benchmark::DoNotOptimize(synth.render(frame++).rgb.data());
     state.counters["fps"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
@@ -133,8 +164,7 @@ void BM_SynthesisFrame1280x720(benchmark::State& state) {
 BENCHMARK(BM_SynthesisFrame1280x720)->Unit(benchmark::kMillisecond);
 
 void BM_SynthesisFrame1920x1080(benchmark::State& state) {
-    const Scene& s = scene_1080p();
-    const Synthesizer synth(s.streams, {}, Background::plate(s.plate), SynthesisSettings{});
+    const Synthesizer& synth = *scene_1080p().synthesis.synthesizer;
     int frame = 1;
     for (auto _ : state) benchmark::DoNotOptimize(synth.render(frame++).rgb.data());
     state.counters["fps"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
@@ -142,10 +172,9 @@ void BM_SynthesisFrame1920x1080(benchmark::State& state) {
 BENCHMARK(BM_SynthesisFrame1920x1080)->Unit(benchmark::kMillisecond);
 
 void BM_EditFrame1280x720(benchmark::State& state) {
-    SynthesisSettings settings;
-    const Synthesizer synth(scene_streams(), bent_outputs(), Background::plate(scene().plate), settings);
+    const PreparedSynthesis edit = prepare_scene(scene(), SynthesisSettings{}, true);
     int frame = 1;
-    for (auto _ : state) benchmark::DoNotOptimize(synth.render(frame++).rgb.data());
+    for (auto _ : state) benchmark::DoNotOptimize(edit.synthesizer->render(frame++).rgb.data());
     state.counters["fps"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_EditFrame1280x720)->Unit(benchmark::kMillisecond);
@@ -159,12 +188,11 @@ BENCHMARK(BM_FlowMapBaselineFrame1280x720)->Unit(benchmark::kMillisecond);
 
 // DP of eq. 3.1 alone: 100 dense lines x 20 candidate input lines.
 void BM_DynamicProgramme100x20(benchmark::State& state) {
-    std::mt19937 rng(3);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
+    Random random(3);
     std::vector<Eigen::MatrixXd> e(99, Eigen::MatrixXd(20, 20));
     for (auto& m : e)
         for (int i = 0; i < 20; ++i)
-            for (int j = 0; j < 20; ++j) m(i, j) = u(rng);
+            for (int j = 0; j < 20; ++j) m(i, j) = random.uniform();
     std::vector<std::vector<int>> allowed(100);
     allowed.front() = {0};
     allowed.back() = {19};
@@ -194,8 +222,8 @@ struct SpeedRows {
 
 void speed_table() {
     std::printf("\n== Speed at 1280 x 720, 24 x 24 patches (53 lines, 3180 patches per frame) ==\n");
-    const Synthesizer synth(scene_streams(), {}, Background::plate(scene().plate), SynthesisSettings{});
-    const Synthesizer edit(scene_streams(), bent_outputs(), Background::plate(scene().plate), SynthesisSettings{});
+    const Synthesizer& synth = *scene().synthesis.synthesizer;
+    const PreparedSynthesis edit = prepare_scene(scene(), SynthesisSettings{}, true);
     SpeedRows rows{60};
     const auto row = [&](const std::string& name, const std::function<void(int)>& render_range) { rows.row(name, render_range); };
     const auto frames_of = [](const Synthesizer& synthesizer, int threads) {
@@ -206,16 +234,17 @@ void speed_table() {
     // The default: the detail gain with overlap sharpness 4; the others for comparison.
     SynthesisSettings plain;
     plain.preserve_detail = false;
-    const Synthesizer plain_synth(scene_streams(), {}, Background::plate(scene().plate), plain);
+    const PreparedSynthesis plain_synth = prepare_scene(scene(), plain);
     SynthesisSettings before;  // the default before overlap sharpening
     before.overlap_sharpness = 1.0;
-    const Synthesizer before_synth(scene_streams(), {}, Background::plate(scene().plate), before);
+    const PreparedSynthesis before_synth = prepare_scene(scene(), before);
     SynthesisSettings mixed = plain;  // the weighted mean alone
     mixed.overlap_sharpness = 1.0;
-    const Synthesizer mixed_synth(scene_streams(), {}, Background::plate(scene().plate), mixed);
+    const PreparedSynthesis mixed_synth = prepare_scene(scene(), mixed);
     SynthesisSettings whole_frame;
     whole_frame.reference_rendering = true;
-    const Synthesizer reference(scene_streams(), {}, Background::plate(scene().plate), whole_frame);
+    const PreparedSynthesis whole_frame_synth = prepare_scene(scene(), whole_frame);
+    const Synthesizer& reference = *whole_frame_synth.synthesizer;
     std::printf("%-58s %8s %10s %12s\n", "", "fps", "vs flow map", "CPU ms/frame");
     row("flow-map baseline (1 thread)", [](int frames) {
         for (int f = 1; f <= frames; ++f) benchmark::DoNotOptimize(flow_map().render(f).rgb.data());
@@ -227,39 +256,34 @@ void speed_table() {
         row("  same, whole-frame pass (reference_rendering), " + std::to_string(threads) + " thread(s)",
             frames_of(reference, threads));
     for (int threads : {1, 2})
-        row("  plain blending (--blend plain), " + std::to_string(threads) + " thread(s)", frames_of(plain_synth, threads));
+        row("  plain blending (--blend plain), " + std::to_string(threads) + " thread(s)", frames_of(*plain_synth.synthesizer, threads));
     for (int threads : {1, 2})
-        row("  detail gain, sharpness 1 (before), " + std::to_string(threads) + " thread(s)", frames_of(before_synth, threads));
+        row("  detail gain, sharpness 1 (before), " + std::to_string(threads) + " thread(s)", frames_of(*before_synth.synthesizer, threads));
     for (int threads : {1, 2})
         row("  weighted mean (plain, sharpness 1), " + std::to_string(threads) + " thread(s)",
-            frames_of(mixed_synth, threads));
+            frames_of(*mixed_synth.synthesizer, threads));
     // --background relit: the plate darkened frame by frame as a replayed
     // clip is lit (a short random clip, replayed modulo its length).
     auto relit_clip = std::make_shared<ClipFrames>(1280, 720, 25.0, "bench");
     {
-        std::mt19937 rng(2);
-        std::uniform_real_distribution<float> u(0.0f, 1.0f);
+        Random random(2);
         RgbImage frame(1280, 720);
         for (int i = 0; i < 8; ++i) {
-            for (float& v : frame.rgb) v = u(rng);
+            for (float& v : frame.rgb) v = static_cast<float>(random.uniform());
             relit_clip->append(frame);
         }
     }
-    const Schedule& schedule = scene_streams()->schedule();
-    const Synthesizer relit_synth(scene_streams(), {},
-                                  Background::relit(relit_clip, scene().plate, schedule.first_start_frame,
-                                                    schedule.period_frames, schedule.start_every, 12.0),
-                                  SynthesisSettings{});
+    const PreparedSynthesis relit_synth = prepare_scene(scene(), SynthesisSettings{}, false, "relit", relit_clip);
     for (int threads : {1, 2})
         row("  relit background (--background relit), " + std::to_string(threads) + " thread(s)",
-            frames_of(relit_synth, threads));
+            frames_of(*relit_synth.synthesizer, threads));
     SynthesisSettings carry;
     carry.carry_background = true;
-    const Synthesizer edit_carry(scene_streams(), bent_outputs(), Background::plate(scene().plate), carry);
+    const PreparedSynthesis edit_carry = prepare_scene(scene(), carry, true);
     for (int threads : {1, 2})
-        row("edit (warped, bent lines), " + std::to_string(threads) + " thread(s)", frames_of(edit, threads));
+        row("edit (warped, bent lines), " + std::to_string(threads) + " thread(s)", frames_of(*edit.synthesizer, threads));
     for (int threads : {1, 2})
-        row("  same, --carry-background, " + std::to_string(threads) + " thread(s)", frames_of(edit_carry, threads));
+        row("  same, --carry-background, " + std::to_string(threads) + " thread(s)", frames_of(*edit_carry.synthesizer, threads));
     float worst = 0.0f;
     for (int f : {1, 17, 40}) {
         const RgbImage a = synth.render(f), b = reference.render(f);
@@ -276,8 +300,8 @@ void speed_table_1080p() {
     const Scene& s = scene_1080p();
     std::printf("\n== Speed at 1920 x 1080, 36 x 36 patches (53 lines, 3180 patches per frame) ==\n");
     const FlowMapBaseline flow_map_1080p = make_flow_map(s);
-    const Synthesizer synth(s.streams, {}, Background::plate(s.plate), SynthesisSettings{});
-    const Synthesizer edit(s.streams, bent_outputs(s), Background::plate(s.plate), SynthesisSettings{});
+    const Synthesizer& synth = *s.synthesis.synthesizer;
+    const PreparedSynthesis edit = prepare_scene(s, SynthesisSettings{}, true);
     SpeedRows rows{40};
     double synthesis_fps = 0.0;
     std::printf("%-58s %8s %10s %12s\n", "", "fps", "vs flow map", "CPU ms/frame");
@@ -294,7 +318,7 @@ void speed_table_1080p() {
         if (threads == 2) synthesis_fps = fps;
     }
     row("edit (warped, bent lines), 2 thread(s)",
-        [&](int frames) { edit.render_frames(1, frames, 2, [](int, const RgbImage&) { return true; }); });
+        [&](int frames) { edit.synthesizer->render_frames(1, frames, 2, [](int, const RgbImage&) { return true; }); });
     std::printf("goal (issue #30): synthesis >= 40 frames/s on 2 cores and >= 2x the flow map: %.1f frames/s, %.2fx -> %s\n",
                 synthesis_fps, synthesis_fps / rows.flow_map_fps,
                 synthesis_fps >= 40.0 && synthesis_fps >= 2.0 * rows.flow_map_fps ? "met" : "NOT met");
@@ -308,31 +332,28 @@ void correspondence_table() {
     bank->patch_size_px = 24;
     bank->clip_width_px = 1280;
     bank->clip_height_px = 720;
-    std::vector<std::vector<Eigen::Vector2d>> inputs;
     formats::FlowLineSet drawing;
     drawing.width = 1280;
     drawing.height = 720;
-    std::mt19937 rng(5);
-    std::uniform_real_distribution<float> u(0.05f, 0.95f);
+    Random random(5);
     const int life = 31, count = 6;
     bank->clip_frame_count = count + life;
     for (int l = 0; l < 20; ++l) {
         const std::string id = "in-" + std::to_string(l);
         const double x = 40.0 + 30.0 * l;
         bank->lines.push_back({id, 300.0f});
-        inputs.push_back({{x, 0.0}, {x, 300.0}});
         formats::FlowLine line;
         line.id = id;
-        line.points = inputs.back();
+        line.points = {{x, 0.0}, {x, 300.0}};
         drawing.inputs.push_back(line);
-        const float grey = u(rng);
+        const float grey = static_cast<float>(random.uniform(0.05, 0.95));
         for (int p = 0; p < count; ++p) {
             formats::TrackedParticle particle;
             particle.line_id = id;
             particle.start_frame = p;
             for (int a = 0; a < life; ++a) {
                 particle.arc_length_px.push_back(10.0f * a);
-                for (int t = 0; t < 24 * 24; ++t) particle.texture_rgba.insert(particle.texture_rgba.end(), {grey, u(rng) * 0.1f + grey, grey, 1.0f});
+                for (int t = 0; t < 24 * 24; ++t) particle.texture_rgba.insert(particle.texture_rgba.end(), {grey, static_cast<float>(random.uniform(0.05, 0.95)) * 0.1f + grey, grey, 1.0f});
             }
             bank->particles.push_back(std::move(particle));
         }
@@ -344,8 +365,12 @@ void correspondence_table() {
         out.points = {{50.0 + 594.0 * k, 0.0}, {60.0 + 594.0 * k, 300.0}};
         drawing.outputs.push_back(out);
     }
-    const ParticleStreams streams(bank, inputs, SynthesisSettings{});
-    EditSettings settings;
+    // Through prepare_synthesis, as `flowvid edit --background none`: the
+    // schedule and the Synthesizer cost little beside the correspondence.
+    SynthesisJob job;
+    job.background = "none";
+    job.edit = true;
+    EditSettings& settings = job.edit_settings;
     settings.spacing_px = 6.0;
     settings.max_gap_px = 1000.0;
     // Baseline: every interpolated line at the input's own time (as before
@@ -355,11 +380,16 @@ void correspondence_table() {
         settings.threads = threads;
         settings.offset_interpolated_lines = offsets;
         const auto start = std::chrono::steady_clock::now();
-        const EditPlan plan = plan_edit(drawing, streams, settings);
+        SynthesisSources sources;
+        sources.bank = bank;
+        sources.drawing = drawing;
+        sources.drawing_name = "correspondence scene";
+        const PreparedSynthesis prepared = prepare_synthesis(std::move(sources), job);
         const double total = seconds_since(start);
+        const EditPlan& plan = *prepared.plan;
         if (baseline == 0.0) baseline = total;
         std::printf("%zu dense lines, %zu candidates, %d thread(s), time offsets %s: overlap errors + DP %.2f s (%.2f x)\n",
-                    plan.lines.size(), streams.input_lines().size(), threads, offsets ? "on " : "off", total, total / baseline);
+                    plan.lines.size(), prepared.streams->input_lines().size(), threads, offsets ? "on " : "off", total, total / baseline);
     }
     std::printf("(the DP alone, eq. 3.1, takes the time of BM_DynamicProgramme100x20 above)\n");
 }

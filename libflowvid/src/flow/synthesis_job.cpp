@@ -60,80 +60,82 @@ std::vector<std::vector<Eigen::Vector2d>> PreparedSynthesis::drawn_lines_at(int 
     return lines;
 }
 
-PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& progress) {
+namespace {
+
+// What the job decides before any frame is read: the settings that render,
+// the background asked for, and whether the clip's frames are needed.
+struct Decisions {
+    SynthesisSettings settings;
+    BackgroundMode background = BackgroundMode::median;
+    bool auto_background = false;
+    bool moving = false;               // the moving layer (TextureLayer::moving)
+    bool background_to_choose = false;  // auto, decided once the particles and the clip are there
+    bool clip_needed = false;
+};
+
+Decisions decide(const SynthesisJob& job, const formats::ParticleBank& bank) {
+    Decisions d;
+    d.auto_background = job.background == "auto";
+    d.background = d.auto_background ? BackgroundMode::median : background_mode_from_string(job.background);
+    d.settings = job.settings;
+    const bool flames = bank.dynamics == formats::ParticleDynamics::non_stationary;
+    if (job.texture_auto) d.settings.texture_layer = job.edit && flames ? TextureLayer::moving : TextureLayer::whole;
+    d.moving = d.settings.texture_layer == TextureLayer::moving;
+    if (job.coverage_auto) d.settings.coverage_weight = job.edit ? 2.0 : 0.5;
+    // Whole textures choose (on plain synthesis, for edits too); the moving
+    // layer keeps the plate it was taken from.
+    d.background_to_choose = d.auto_background && !d.moving;
+    if (d.moving && d.background != BackgroundMode::median && d.background != BackgroundMode::none)
+        throw UsageError("", "", "--texture moving screens the flames over a still background, and the " + job.background +
+                                     " background already " +
+                                     (d.background == BackgroundMode::relit ? "carries their light" : "shows them"),
+                         "use --background median (the clip's dark plate) or none");
+    d.clip_needed = d.background != BackgroundMode::none || d.moving || job.keep_clip;
+    return d;
+}
+
+// Checks a drawing against the bank and the job (said before the clip is
+// read, which takes long).
+void check_drawing(const formats::FlowLineSet& drawing, const std::string& drawing_name, const formats::ParticleBank& bank,
+                   const SynthesisJob& job, const Progress& log) {
+    if (drawing.width != bank.clip_width_px || drawing.height != bank.clip_height_px)
+        say(log, "warning: " + drawing_name + ": drawn for " + std::to_string(drawing.width) + " x " +
+                     std::to_string(drawing.height) + " but the bank's clip is " + std::to_string(bank.clip_width_px) +
+                     " x " + std::to_string(bank.clip_height_px) + ": lines are read in the clip's pixels");
+    if (job.edit && drawing.outputs.empty())
+        throw ValidationError({{Problem::Severity::error, drawing_name, "output", "no output lines to edit with",
+                                "draw them in the group id=\"output\""}});
+}
+
+// Everything after the inputs are in memory: the schedule, the background,
+// an edit's plan, the Synthesizer.
+PreparedSynthesis assemble(SynthesisSources sources, const SynthesisJob& job, const Decisions& decided,
+                           const Progress& progress) {
     const Progress& log = progress;
     PreparedSynthesis out;
-    std::vector<Problem> warnings;
-    out.bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(job.bank_path, &warnings));
-    for (const Problem& w : warnings) say(log, w.to_string());
-    warnings.clear();
-
-    // auto is decided once the particles and the clip are there.
-    const bool auto_background = job.background == "auto";
-    out.background = auto_background ? BackgroundMode::median : background_mode_from_string(job.background);
-    SynthesisSettings settings = job.settings;
-    const bool flames = out.bank->dynamics == formats::ParticleDynamics::non_stationary;
-    if (job.texture_auto) settings.texture_layer = job.edit && flames ? TextureLayer::moving : TextureLayer::whole;
-    const bool moving = settings.texture_layer == TextureLayer::moving;
-    if (job.coverage_auto) settings.coverage_weight = job.edit ? 2.0 : 0.5;
+    out.bank = std::move(sources.bank);
+    out.capture = std::move(sources.capture);
+    out.flowlines_path = std::move(sources.drawing_name);
+    out.drawing = std::move(sources.drawing);
+    out.clip = std::move(sources.clip);
+    out.camera = sources.camera;
+    out.background = decided.background;
+    SynthesisSettings settings = decided.settings;
+    const bool moving = decided.moving;
     if (job.texture_auto && moving)
         say(log, "texture: moving (an edit of a non-stationary bank moves only the light the flow adds, at coverage " +
                      std::string(settings.coverage_weight == 2.0 ? "2" : "as given") + "; --texture whole to move whole patches)");
-    // Whole textures choose (on plain synthesis, for edits too); the moving
-    // layer keeps the plate it was taken from.
-    const bool background_to_choose = auto_background && !moving;
-    if (moving && out.background != BackgroundMode::median && out.background != BackgroundMode::none)
-        throw UsageError("", "", "--texture moving screens the flames over a still background, and the " + job.background +
-                                     " background already " +
-                                     (out.background == BackgroundMode::relit ? "carries their light" : "shows them"),
-                         "use --background median (the clip's dark plate) or none");
+    if (decided.clip_needed && !out.clip)
+        throw UsageError("", "", "the job needs the clip's frames (for the background, the moving layer or the measures)",
+                         "give the clip, or background none with whole textures");
+    if (out.clip && (out.clip->width() != out.bank->clip_width_px || out.clip->height() != out.bank->clip_height_px))
+        throw ValidationError({{Problem::Severity::error, out.clip->source(), "frames",
+                                "frames are " + std::to_string(out.clip->width()) + " x " +
+                                    std::to_string(out.clip->height()) + " but the bank was tracked at " +
+                                    std::to_string(out.bank->clip_width_px) + " x " +
+                                    std::to_string(out.bank->clip_height_px),
+                                "give the clip the bank was tracked from"}});
 
-    std::string why_no_clip;
-    const bool clip_needed = out.background != BackgroundMode::none || moving || job.keep_clip;
-    out.capture = open_bank_clip(job, *out.bank, why_no_clip);
-    if (clip_needed && !out.capture) {
-        const std::string need = job.keep_clip ? "the measures need the source clip"
-                                 : moving      ? "--texture moving needs the source clip's still plate"
-                                               : "the background needs the source clip";
-        throw UsageError(job.bank_path, "", need + " (" + why_no_clip + ")",
-                         moving || job.keep_clip ? "give --capture" : "give --capture, or --background none");
-    }
-
-    out.flowlines_path = job.flowlines_path;
-    if (out.flowlines_path.empty() && out.capture && !out.capture->flowlines.empty())
-        out.flowlines_path = out.capture->resolve(out.capture->flowlines);
-    if (out.flowlines_path.empty())
-        throw UsageError("", "", "no flow lines", "give --flowlines FILE (the drawing the bank was tracked with)");
-    out.drawing = formats::read_flowline_drawing(out.flowlines_path, &warnings);
-    for (const Problem& w : warnings) say(log, w.to_string());
-    if (out.drawing.width != out.bank->clip_width_px || out.drawing.height != out.bank->clip_height_px)
-        say(log, "warning: " + out.flowlines_path + ": drawn for " + std::to_string(out.drawing.width) + " x " +
-                     std::to_string(out.drawing.height) + " but the bank's clip is " +
-                     std::to_string(out.bank->clip_width_px) + " x " + std::to_string(out.bank->clip_height_px) +
-                     ": lines are read in the clip's pixels");
-    if (job.edit && out.drawing.outputs.empty())
-        throw ValidationError({{Problem::Severity::error, out.flowlines_path, "output",
-                                "no output lines to edit with", "draw them in the group id=\"output\""}});
-
-    ClipFrames footage;  // as filmed, when the clip was resampled and the background is to be chosen
-    if (clip_needed) {
-        CaptureFrames frames(*out.capture);
-        if (frames.width() != out.bank->clip_width_px || frames.height() != out.bank->clip_height_px)
-            throw ValidationError({{Problem::Severity::error, out.capture->clip_path(), "frames",
-                                    "frames are " + std::to_string(frames.width()) + " x " + std::to_string(frames.height()) +
-                                        " but the bank was tracked at " + std::to_string(out.bank->clip_width_px) + " x " +
-                                        std::to_string(out.bank->clip_height_px),
-                                    "give the clip the bank was tracked from (--capture)"}});
-        CameraMotion camera;
-        bool cancelled = false;  // the reader stops early; what it read is not the clip
-        out.clip = std::make_shared<const ClipFrames>(read_clip_stabilised(
-            frames, out.drawing, camera,
-            [&](const ProgressReport& r) { return !(cancelled = progress && !progress(r)); },
-            background_to_choose ? &footage : nullptr));
-        if (cancelled) throw Cancelled();
-        out.camera = camera;
-        say(log, describe(camera));
-    }
     out.input_points = ParticleStreams::input_points_from_drawing(*out.bank, out.drawing, out.flowlines_path);
     // The moving layer is screened over the plate it was taken from (the
     // clip's dark plate), which the median background then shows.
@@ -142,10 +144,11 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& pro
 
     out.streams = std::make_shared<ParticleStreams>(out.bank, out.input_points, settings, &out.drawing);
     report_window(out.streams->schedule(), log);
-    if (background_to_choose) {
-        const BackgroundChoice choice = choose_background(out.streams, out.clip, footage.count() > 0 ? footage : *out.clip,
-                                                          settings, drawn_input_polylines(out.drawing));
-        footage = ClipFrames();  // not needed while rendering
+    if (decided.background_to_choose && out.clip) {
+        const ClipFrames& footage = sources.footage.count() > 0 ? sources.footage : *out.clip;
+        const BackgroundChoice choice =
+            choose_background(out.streams, out.clip, footage, settings, drawn_input_polylines(out.drawing));
+        sources.footage = ClipFrames();  // not needed while rendering
         out.background = choice.mode;
         out.median_detail = choice.median_detail;
         const bool carry = job.edit && job.carry_replayed_background && out.background == BackgroundMode::replay &&
@@ -189,6 +192,65 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& pro
         if (std::find(scheduled.begin(), scheduled.end(), w) == scheduled.end()) say(log, "warning: " + w);
     if (!job.keep_clip) out.clip.reset();  // a background that replays the clip holds it itself
     return out;
+}
+
+}  // namespace
+
+PreparedSynthesis prepare_synthesis(SynthesisSources sources, const SynthesisJob& job, const Progress& progress) {
+    if (!sources.bank) throw UsageError("", "", "no particle bank", "give the bank (SynthesisSources::bank)");
+    const Decisions decided = decide(job, *sources.bank);
+    check_drawing(sources.drawing, sources.drawing_name, *sources.bank, job, progress);
+    return assemble(std::move(sources), job, decided, progress);
+}
+
+PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& progress) {
+    const Progress& log = progress;
+    SynthesisSources sources;
+    std::vector<Problem> warnings;
+    sources.bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(job.bank_path, &warnings));
+    for (const Problem& w : warnings) say(log, w.to_string());
+    warnings.clear();
+    const Decisions decided = decide(job, *sources.bank);
+
+    std::string why_no_clip;
+    sources.capture = open_bank_clip(job, *sources.bank, why_no_clip);
+    if (decided.clip_needed && !sources.capture) {
+        const std::string need = job.keep_clip       ? "the measures need the source clip"
+                                 : decided.moving    ? "--texture moving needs the source clip's still plate"
+                                                     : "the background needs the source clip";
+        throw UsageError(job.bank_path, "", need + " (" + why_no_clip + ")",
+                         decided.moving || job.keep_clip ? "give --capture" : "give --capture, or --background none");
+    }
+
+    sources.drawing_name = job.flowlines_path;
+    if (sources.drawing_name.empty() && sources.capture && !sources.capture->flowlines.empty())
+        sources.drawing_name = sources.capture->resolve(sources.capture->flowlines);
+    if (sources.drawing_name.empty())
+        throw UsageError("", "", "no flow lines", "give --flowlines FILE (the drawing the bank was tracked with)");
+    sources.drawing = formats::read_flowline_drawing(sources.drawing_name, &warnings);
+    for (const Problem& w : warnings) say(log, w.to_string());
+    check_drawing(sources.drawing, sources.drawing_name, *sources.bank, job, log);
+
+    if (decided.clip_needed) {
+        CaptureFrames frames(*sources.capture);
+        if (frames.width() != sources.bank->clip_width_px || frames.height() != sources.bank->clip_height_px)
+            throw ValidationError({{Problem::Severity::error, sources.capture->clip_path(), "frames",
+                                    "frames are " + std::to_string(frames.width()) + " x " + std::to_string(frames.height()) +
+                                        " but the bank was tracked at " + std::to_string(sources.bank->clip_width_px) +
+                                        " x " + std::to_string(sources.bank->clip_height_px),
+                                    "give the clip the bank was tracked from (--capture)"}});
+        CameraMotion camera;
+        bool cancelled = false;  // the reader stops early; what it read is not the clip
+        sources.clip = std::make_shared<const ClipFrames>(read_clip_stabilised(
+            frames, sources.drawing, camera,
+            [&](const ProgressReport& r) { return !(cancelled = progress && !progress(r)); },
+            decided.background_to_choose ? &sources.footage : nullptr));
+        if (cancelled) throw Cancelled();
+        sources.camera = camera;
+        say(log, describe(camera));
+    }
+    // check_drawing has spoken; assemble says the rest.
+    return assemble(std::move(sources), job, decided, progress);
 }
 
 SynthesisOutcome render_synthesis(const SynthesisJob& job, const SynthesisOutput& output, const Progress& progress) {

@@ -7,6 +7,8 @@
 #include "flowvid/flow/quality.hpp"
 #include "flowvid/flow/sampling.hpp"
 #include "flowvid/flow/synthesis.hpp"
+#include "flowvid/flow/synthesis_job.hpp"
+#include "flowvid/error.hpp"
 #include "flowvid/flow/synthetic.hpp"
 #include "flowvid/flow/tracking.hpp"
 #include "test_support.hpp"
@@ -893,5 +895,75 @@ TEST(FlowSynthesis, FramesDoNotDependOnTheThreadCount) {
         });
         EXPECT_EQ(delivered, 3);
         EXPECT_EQ(seen, (std::vector<int>{3, 4, 5, 6}));
+    }
+}
+
+// prepare_synthesis from inputs in memory (the benchmarks' path, a host's)
+// renders what the file version renders from the same bank and drawing, for
+// plain synthesis and a drawn edit; and a job that needs the clip's frames
+// is refused when the sources have none.
+TEST(FlowSynthesisJob, InMemorySourcesRenderWhatTheFilesRender) {
+    const std::string dir = flowvid::testing::scratch_dir("synthesis_job_sources");
+    auto bank = toy_bank(10, 6);
+    formats::FlowLineSet drawing;
+    drawing.width = bank->clip_width_px;
+    drawing.height = bank->clip_height_px;
+    drawing.inputs.push_back({"in-1", toy_line()[0]});
+    formats::FlowLine bent;
+    bent.id = "out-1";
+    bent.from = "in-1";
+    bent.points = {{20.0, 5.0}, {40.0, 50.0}, {28.0, 95.0}};
+    drawing.outputs.push_back(bent);
+    const std::string bank_path = dir + "/bank.exr", drawing_path = dir + "/lines.json";
+    formats::write_particle_bank(bank_path, *bank);
+    formats::write_flowline_set(drawing_path, drawing);
+
+    for (const bool edit : {false, true}) {
+        SynthesisJob job;
+        job.bank_path = bank_path;
+        job.flowlines_path = drawing_path;
+        job.background = "none";
+        job.edit = edit;
+        job.interpolate = false;
+        const PreparedSynthesis from_files = prepare_synthesis(job);
+        SynthesisSources sources;  // the bank as the file holds it (textures in half floats)
+        sources.bank = std::make_shared<formats::ParticleBank>(formats::read_particle_bank(bank_path));
+        sources.drawing = drawing;
+        sources.drawing_name = "memory";
+        const PreparedSynthesis from_memory = prepare_synthesis(std::move(sources), job);
+        ASSERT_EQ(from_memory.synthesizer->period_frames(), from_files.synthesizer->period_frames());
+        EXPECT_EQ(from_memory.outputs.size(), edit ? 1u : 0u);
+        double largest_difference = 0.0, largest_value = 0.0;
+        for (int frame = 1; frame <= 8; ++frame) {
+            const RgbImage a = from_files.synthesizer->render(frame), b = from_memory.synthesizer->render(frame);
+            ASSERT_EQ(a.rgb.size(), b.rgb.size());
+            for (std::size_t i = 0; i < a.rgb.size(); ++i) {
+                largest_difference = std::max(largest_difference, static_cast<double>(std::abs(a.rgb[i] - b.rgb[i])));
+                largest_value = std::max(largest_value, static_cast<double>(a.rgb[i]));
+            }
+        }
+        EXPECT_EQ(largest_difference, 0.0) << (edit ? "edit" : "synthesis");
+        EXPECT_GT(largest_value, 0.05) << "the frames show the particles";
+    }
+
+    SynthesisJob needs_clip;
+    needs_clip.background = "median";
+    SynthesisSources no_clip;
+    no_clip.bank = bank;
+    no_clip.drawing = drawing;
+    EXPECT_THROW(prepare_synthesis(std::move(no_clip), needs_clip), UsageError);
+    SynthesisJob edit_without_outputs;
+    edit_without_outputs.background = "none";
+    edit_without_outputs.edit = true;
+    SynthesisSources plain_drawing;
+    plain_drawing.bank = bank;
+    plain_drawing.drawing = drawing;
+    plain_drawing.drawing.outputs.clear();
+    plain_drawing.drawing_name = "memory";
+    try {
+        prepare_synthesis(std::move(plain_drawing), edit_without_outputs);
+        ADD_FAILURE() << "an edit without output lines was accepted";
+    } catch (const ValidationError& error) {
+        EXPECT_NE(std::string(error.what()).find("memory"), std::string::npos) << error.what();
     }
 }

@@ -92,6 +92,26 @@ struct PreparedSynthesis {
 // the readers' errors for bad files, and flowvid::Cancelled.
 PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& progress = {});
 
+// What prepare_synthesis reads from the job's files, for callers that hold
+// it in memory already (the benchmarks' synthetic scenes, a host that made
+// its own bank): the job then gives only the settings, background and edit
+// fields; its paths are not read.
+struct SynthesisSources {
+    std::shared_ptr<formats::ParticleBank> bank;  // the moving layer keeps only the light the flow adds, in place
+    formats::FlowLineSet drawing;                 // input lines named as the bank's; output lines for an edit
+    std::string drawing_name;                     // names the drawing in messages (its file, when it has one)
+    // The clip's frames in the bank's pixels (stabilised when the camera
+    // drifts). Needed unless the background is none with whole textures.
+    std::shared_ptr<const ClipFrames> clip;
+    ClipFrames footage;                        // as filmed, when `clip` was resampled (auto background); empty: clip
+    std::optional<formats::Capture> capture;   // informative
+    std::optional<CameraMotion> camera;        // informative
+};
+
+// The same pipeline from inputs in memory. Throws as the file version does,
+// with a UsageError when the job needs a clip the sources lack.
+PreparedSynthesis prepare_synthesis(SynthesisSources sources, const SynthesisJob& job, const Progress& progress = {});
+
 // Where and which frames `render_synthesis` writes.
 struct SynthesisOutput {
     std::string path;  // FrameWriter target: out/%06d.png (.exr, .tif), a folder, a video (.mp4, .avi), one image
