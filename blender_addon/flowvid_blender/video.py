@@ -8,15 +8,15 @@ import bpy
 from .core import backend as backend_module
 from .core.backend import BackendError
 from .core.errors import FlowvidError
-from .library import _checkout_tool, get_backend
+from .library import find_tool, get_backend
 from .flowlines import render_size
 
 
 def run_flowvid_tool(*arguments):
     """Runs the flowvid command-line tool (e.g. track, which has no binding); raises FlowvidError with its message."""
-    executable = backend_module.find_tool(_checkout_tool())
+    executable = find_tool()
     if not executable:
-        raise FlowvidError("the flowvid tool was not found: set FLOWVID_CLI to build/cli/flowvid")
+        raise FlowvidError("the flowvid tool was not found: set its path in Edit > Preferences > Add-ons > flowvid")
     try:
         return backend_module.CliBackend(executable).run(*arguments)
     except BackendError as error:

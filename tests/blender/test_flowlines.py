@@ -15,10 +15,14 @@ REPO = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(REPO, "blender_addon"))
 
 
-def particle_scene(count=12, frame_end=10):
+def particle_scene(count=12, frame_end=10, keep_preferences=False):
     """Empty scene: an animated camera (moves and zooms, shifted lens, 50% resolution) and a small plane
-    emitting particles upwards that fall under gravity."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    emitting particles upwards that fall under gravity. keep_preferences: empty the user's home file instead
+    of resetting to factory settings (which would disable the add-ons the user enabled)."""
+    if keep_preferences:
+        bpy.ops.wm.read_homefile(use_empty=True)
+    else:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     scene.render.resolution_x = 640
     scene.render.resolution_y = 480

@@ -1,9 +1,9 @@
 """Registers the add-on's classes symmetrically."""
 import bpy
 
-from . import operators, panels, properties
+from . import operators, panels, preferences, properties
 
-classes = properties.classes + operators.classes + panels.classes
+classes = preferences.classes + properties.classes + operators.classes + panels.classes
 
 
 def register():

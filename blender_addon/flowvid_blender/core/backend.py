@@ -3,32 +3,20 @@
 Preferred: the native pybind11 module `flowvid`, when one built for this
 Python's ABI is importable (Debian's Blender uses /usr/bin/python3, which the
 build targets). Otherwise (e.g. an official Blender build with its own bundled
-Python) the `flowvid` command-line tool is run with `--progress=json`. Both
+Python) the `flowvid` command-line tool is run with `--progress=json`. Which one
+is used is decided in library.py (core/locate.py finds them). Both
 reach the same library entry points: a render through either gives the same
 frames.
 """
 import json
 import os
-import shutil
 import signal
 import subprocess
-import sys
 import tempfile
 
 
 class BackendError(RuntimeError):
     """A flowvid failure, with the message the library or tool gave."""
-
-
-def _import_native(extra_paths=()):
-    for path in extra_paths:
-        if path and path not in sys.path:
-            sys.path.insert(0, path)
-    try:
-        import flowvid  # noqa: F401
-    except ImportError:
-        return None
-    return flowvid
 
 
 class NativeBackend:
@@ -152,25 +140,5 @@ class CliBackend:
         return json.loads(self.run(*arguments, progress=progress))
 
     def simulate_swatch(self, experiment, parameters, **options):
-        raise BackendError("the swatch simulation needs the native flowvid module built for this Python "
-                           "(set FLOWVID_PYTHON_DIR); the flowvid tool cannot run it yet")
-
-
-def find_tool(executable=None):
-    """The flowvid command-line tool: `executable`, else $FLOWVID_CLI, else `flowvid` on the PATH; None if none."""
-    return executable or os.environ.get("FLOWVID_CLI") or shutil.which("flowvid")
-
-
-def find_backend(module_paths=(), executable=None):
-    """The best available backend: native module, else the CLI. Raises BackendError if neither exists."""
-    module_paths = list(module_paths) + [p for p in os.environ.get("FLOWVID_PYTHON_DIR", "").split(os.pathsep) if p]
-    module = _import_native(module_paths)
-    if module is not None:
-        return NativeBackend(module)
-    executable = find_tool(executable)
-    if executable:
-        return CliBackend(executable)
-    raise BackendError(
-        "flowvid is not available: build it (bash scripts/bootstrap.sh) and set FLOWVID_PYTHON_DIR to build/python "
-        "or FLOWVID_CLI to build/cli/flowvid"
-    )
+        raise BackendError("the swatch simulation needs the native flowvid module built for this Python (set its "
+                           "folder in the add-on's preferences); the flowvid tool cannot run it yet")
