@@ -42,6 +42,9 @@ int run(int argc, char** argv) {
     app.footer(kFooter);
     app.set_version_flag("--version", "flowvid " + flowvid::version());
     app.require_subcommand(0, 1);
+    // Global flags anywhere on the line: `flowvid synth ... --progress json`
+    // as well as `flowvid --progress json synth ...` (commands inherit this).
+    app.fallthrough();
 
     GlobalOptions options;
     app.add_option("--progress", options.progress,
@@ -67,10 +70,10 @@ int run(int argc, char** argv) {
         subcommands.push_back({sub, &command, command.setup(*sub)});
     }
 
-    // `flowvid help [command]`
-    std::string help_topic;
-    CLI::App* help = app.add_subcommand("help", "show help for flowvid or for one command");
-    help->add_option("command", help_topic, "the command to explain");
+    // `flowvid help [command words]`, e.g. `flowvid help fit cloth`
+    std::vector<std::string> help_topic;
+    CLI::App* help = app.add_subcommand("help", "show help for flowvid or for one command (e.g. flowvid help fit cloth)");
+    help->add_option("command", help_topic, "the command to explain, as you would type it");
 
     try {
         app.parse(argc, argv);
@@ -88,17 +91,28 @@ int run(int argc, char** argv) {
     formats::allow_capture_paths_outside_folder(allow_outside_paths);
 
     if (help->parsed()) {
-        if (help_topic.empty()) {
-            std::cout << app.help();
-            return kExitOk;
-        }
-        for (const Parsed& sub : subcommands)
-            if (sub.command->name == help_topic) {
-                std::cout << sub.app->help();
-                return kExitOk;
+        // Walk the words down the command tree: "fit cloth" is fit's subcommand cloth.
+        const CLI::App* topic = &app;
+        std::string matched;  // the words walked so far
+        for (const std::string& word : help_topic) {
+            const CLI::App* next = nullptr;
+            for (const CLI::App* sub : topic->get_subcommands([](const CLI::App*) { return true; }))
+                if (sub->get_name() == word) next = sub;
+            const std::string words = matched.empty() ? word : matched + " " + word;
+            if (next == nullptr) {
+                std::cerr << "flowvid: no command '" << words << "' (run 'flowvid help" << (matched.empty() ? "" : " " + matched)
+                          << "' for the list)\n";
+                return kExitUsage;
             }
-        std::cerr << "flowvid: no command '" << help_topic << "' (run 'flowvid help' for the list)\n";
-        return kExitUsage;
+            topic = next;
+            matched = words;
+        }
+        // Formatted directly: App::help() would show the parsed `help`
+        // subcommand's own help instead. The usage line names the whole
+        // command ("flowvid fit cloth").
+        std::cout << topic->get_formatter()->make_help(topic, matched.empty() ? "flowvid" : "flowvid " + matched,
+                                                        CLI::AppFormatMode::Normal);
+        return kExitOk;
     }
     for (const Parsed& sub : subcommands)
         if (sub.app->parsed()) {

@@ -98,6 +98,18 @@ std::filesystem::path identity(const std::string& path) {
 }
 }  // namespace
 
+CLI::Option* add_out_option(CLI::App& app, std::string& out, const std::string& help, const std::string& old_name) {
+    CLI::Option* option = app.add_option("--out", out, help);
+    if (!old_name.empty())
+        app.add_option(old_name, out, "")
+            ->group("")  // hidden: old scripts keep working
+            ->excludes(option)
+            ->each([old_name](const std::string&) {
+                log_message("warning: " + old_name + " is now --out (" + old_name + " will be removed)");
+            });
+    return option;
+}
+
 bool outputs_spare_inputs(const CLI::App& command) {
     namespace fs = std::filesystem;
     const CLI::App* leaf = &command;

@@ -43,6 +43,10 @@ private:
 // false after printing the problem with its fix.
 bool outputs_spare_inputs(const CLI::App& command);
 
+// --out, where every command writes its output; `old_name` (e.g.
+// "--report") stays as a hidden alias that warns it is now --out.
+CLI::Option* add_out_option(CLI::App& app, std::string& out, const std::string& help, const std::string& old_name = {});
+
 // Whether two paths name one file, whether or not it exists yet ("a/../x"
 // and "x", a symlink and its target).
 bool same_file(const std::string& a, const std::string& b);

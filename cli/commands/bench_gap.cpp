@@ -12,6 +12,7 @@
 // the diagnoses (flowvid.diagnosis, formats/specs/diagnosis.md).
 
 #include "commands/diagnose.hpp"
+#include "frame_options.hpp"
 #include "output.hpp"
 
 #include "flowvid/gap/bench.hpp"
@@ -35,6 +36,7 @@ struct BenchGapOptions {
     std::vector<std::string> rigid_scenes;
     std::vector<std::string> fabrics;
     std::vector<std::string> effects;
+    FrameOptions frame_selection;  // resolved into bench.frames
     std::string diagnose_dir;
     std::string score_dir;
     DiagnoseClothOptions diagnose;
@@ -168,7 +170,8 @@ const RegisterCommand bench_registration{Command{
         gap->add_option("--rigid-scene", options->rigid_scenes,
                         "rigid.toss capture whose body and camera rigid cases use (repeat; adds air_drag and inertia_error)");
         gap->add_option("--effects", options->effects, "effects to draw from (default: every cloth and camera effect)")->delimiter(',');
-        gap->add_option("--frames", options->bench.frames, "frames per case")->check(CLI::Range(4, 1000))->capture_default_str();
+        add_frame_options(*gap, options->frame_selection, "frames 1 to B of each case (cases start at frame 1)",
+                          "frames per case", "30");
         std::vector<std::string> integrator_names;
         for (const auto& [name, value] : cloth::integrators_by_short_name()) integrator_names.push_back(name);
         gap->add_option("--footage-integrator", options->footage_integrator, "integrator the cases are made with")
@@ -206,6 +209,10 @@ const RegisterCommand bench_registration{Command{
         gap->add_option("--threads", options->threads, "threads (0 = all cores)")->capture_default_str();
         return [options](const GlobalOptions& global) {
             options->diagnose.run.threads = options->threads;
+            if (const std::optional<int> count = resolve_frame_count(options->frame_selection, 1, "cases start at frame 1"))
+                options->bench.frames = *count;
+            if (options->bench.frames < 4 || options->bench.frames > 1000)
+                throw UsageError("", "", "a case has 4 to 1000 frames", "give --frame-count 4 to 1000");
             options->diagnose.frames = options->bench.frames;
             options->bench.integrator = cloth::integrators_by_short_name().at(options->footage_integrator);
             const std::optional<std::pair<int, int>> footage = parse_grid(options->footage_resolution, "--footage-resolution");

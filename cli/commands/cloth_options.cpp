@@ -49,11 +49,11 @@ std::optional<cloth::SwatchOptions> swatch_options(const ClothRunOptions& option
                                      options.initial_bow, options.threads);
 }
 
-void apply_shape_target_frame_defaults(cloth_fit::FitTarget target, const CLI::Option* frames_option,
-                                       const CLI::Option* half_life_option, int& frames, double& half_life_frames) {
+void apply_shape_target_frame_defaults(cloth_fit::FitTarget target, bool frames_given, bool half_life_given, int& frames,
+                                       double& half_life_frames) {
     if (target == cloth_fit::FitTarget::footage) return;
-    if (frames_option->count() == 0) frames = cloth_fit::kTracksWavingFrames;
-    if (half_life_option->count() == 0) half_life_frames = cloth_fit::kTracksHalfLifeFrames;
+    if (!frames_given) frames = cloth_fit::kTracksWavingFrames;
+    if (!half_life_given) half_life_frames = cloth_fit::kTracksHalfLifeFrames;
 }
 
 int thread_count(int requested) { return resolve_thread_count(requested); }

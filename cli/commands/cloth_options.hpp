@@ -35,10 +35,10 @@ std::optional<std::pair<int, int>> parse_grid(const std::string& text, const std
 std::optional<cloth::SwatchOptions> swatch_options(const ClothRunOptions& options);
 
 // Tracks and scan targets compare point distances that grow with chaos:
-// unless --frames / --half-life-frames were given (their options here),
-// they take cloth_fit::kTracksWavingFrames and kTracksHalfLifeFrames.
-void apply_shape_target_frame_defaults(cloth_fit::FitTarget target, const CLI::Option* frames_option,
-                                       const CLI::Option* half_life_option, int& frames, double& half_life_frames);
+// unless the frames or the half-life were given, they take
+// cloth_fit::kTracksWavingFrames and kTracksHalfLifeFrames.
+void apply_shape_target_frame_defaults(cloth_fit::FitTarget target, bool frames_given, bool half_life_given, int& frames,
+                                       double& half_life_frames);
 
 // Threads to use: the option, or every core for 0.
 int thread_count(int requested);

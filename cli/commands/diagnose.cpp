@@ -6,6 +6,7 @@
 #include "commands/diagnose.hpp"
 #include "commands/diagnose_report.hpp"
 #include "commands/fit.hpp"
+#include "frame_options.hpp"
 #include "output.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
@@ -58,6 +59,7 @@ struct DiagnoseOptions {
     std::string fit;
     std::string out;
     std::vector<std::string> effects;
+    FrameOptions frame_selection;  // resolved into cloth.frames
     DiagnoseClothOptions cloth;
     gap::DiagnoseSettings settings;
     bool json = false;
@@ -136,9 +138,9 @@ const RegisterCommand registration{Command{
         app.add_option("--fit", options->fit, "rigid: start from this fit of the first capture (flowvid fit rigid's fit.json)");
         app.add_option("--out", options->out, "report folder (diagnosis.json, report.html)")->required();
         app.add_option("--effects", options->effects, "candidates to consider (default: every applicable one)")->delimiter(',');
-        app.add_option("--frames", options->cloth.frames, "frames compared from the first")
-            ->check(CLI::Range(4, 100000))
-            ->capture_default_str();
+        add_frame_options(app, options->frame_selection,
+                          "cloth: waving frames A to B compared; A is the wave's first frame (later frames are mostly chaos)",
+                          "the first N waving frames", "the first 30");
         app.add_option("--floor-resolution-step", options->cloth.floor_resolution_step,
                        "the floor also holds a run on a mesh this many rows and columns finer (0: none)")
             ->check(CLI::Range(0, 64))
@@ -175,7 +177,13 @@ const RegisterCommand registration{Command{
         app.add_option("--seed", options->settings.seed, "bootstrap seed")->capture_default_str();
         add_cloth_run_options(app, options->cloth.run);
         app.add_flag("--json", options->json, "print the summary as JSON");
-        return [options](const GlobalOptions& global) { return run_diagnose(*options, global); };
+        return [options](const GlobalOptions& global) {
+            if (const std::optional<int> count = resolve_waving_frame_count(options->frame_selection, options->captures))
+                options->cloth.frames = *count;
+            if (options->cloth.frames < 4)
+                throw UsageError("", "", "a diagnosis needs at least 4 frames", "give --frame-count 4 or more");
+            return run_diagnose(*options, global);
+        };
     }}};
 
 }  // namespace

@@ -5,6 +5,7 @@
 
 #include "commands/cloth_options.hpp"
 #include "commands/fit.hpp"
+#include "frame_options.hpp"
 #include "output.hpp"
 #include "report_html.hpp"
 
@@ -23,7 +24,8 @@ namespace flowvid::cli {
 namespace {
 
 struct TrialOptions {
-    int frames = 50;
+    FrameOptions frame_selection;  // --frames / --frame-count as given
+    int frames = 50;               // waving frames compared, once resolved
     int full_weight_frames = 10;
     double half_life_frames = 10.0;
     std::string metric = "xor";
@@ -31,9 +33,9 @@ struct TrialOptions {
 };
 
 void add_trial_options(CLI::App& app, TrialOptions& options) {
-    app.add_option("--frames", options.frames, "waving frames compared (from the first)")
-        ->check(CLI::Range(2, 100000))
-        ->capture_default_str();
+    add_frame_options(app, options.frame_selection,
+                      "waving frames A to B compared; A is the wave's first frame (the start is what is predictable)",
+                      "the first N waving frames", "the first 50; --compare scan: 20");
     app.add_option("--full-weight-frames", options.full_weight_frames, "frames with full weight in the weighted error")
         ->check(CLI::Range(1, 100000))
         ->capture_default_str();
@@ -54,9 +56,13 @@ cloth_fit::FitTarget compared_target(const TrialOptions& options) {
     return cloth_fit::fit_target_from_name(options.compare).value_or(cloth_fit::FitTarget::footage);
 }
 
-// --compare scan: the scan fits' frame defaults unless --frames or --half-life-frames were given.
-void apply_compare_defaults(const CLI::Option* frames, const CLI::Option* half_life, TrialOptions& options) {
-    apply_shape_target_frame_defaults(compared_target(options), frames, half_life, options.frames, options.half_life_frames);
+// The waving frames compared: as given, else the default (--compare scan:
+// the scan fits' frame defaults unless --frames or --half-life-frames were given).
+void apply_frame_choices(const std::vector<std::string>& captures, const CLI::Option* half_life, TrialOptions& options) {
+    if (const std::optional<int> count = resolve_waving_frame_count(options.frame_selection, captures)) options.frames = *count;
+    if (options.frames < 2) throw UsageError("", "", "a comparison needs at least 2 waving frames", "give --frame-count 2 or more");
+    apply_shape_target_frame_defaults(compared_target(options), options.frame_selection.given(), half_life->count() > 0,
+                                      options.frames, options.half_life_frames);
 }
 
 cloth_fit::TrialLoadSettings load_settings(const TrialOptions& options) {
@@ -239,7 +245,7 @@ const RegisterEvalKind eval_registration{FitKind{
             "--report DIR writes eval.json and eval.html (tables and plots).\n\n"
             "Examples:\n"
             "  flowvid eval cloth --preset cotton.fabric.json --capture ../shared/captures/cloth-cotton-waving-2\n"
-            "  flowvid eval cloth --preset silk.fabric.json --capture wave1/ --capture wave2/ --report eval/ --json");
+            "  flowvid eval cloth --preset silk.fabric.json --capture wave1/ --capture wave2/ --out eval/ --json");
         app.add_option("--preset", options->preset, "fabric preset (*.fabric.json)")->required();
         app.add_option("--capture", options->captures, "cloth capture folder (repeat for several)")->required();
         app.add_option("--floor-members", options->floor_members, "ensemble size of the predictability floor (0 = none)")
@@ -263,14 +269,13 @@ const RegisterEvalKind eval_registration{FitKind{
                        "substeps a frame of an implicit floor integrator (the error's runs keep their 5)")
             ->check(CLI::Range(1, 1000))
             ->capture_default_str();
-        app.add_option("--report", options->report, "folder for eval.json and eval.html");
+        add_out_option(app, options->report, "folder for eval.json and eval.html", "--report");
         add_trial_options(app, options->trial);
         add_cloth_run_options(app, options->run);
         app.add_flag("--json", options->json, "print the summary as JSON");
-        const CLI::Option* frames = app.get_option("--frames");
         const CLI::Option* half_life = app.get_option("--half-life-frames");
-        return [options, frames, half_life](const GlobalOptions& global) {
-            apply_compare_defaults(frames, half_life, options->trial);
+        return [options, half_life](const GlobalOptions& global) {
+            apply_frame_choices(options->captures, half_life, options->trial);
             return run_eval_cloth(*options, global);
         };
     }}};
@@ -374,10 +379,9 @@ const RegisterCommand recognize_registration{Command{
         add_trial_options(app, options->trial);
         add_cloth_run_options(app, options->run);
         app.add_flag("--json", options->json, "print the matrix as JSON");
-        const CLI::Option* frames = app.get_option("--frames");
         const CLI::Option* half_life = app.get_option("--half-life-frames");
-        return [options, frames, half_life](const GlobalOptions& global) {
-            apply_compare_defaults(frames, half_life, options->trial);
+        return [options, half_life](const GlobalOptions& global) {
+            apply_frame_choices(options->captures, half_life, options->trial);
             return run_recognize(*options, global);
         };
     }}};

@@ -28,40 +28,6 @@ std::vector<FitKind>& eval_kinds() {
 RegisterPredictKind::RegisterPredictKind(FitKind kind) { predict_kinds().push_back(std::move(kind)); }
 RegisterEvalKind::RegisterEvalKind(FitKind kind) { eval_kinds().push_back(std::move(kind)); }
 
-std::optional<std::pair<std::optional<int>, std::optional<int>>> parse_frame_range(const std::string& text) {
-    const std::size_t colon = text.find(':');
-    if (colon == std::string::npos || text.find(':', colon + 1) != std::string::npos) return std::nullopt;
-    // An empty part is an open end; otherwise only digits.
-    auto well_formed = [](const std::string& part) {
-        return part.size() <= 9 && std::all_of(part.begin(), part.end(), [](char c) { return c >= '0' && c <= '9'; });
-    };
-    const std::string a = text.substr(0, colon), b = text.substr(colon + 1);
-    if (!well_formed(a) || !well_formed(b)) return std::nullopt;
-    std::pair<std::optional<int>, std::optional<int>> range;
-    if (!a.empty()) range.first = std::stoi(a);
-    if (!b.empty()) range.second = std::stoi(b);
-    return range;
-}
-
-std::optional<std::pair<int, int>> resolve_frames(const std::string& text, const formats::Capture& capture) {
-    int first = capture.frames.first, last = capture.frames.last();
-    if (!text.empty()) {
-        const auto range = parse_frame_range(text);
-        if (!range) {
-            log_message("error: --frames " + text + ": expected A:B, e.g. 1:18 (frame numbers as in capture.json)");
-            return std::nullopt;
-        }
-        first = range->first.value_or(first);
-        last = range->second.value_or(last);
-    }
-    if (first < capture.frames.first || last > capture.frames.last() || first > last) {
-        log_message("error: --frames " + text + ": the capture has frames " + std::to_string(capture.frames.first) + ":" +
-                    std::to_string(capture.frames.last()));
-        return std::nullopt;
-    }
-    return std::pair{first, last};
-}
-
 namespace {
 
 // One command whose CLI11 sub-subcommands are the registered kinds.

@@ -44,13 +44,4 @@ struct RegisterEvalKind {
     explicit RegisterEvalKind(FitKind kind);
 };
 
-// Frames A:B of --frames resolved against the capture (defaults: its first
-// and last frame). nullopt, after logging why, when the text is malformed or
-// outside the capture.
-std::optional<std::pair<int, int>> resolve_frames(const std::string& text, const formats::Capture& capture);
-
-// "A:B" (inclusive, 1-based frame numbers as in capture.json); "A:" and ":B"
-// leave that end open. nullopt for anything else.
-std::optional<std::pair<std::optional<int>, std::optional<int>>> parse_frame_range(const std::string& text);
-
 }  // namespace flowvid::cli

@@ -4,6 +4,7 @@
 #include "commands/cloth_options.hpp"
 #include "commands/fit.hpp"
 #include "commands/merge.hpp"
+#include "frame_options.hpp"
 #include "output.hpp"
 
 #include "flowvid/cloth/material.hpp"
@@ -50,7 +51,8 @@ struct FitClothOptions {
     // Footage fits compare 50 waving frames whose weight halves every 10
     // after the first 10; tracks fits 20 frames halving every 5 (the
     // capacity study's held-out trials: docs/cloth_model.md). Unless given.
-    int frames = 50;
+    FrameOptions frame_selection;  // --frames / --frame-count as given
+    int frames = 50;               // resolved
     int full_weight_frames = 10;
     double half_life_frames = 10.0;
     double static_weight = 1.0;  // each static drape against one full-weight waving frame
@@ -421,9 +423,9 @@ const RegisterFitKind registration{FitKind{
         app.add_option("--budget-seconds", options->budget_seconds, "stop the search after this wall time (0 = no limit)")
             ->check(CLI::NonNegativeNumber)
             ->capture_default_str();
-        app.add_option("--frames", options->frames, "waving frames compared (from the first; --fit-to tracks or scan: 20)")
-            ->check(CLI::Range(2, 100000))
-            ->capture_default_str();
+        add_frame_options(app, options->frame_selection,
+                          "waving frames A to B compared; A is the wave's first frame (the start is what is predictable)",
+                          "the first N waving frames", "the first 50; --fit-to tracks or scan: 20");
         app.add_option("--full-weight-frames", options->full_weight_frames, "waving frames that count fully")
             ->check(CLI::Range(1, 100000))
             ->capture_default_str();
@@ -493,12 +495,15 @@ const RegisterFitKind registration{FitKind{
         refine_rounds->excludes(shards);
         app.add_flag("--json", options->json, "print the summary as JSON");
         CLI::Option* variability_runs = app.get_option("--variability-runs");
-        CLI::Option* frames = app.get_option("--frames");
         CLI::Option* half_life = app.get_option("--half-life-frames");
-        return [options, variability_runs, frames, half_life](const GlobalOptions& global) {
+        return [options, variability_runs, half_life](const GlobalOptions& global) {
             options->variability_runs_given = variability_runs->count() > 0;
+            if (const std::optional<int> count = resolve_waving_frame_count(options->frame_selection, options->captures))
+                options->frames = *count;
+            if (options->frames < 2) throw UsageError("", "", "a fit needs at least 2 waving frames", "give --frame-count 2 or more");
             apply_shape_target_frame_defaults(cloth_fit::fit_target_from_name(options->fit_to).value_or(cloth_fit::FitTarget::footage),
-                                              frames, half_life, options->frames, options->half_life_frames);
+                                              options->frame_selection.given(), half_life->count() > 0, options->frames,
+                                              options->half_life_frames);
             return run_fit_cloth(*options, global);
         };
     }}};

@@ -1,6 +1,7 @@
 // flowvid fit rigid: inverse simulation of a tossed rigid body from its silhouettes.
 
 #include "commands/fit.hpp"
+#include "frame_options.hpp"
 #include "output.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
@@ -17,7 +18,7 @@ namespace {
 struct FitRigidOptions {
     std::string capture;
     std::string out;
-    std::string frames;
+    FrameOptions frames;
     std::string guess;
     std::string optimizer = "lm";
     std::string metric = "edge";
@@ -41,11 +42,11 @@ nlohmann::json summary_of(const rigid::RigidFitRecord& record, const rigid::Rigi
 int run_fit_rigid(const FitRigidOptions& options, const GlobalOptions& global) {
     formats::create_parent_folder(options.out);
     const formats::Capture capture = formats::read_capture_of_kind(options.capture, {"rigid.toss"}, "flowvid fit rigid");
-    const std::optional<std::pair<int, int>> frames = resolve_frames(options.frames, capture);
-    if (!frames) return kExitUsage;
-    if (frames->second - frames->first + 1 < 3) {
-        log_message("error: --frames " + options.frames + ": a fit needs at least 3 frames");
-        return kExitUsage;
+    const std::pair<int, int> frames = resolve_capture_frames(options.frames, capture);
+    if (frames.second - frames.first + 1 < 3) {
+        throw UsageError("", "", "frames " + std::to_string(frames.first) + ":" + std::to_string(frames.second) +
+                                     ": a fit needs at least 3 frames",
+                         "give a longer --frames A:B");
     }
     const rigid::RigidBody body = rigid::RigidBody::from_capture(*capture.rigid);
 
@@ -59,13 +60,13 @@ int run_fit_rigid(const FitRigidOptions& options, const GlobalOptions& global) {
         const rigid::GuessFile guess = rigid::read_guess_file(options.guess);
         settings.guess = guess.guess;
         const int at = guess.initial_frame.value_or(capture.frames.first);
-        settings.guess->time_s = (at - frames->first) / capture.fps;
+        settings.guess->time_s = (at - frames.first) / capture.fps;
         if (settings.guess->time_s != 0.0 && !settings.guess->complete())
             throw ValidationError({Problem{Problem::Severity::error, options.guess, "/initial",
                                            "the guess holds at frame " + std::to_string(at) + " but the fit starts at frame " +
-                                               std::to_string(frames->first) + ", and it is incomplete, so it cannot be moved there",
+                                               std::to_string(frames.first) + ", and it is incomplete, so it cannot be moved there",
                                            "give all of position_cam, orientation_cam_wxyz, com_velocity_cam and "
-                                           "angular_velocity_cam, or set \"initial_frame\": " + std::to_string(frames->first)}});
+                                           "angular_velocity_cam, or set \"initial_frame\": " + std::to_string(frames.first)}});
     }
     ProgressBar progress(global, "fit rigid");
     settings.progress = [&](const ProgressReport& p) {
@@ -75,7 +76,7 @@ int run_fit_rigid(const FitRigidOptions& options, const GlobalOptions& global) {
     if (!global.quiet) settings.log = [](const std::string& text) { log_message(text); };
 
     const std::vector<rigid::FrameObservation> observations =
-        rigid::load_observations(capture, frames->first, frames->second, frames->first, options.threads);
+        rigid::load_observations(capture, frames.first, frames.second, frames.first, options.threads);
     const rigid::FitResult fit = rigid::fit_rigid(body, *capture.camera, capture.fps, observations, settings);
     progress.done();
     if (fit.report.status == rigid::OptimizerReport::Status::failed) {
@@ -111,7 +112,7 @@ const RegisterFitKind registration{FitKind{
             "is listed with its file and field), 4 unreadable file.");
         app.add_option("--capture", options->capture, "capture folder (kind rigid.toss)")->required();
         app.add_option("--out", options->out, "fit file to write (JSON)")->required();
-        app.add_option("--frames", options->frames, "frames A:B to fit (inclusive; default all)");
+        add_frame_options(app, options->frames, "frames A to B to fit (inclusive, numbered as in capture.json)", "the first N frames", "all");
         app.add_option("--guess", options->guess,
                        "JSON with a rough initial state: any of initial.position_cam, initial.orientation_cam_wxyz, "
                        "initial.com_velocity_cam, initial.angular_velocity_cam, gravity_cam (e.g. an earlier fit)");

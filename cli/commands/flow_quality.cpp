@@ -3,6 +3,7 @@
 // clip; the flow-map method games use), on the bank's clip (flow/quality.hpp).
 
 #include "command.hpp"
+#include "frame_options.hpp"
 #include "output.hpp"
 #include "synthesis_options.hpp"
 
@@ -27,7 +28,8 @@ struct QualityOptions {
     std::string bank;
     std::string capture;
     std::string flowlines;
-    int frames = 0;
+    FrameOptions frame_selection;  // resolved into frames
+    int frames = 0;                // output frames 1..N measured; 0: twice the clip
     SynthesisOptions synthesis;
     std::string background = "auto";
     std::string texture = "auto";
@@ -297,14 +299,14 @@ const RegisterCommand registration{Command{
             "  flowvid track --capture ../shared/captures/video-waterfall-cascade --out w.bank.exr\n"
             "  flowvid quality --bank w.bank.exr\n"
             "  flowvid quality --bank w.bank.exr --series w.quality.csv   # per-frame curves to plot\n"
-            "  flowvid quality --bank w.bank.exr --edit --frames 240      # the capture's drawn edit\n"
+            "  flowvid quality --bank w.bank.exr --edit --frame-count 240     # the capture's drawn edit\n"
             "  flowvid quality --bank w.bank.exr --edit --flowlines particles.flowlines.json\n"
             "  flowvid quality --bank fire.bank.exr --capture ../shared/captures/video-fire-pot --json");
         app.add_option("--bank", options->bank, "particle bank written by flowvid track (.exr)")->required();
         app.add_option("--capture,--clip", options->capture, "the source clip (default: the one recorded in the bank)");
         app.add_option("--flowlines", options->flowlines, "the drawing the bank was tracked with, with the output lines for --edit (default: the capture's)");
-        app.add_option("--frames", options->frames, "output frames measured (0 = twice the clip)")
-            ->check(CLI::NonNegativeNumber);
+        add_frame_options(app, options->frame_selection, "output frames 1 to B measured (the sequence starts at 1)",
+                          "output frames 1 to N measured", "twice the clip");
         add_synthesis_options(app, options->synthesis);  // as synth renders
         app.add_option("--background", options->background,
                        "our synthesis's background where no line reaches: auto, median, loop, replay or relit (as in "
@@ -329,7 +331,11 @@ const RegisterCommand registration{Command{
         app.add_option("--series", options->series_csv,
                        "also write per-frame transitions and HF energy of the clip and each method (CSV): where a "
                        "seam or a pulse happens");
-        return [options](const GlobalOptions& global) { return run_quality(*options, global); };
+        return [options](const GlobalOptions& global) {
+            options->frames = resolve_frame_count(options->frame_selection, 1, "the measures run from the first output frame", 0)
+                                  .value_or(0);
+            return run_quality(*options, global);
+        };
     }}};
 
 }  // namespace

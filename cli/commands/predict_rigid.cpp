@@ -1,6 +1,7 @@
 // flowvid predict rigid: render the silhouettes a rigid fit predicts (thesis fig. 2.6-2.7).
 
 #include "commands/fit.hpp"
+#include "frame_options.hpp"
 #include "output.hpp"
 
 #include "flowvid/formats/capture.hpp"
@@ -16,19 +17,18 @@ struct PredictRigidOptions {
     std::string fit;
     std::string capture;
     std::string out;
-    std::string frames;
+    FrameOptions frames;
     bool json = false;
 };
 
 int run_predict_rigid(const PredictRigidOptions& options, const GlobalOptions& global) {
     const formats::Capture capture = formats::read_capture_of_kind(options.capture, {"rigid.toss"}, "flowvid predict rigid");
-    const std::optional<std::pair<int, int>> frames = resolve_frames(options.frames, capture);
-    if (!frames) return kExitUsage;
+    const std::pair<int, int> frames = resolve_capture_frames(options.frames, capture);
     rigid::PredictRequest request;
     request.fit_path = options.fit;
     request.capture_path = options.capture;
-    request.first_frame = frames->first;
-    request.last_frame = frames->second;
+    request.first_frame = frames.first;
+    request.last_frame = frames.second;
     request.masks_folder = options.out;
     std::optional<TerminalProgress> progress;
     progress.emplace(global, "predict rigid");
@@ -36,7 +36,7 @@ int run_predict_rigid(const PredictRigidOptions& options, const GlobalOptions& g
     progress.reset();
     if (!global.quiet) print_problems(outcome.warnings);
     nlohmann::json summary = {{"masks", options.out},
-                              {"frames", std::to_string(frames->first) + ":" + std::to_string(frames->second)},
+                              {"frames", std::to_string(frames.first) + ":" + std::to_string(frames.second)},
                               {"fitted_frames", std::to_string(outcome.first_fitted_frame) + ":" +
                                                     std::to_string(outcome.last_fitted_frame)}};
     if (outcome.compared) {
@@ -69,7 +69,7 @@ const RegisterPredictKind registration{FitKind{
         app.add_option("--fit", options->fit, "a fit file written by `flowvid fit rigid`")->required();
         app.add_option("--capture", options->capture, "the capture folder (camera and body)")->required();
         app.add_option("--out", options->out, "folder for the predicted masks")->required();
-        app.add_option("--frames", options->frames, "frames A:B to predict (inclusive; default all)");
+        add_frame_options(app, options->frames, "frames A to B to predict (inclusive, numbered as in capture.json)", "the first N frames", "all");
         app.add_flag("--json", options->json, "print the summary as JSON, with per-frame IoU");
         return [options](const GlobalOptions& global) { return run_predict_rigid(*options, global); };
     }}};

@@ -2,6 +2,7 @@
 
 #include "command.hpp"
 #include "commands/fit.hpp"
+#include "frame_options.hpp"
 #include "output.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
@@ -25,7 +26,7 @@ struct RectifyOptions {
     std::string fit;
     std::string capture;
     std::string out;
-    std::string frames;
+    FrameOptions frames;
     bool json = false;
 };
 
@@ -57,8 +58,7 @@ int run_rectify(const RectifyOptions& options, const GlobalOptions& global) {
     if (!capture.camera)
         throw ValidationError({Problem{Problem::Severity::error, capture.json_path, "/camera",
                                        "rectification needs the camera calibration", "add the \"camera\" block"}});
-    const std::optional<std::pair<int, int>> frames = resolve_frames(options.frames, capture);
-    if (!frames) return kExitUsage;
+    const std::pair<int, int> frames = resolve_capture_frames(options.frames, capture);
     const rigid::Rectification rectification = rigid::roll_rectification(*capture.camera, record.initial.gravity);
 
     const fs::path out(options.out);
@@ -66,17 +66,17 @@ int run_rectify(const RectifyOptions& options, const GlobalOptions& global) {
     formats::FrameSource source(capture);
     if (source.has_masks()) make_folder(out / "masks");
     ProgressBar progress(global, "rectify");
-    const int count = frames->second - frames->first + 1;
-    for (int f = frames->first; f <= frames->second; ++f) {
+    const int count = frames.second - frames.first + 1;
+    for (int f = frames.first; f <= frames.second; ++f) {
         rigid::write_png(numbered(out / "frames", f), rigid::rectify_image(source.frame(f), rectification));
         if (source.has_masks()) rigid::write_png(numbered(out / "masks", f), rigid::rectify_image(source.mask(f), rectification, true));
-        progress.update(static_cast<double>(f - frames->first + 1) / count);
+        progress.update(static_cast<double>(f - frames.first + 1) / count);
     }
     progress.done();
 
     // The rectified footage as a capture of its own: same intrinsics, camera rolled about its axis.
     nlohmann::json document = formats::capture_to_json(capture);
-    document["frames"] = {{"pattern", "frames/%06d.png"}, {"first", frames->first}, {"count", count}};
+    document["frames"] = {{"pattern", "frames/%06d.png"}, {"first", frames.first}, {"count", count}};
     if (source.has_masks()) document["masks"] = "masks/%06d.png";
     if (source.has_background()) {
         rigid::write_png((out / "background.png").string(), rigid::rectify_image(source.background(), rectification));
@@ -98,7 +98,7 @@ int run_rectify(const RectifyOptions& options, const GlobalOptions& global) {
                                  rigid::rectification_file(rectification, record.initial.gravity, options.fit));
 
     const nlohmann::json summary = {{"out", options.out},
-                                    {"frames", std::to_string(frames->first) + ":" + std::to_string(frames->second)},
+                                    {"frames", std::to_string(frames.first) + ":" + std::to_string(frames.second)},
                                     {"roll_deg", rectification.roll_rad * 180.0 / M_PI}};
     if (options.json) std::cout << summary.dump(2) << '\n';
     else std::cout << human_readable(summary);
@@ -121,7 +121,7 @@ const RegisterCommand registration{Command{
         app.add_option("--fit", options->fit, "a fit file written by `flowvid fit rigid`")->required();
         app.add_option("--capture", options->capture, "the capture folder to straighten (same camera)")->required();
         app.add_option("--out", options->out, "output folder")->required();
-        app.add_option("--frames", options->frames, "frames A:B (inclusive; default all)");
+        add_frame_options(app, options->frames, "frames A to B to straighten (inclusive, numbered as in capture.json)", "the first N frames", "all");
         app.add_flag("--json", options->json, "print the summary as JSON");
         return [options](const GlobalOptions& global) { return run_rectify(*options, global); };
     }}};

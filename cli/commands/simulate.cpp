@@ -3,6 +3,7 @@
 
 #include "commands/cloth_options.hpp"
 #include "commands/fit.hpp"
+#include "frame_options.hpp"
 #include "output.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
@@ -23,7 +24,7 @@ struct SimulateOptions {
     std::string out;
     std::string vat;
     std::string grid;
-    int frames = 0;
+    FrameOptions frames;  // default: all the pins cover
     ClothRunOptions run;
     bool json = false;
     // Start from the equilibrium branch that matches the footage's first
@@ -48,14 +49,16 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
         grid = *parsed;
     }
     cloth::SwatchExperiment experiment = cloth::experiment_from_capture(capture);
-    if (options.frames > 0) {
-        if (options.frames > experiment.frame_count) {
-            log_message("error: --frames " + std::to_string(options.frames) + ": the capture's pins cover " +
-                        std::to_string(experiment.frame_count) + " frames");
-            return kExitUsage;
-        }
-        experiment.frame_count = options.frames;
-        for (cloth::PinTrajectory& pin : experiment.pins) pin.positions_m.resize(static_cast<std::size_t>(options.frames));
+    if (const std::optional<int> count =
+            resolve_frame_count(options.frames, capture.frames.first,
+                                "the simulation starts from the pins' first positions", experiment.frame_count)) {
+        if (*count > experiment.frame_count)
+            throw UsageError("", "",
+                             std::to_string(*count) + " frames asked, but the capture's pins cover " +
+                                 std::to_string(experiment.frame_count),
+                             "give at most --frame-count " + std::to_string(experiment.frame_count));
+        experiment.frame_count = *count;
+        for (cloth::PinTrajectory& pin : experiment.pins) pin.positions_m.resize(static_cast<std::size_t>(*count));
     }
 
     for (const std::string& path : {options.out, options.vat})
@@ -135,8 +138,8 @@ const RegisterCommand registration{Command{
         app.add_option("--out", options->out, "motion glTF to write (.glb)");
         app.add_option("--vat", options->vat, "vertex-animation EXR to write");
         app.add_option("--grid", options->grid, "sample the surface at RxC uv points (default: the simulation mesh)");
-        app.add_option("--frames", options->frames, "simulate only the first N frames (default: all the pins cover)")
-            ->check(CLI::Range(1, 100000));
+        add_frame_options(app, options->frames, "frames A to B; A is the capture's first frame (the simulation starts there)",
+                          "only the first N frames", "all the pins cover");
         add_cloth_run_options(app, options->run);
         app.add_flag("--json", options->json, "print the summary as JSON");
         return [options](const GlobalOptions& global) { return run_simulate(*options, global); };
@@ -162,7 +165,8 @@ const RegisterPredictKind predict_registration{FitKind{
         app.add_option("--capture", options->capture, "cloth capture folder")->required();
         app.add_option("--out", options->vat, "vertex-animation EXR to write")->required();
         app.add_option("--grid", options->grid, "uv grid RxC")->capture_default_str();
-        app.add_option("--frames", options->frames, "only the first N frames")->check(CLI::Range(1, 100000));
+        add_frame_options(app, options->frames, "frames A to B; A is the capture's first frame (the simulation starts there)",
+                          "only the first N frames", "all the pins cover");
         add_cloth_run_options(app, options->run);
         app.add_flag("--json", options->json, "print the summary as JSON");
         return [options](const GlobalOptions& global) { return run_simulate(*options, global); };

@@ -4,6 +4,7 @@
 // flow/editing.hpp.
 
 #include "command.hpp"
+#include "frame_options.hpp"
 #include "synthesis_options.hpp"
 #include "output.hpp"
 
@@ -13,6 +14,7 @@
 
 #include <iostream>
 #include <memory>
+#include <tuple>
 
 namespace flowvid::cli {
 namespace {
@@ -21,7 +23,7 @@ struct RenderOptions {
     std::string bank;
     std::string capture;
     std::string flowlines;
-    std::string frames = "100";
+    FrameOptions frames;  // default 1:100
     std::string out;
     std::string background = "auto";
     std::string texture = "auto";
@@ -33,37 +35,15 @@ struct RenderOptions {
     std::string dense_out;
 };
 
-// "N" = frames 1..N; "A:B" = frames A..B (inclusive, 1-based, as capture.json
-// and the flow-line keys count).
-bool parse_frames(const std::string& text, int& first, int& last) {
-    try {
-        const std::size_t colon = text.find(':');
-        std::size_t used = 0;
-        if (colon == std::string::npos) {
-            first = 1;
-            last = std::stoi(text, &used);
-            return used == text.size() && last >= 1;
-        }
-        const std::string a = text.substr(0, colon), b = text.substr(colon + 1);
-        first = std::stoi(a, &used);
-        if (used != a.size()) return false;
-        last = std::stoi(b, &used);
-        return used == b.size() && first >= 1 && last >= first;
-    } catch (const std::exception&) {
-        return false;
-    }
-}
-
 int render(const RenderOptions& options, const GlobalOptions& global, bool edit) {
     flow::SynthesisOutput output;
     output.path = options.out;
     output.loop = options.loop;
     output.threads = options.threads;
     output.dense_lines_path = options.dense_out;
-    if (!options.loop && !parse_frames(options.frames, output.first_frame, output.last_frame)) {
-        log_message("error: --frames " + options.frames + ": give N (frames 1..N) or A:B (frames A..B, A >= 1)");
-        return kExitUsage;
-    }
+    // Frames of the infinite sequence, numbered from 1 as capture.json and
+    // the flow-line keys count.
+    if (!options.loop) std::tie(output.first_frame, output.last_frame) = resolve_frame_range(options.frames, 1, 100, 1, -1);
     flow::SynthesisJob job = synthesis_job(options.bank, options.capture, options.flowlines, options.background,
                                            options.texture, options.synthesis);
     if (edit) apply_edit_options(options.edit, options.threads, job);
@@ -83,8 +63,8 @@ int render(const RenderOptions& options, const GlobalOptions& global, bool edit)
 
 void add_common(CLI::App& app, RenderOptions& o) {
     app.add_option("--bank", o.bank, "particle bank written by flowvid track (.exr)")->required();
-    app.add_option("--frames", o.frames, "N (frames 1..N) or A:B (frames A..B of the infinite sequence)")
-        ->capture_default_str();
+    add_frame_options(app, o.frames, "frames A to B of the infinite sequence (1-based, inclusive)",
+                      "frames 1 to N", "1:100");
     app.add_option("--out", o.out,
                    "image pattern (out/%06d.png, .exr, .tif), folder, video (.mp4, .avi), or for one frame an image "
                    "(still.png)")
@@ -105,7 +85,9 @@ void add_common(CLI::App& app, RenderOptions& o) {
                    "else whole)")
         ->check(CLI::IsMember({"auto", "whole", "moving"}))
         ->capture_default_str();
-    app.add_flag("--loop", o.loop, "render exactly one period (frames 1..K*step): a file that loops seamlessly");
+    app.add_flag("--loop", o.loop, "render exactly one period (frames 1..K*step): a file that loops seamlessly")
+        ->excludes("--frames")
+        ->excludes("--frame-count");
     add_synthesis_options(app, o.synthesis);
     app.add_option("--threads", o.threads, "frames rendered at once (0 = all cores)");
     app.add_flag("--json", o.json, "print the summary as JSON");
@@ -128,7 +110,7 @@ const RegisterCommand synth_registration{Command{
             "around the lines (mist and spray the particles do not cover); the log says which and why.\n"
             "A drifting camera is rendered still, in the clip's first-frame view (flowvid help track).\n\n"
             "Examples:\n"
-            "  flowvid synth --bank waterfall.bank.exr --frames 250 --out out/%06d.png\n"
+            "  flowvid synth --bank waterfall.bank.exr --frame-count 250 --out out/%06d.png\n"
             "  flowvid synth --bank waterfall.bank.exr --frames 251:500 --out out/%06d.png   # continues the above\n"
             "  flowvid synth --bank waterfall.bank.exr --loop --out loop.mp4 --background loop");
         add_common(app, *options);
@@ -159,9 +141,9 @@ const RegisterCommand edit_registration{Command{
             "Texture carried over a background unlike its own (water over rock) ends in a hard edge at\n"
             "the default --coverage 0.5; --coverage 2 blends it in.\n\n"
             "Examples:\n"
-            "  flowvid edit --bank waterfall.bank.exr --flowlines edit.svg --frames 250 --out edit/%06d.png\n"
+            "  flowvid edit --bank waterfall.bank.exr --flowlines edit.svg --frame-count 250 --out edit/%06d.png\n"
             "  flowvid edit --bank waterfall.bank.exr --flowlines new-channel.svg --carry-background --coverage 2 \\\n"
-            "      --frames 250 --out channel.mp4\n"
+            "      --frame-count 250 --out channel.mp4\n"
             "  flowvid edit --bank smoke.bank.exr --flowlines wind.flowlines.json --mapping scaled --frames 1:100 \\\n"
             "      --out smoke.mp4 --dense-out dense.flowlines.json");
         add_common(app, *options);

@@ -2,6 +2,7 @@
 // clip and store them as a particle texture bank (thesis 3.2, flow/tracking.hpp).
 
 #include "command.hpp"
+#include "frame_options.hpp"
 #include "output.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
@@ -32,7 +33,8 @@ struct TrackOptions {
     std::string dense_out;
     std::string auto_lines;  // propose input lines from the clip's optical flow, write them here (SVG), track along them
     double fps = 0.0;
-    int frames = 0;
+    FrameOptions frame_selection;  // resolved into frames
+    int frames = 0;                // the first N frames; 0: all
     int patch = 0;  // 0: from the drawn lines' spacing
     std::string dynamics = "stationary";
     int start_every = 0;
@@ -73,7 +75,7 @@ int propose_lines(const TrackOptions& options, const GlobalOptions& global, cons
         log_message("error: " + options.capture +
                     ": no flow found to propose lines along (nothing moves consistently faster than " +
                     std::to_string(lines.min_speed_px_per_frame) +
-                    " px/frame; fix: draw the lines and give --flowlines, or use more --frames)");
+                    " px/frame; fix: draw the lines and give --flowlines, or use more frames)");
         return kExitFailure;
     }
     // The first frame beside the SVG, which shows it under the lines.
@@ -112,11 +114,14 @@ int propose_lines(const TrackOptions& options, const GlobalOptions& global, cons
     return kExitOk;
 }
 
-int run_track(const TrackOptions& options, const GlobalOptions& global) {
+int run_track(TrackOptions& options, const GlobalOptions& global) {
     formats::create_parent_folder(options.out);
     if (!options.dense_out.empty()) formats::create_parent_folder(options.dense_out);
     if (!options.auto_lines.empty()) formats::create_parent_folder(options.auto_lines);
     const formats::Capture capture = flow::open_clip(options.capture, options.fps);
+    options.frames = resolve_frame_count(options.frame_selection, capture.frames.first,
+                                         "particles are tracked from the clip's first frame", 0)
+                         .value_or(0);
     std::string lines_path = options.flowlines;
     if (lines_path.empty() && !capture.flowlines.empty()) lines_path = capture.resolve(capture.flowlines);
     if (lines_path.empty() && options.auto_lines.empty()) {
@@ -309,7 +314,8 @@ const RegisterCommand registration{Command{
             ->required()
             ->check(file_name_ending({".exr"}, "a particle bank (an OpenEXR file)", "waterfall.bank.exr"));
         app.add_option("--fps", options->fps, "frame rate of a clip that records none (image sequences: 25)");
-        app.add_option("--frames", options->frames, "use only the first N frames (0 = all)")->check(CLI::NonNegativeNumber);
+        add_frame_options(app, options->frame_selection, "frames A to B of the clip; A is its first frame",
+                          "use only the first N frames", "all");
         app.add_option("--patch", options->patch,
                        "patch side in pixels (default: half the median gap between neighbouring drawn lines; the "
                        "thesis: 24, 100 for flames)")

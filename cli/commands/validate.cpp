@@ -5,6 +5,7 @@
 
 #include "flowvid/formats/any_file.hpp"
 
+#include <filesystem>
 #include <iostream>
 #include <memory>
 
@@ -18,8 +19,15 @@ struct ValidateOptions {
 
 int run_validate(const ValidateOptions& options) {
     const formats::Strictness strictness = options.lenient ? formats::Strictness::lenient : formats::Strictness::strict;
-    int invalid = 0;
+    int invalid = 0, unreadable = 0;
     for (const std::string& path : options.paths) {
+        std::error_code error;
+        if (!std::filesystem::exists(path, error)) {  // an I/O error (exit 4), not an invalid file
+            print_problems({{Problem::Severity::error, path, "", "no such file or folder", "check the path"}});
+            std::cout << path << ": missing\n";
+            ++unreadable;
+            continue;
+        }
         const std::vector<Problem> problems = formats::validate_any_file(path, strictness);
         print_problems(problems);
         bool has_error = false;
@@ -27,7 +35,7 @@ int run_validate(const ValidateOptions& options) {
         std::cout << path << ": " << (has_error ? "invalid" : "valid") << '\n';
         if (has_error) ++invalid;
     }
-    return invalid ? kExitInvalidInput : kExitOk;
+    return unreadable ? kExitIoError : invalid ? kExitInvalidInput : kExitOk;
 }
 
 const RegisterCommand registration{Command{
@@ -41,7 +49,7 @@ const RegisterCommand registration{Command{
             "Examples:\n"
             "  flowvid validate cotton.fabric.json\n"
             "  flowvid validate ../shared/captures/cloth-cotton-waving-1 lines.flowlines.json\n\n"
-            "Exit code 0 when all are valid, 3 when any is invalid.");
+            "Exit code 0 when all are valid, 3 when any is invalid, 4 when any is missing.");
         app.add_option("FILE", options->paths, "files or capture folders to check")->required();
         app.add_flag("--lenient", options->lenient,
                      "accept unknown keys with a warning, as readers do (default: unknown keys are errors)");

@@ -7,9 +7,10 @@ namespace flowvid {
 std::string Problem::to_string() const {
     std::string text;
     if (severity == Severity::warning) text += "warning: ";
-    text += file.empty() ? std::string("<input>") : file;
-    if (!field.empty()) text += ": " + field;
-    text += ": " + message;
+    // A problem with the command line rather than a file names neither.
+    if (!file.empty()) text += file + ": ";
+    if (!field.empty()) text += field + ": ";
+    text += message;
     if (!fix.empty()) text += " (fix: " + fix + ")";
     return text;
 }

@@ -8,6 +8,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <set>
+#include <sstream>
 
 using namespace flowvid::testing;
 
@@ -56,7 +58,7 @@ TEST(Cli, ValidateValidAndInvalidFiles) {
     EXPECT_TRUE(mentions(invalid.err, "warning: " + bad + ": /version")) << invalid.err;
 
     CliResult missing = run_flowvid({"validate", dir + "/missing.fabric.json"});
-    EXPECT_EQ(missing.exit_code, 3);
+    EXPECT_EQ(missing.exit_code, 4);  // an I/O error, as documented, not an invalid file
     EXPECT_TRUE(mentions(missing.err, dir + "/missing.fabric.json")) << missing.err;
 
     // A JSON file declaring a format flowvid does not read is told which ones it does.
@@ -147,4 +149,130 @@ TEST(Cli, DemoFormatsStage) {
     for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(source_path("formats/examples"))) ++examples;
     EXPECT_EQ(summaries.size(), examples);
     EXPECT_EQ(run_flowvid({"demo", "--only", "nonsense"}).exit_code, 2);
+}
+
+namespace {
+
+// The commands `flowvid help WORDS` lists under "Subcommands:", as word lists.
+std::vector<std::vector<std::string>> subcommands_of(const std::vector<std::string>& words) {
+    std::vector<std::string> args = {"help"};
+    args.insert(args.end(), words.begin(), words.end());
+    const CliResult help = run_flowvid(args);
+    std::vector<std::vector<std::string>> found;
+    std::istringstream lines(help.out);
+    std::string line;
+    bool listing = false;
+    while (std::getline(lines, line)) {
+        if (line.rfind("Subcommands:", 0) == 0) {
+            listing = true;
+            continue;
+        }
+        if (listing && (line.size() < 3 || line[0] != ' ')) break;
+        if (!listing) continue;
+        std::istringstream fields(line);
+        std::string name;
+        fields >> name;
+        if (name.empty() || name == "help") continue;
+        std::vector<std::string> command = words;
+        command.push_back(name);
+        found.push_back(command);
+    }
+    return found;
+}
+
+std::string joined(const std::vector<std::string>& words) {
+    std::string text;
+    for (const std::string& w : words) text += (text.empty() ? "" : " ") + w;
+    return text;
+}
+
+}  // namespace
+
+// One frame grammar: walks every command's help (`flowvid help WORDS`, also
+// a check of help for nested commands); each that takes frames offers both
+// --frames A:B and --frame-count N, and refuses a bare --frames N with both
+// spellings. The set of such commands is pinned so none slips out.
+TEST(Cli, EveryCommandTakesOneFrameGrammar) {
+    std::vector<std::vector<std::string>> leaves, open = subcommands_of({});
+    ASSERT_GE(open.size(), 15u);
+    while (!open.empty()) {
+        const std::vector<std::string> command = open.back();
+        open.pop_back();
+        const std::vector<std::vector<std::string>> children = subcommands_of(command);
+        if (children.empty()) leaves.push_back(command);
+        open.insert(open.end(), children.begin(), children.end());
+    }
+    std::set<std::string> with_frames;
+    for (const std::vector<std::string>& command : leaves) {
+        std::vector<std::string> help_args = {"help"};
+        help_args.insert(help_args.end(), command.begin(), command.end());
+        const CliResult help = run_flowvid(help_args);
+        ASSERT_EQ(help.exit_code, 0) << joined(command) << ": " << help.err;
+        EXPECT_TRUE(mentions(help.out, "Usage: flowvid " + joined(command))) << help.out;
+        const bool range = mentions(help.out, "--frames A:B"), count = mentions(help.out, "--frame-count N");
+        EXPECT_EQ(range, count) << joined(command) << " offers only one of --frames A:B and --frame-count N";
+        EXPECT_FALSE(mentions(help.out, "--frames INT") || mentions(help.out, "--frames TEXT")) << joined(command);
+        if (!range) continue;
+        with_frames.insert(joined(command));
+        std::vector<std::string> bare = command;
+        bare.insert(bare.end(), {"--frames", "12"});
+        const CliResult refused = run_flowvid(bare);
+        EXPECT_EQ(refused.exit_code, 2) << joined(command);
+        EXPECT_TRUE(mentions(refused.err, "--frame-count 12") && mentions(refused.err, "1:12"))
+            << joined(command) << ": " << refused.err;
+    }
+    const std::set<std::string> expected = {"bench gap", "diagnose", "edit",          "eval cloth", "fit cloth",
+                                            "fit rigid", "predict cloth", "predict rigid", "quality",   "recognize",
+                                            "rectify",   "simulate", "synth",         "track"};
+    EXPECT_EQ(with_frames, expected);
+}
+
+// Ranges mean the frames named, counts the first N; a command that always
+// starts at the first frame says so; the flags every command shares work
+// after the command too; help takes a command's words; --report still
+// writes where --out would, with a warning.
+TEST(Cli, FrameRangesCountsAndGlobalFlagsAnywhere) {
+    const std::string dir = scratch_dir("cli_frame_grammar");
+    // fit cloth compares waving frames from the wave's start.
+    const CliResult later = run_flowvid({"fit", "cloth", "--capture", shared_path("captures/cloth-cotton-waving-1"), "--out",
+                                         dir + "/x.fabric.json", "--frames", "3:20"});
+    if (!std::filesystem::exists(shared_path("captures/cloth-cotton-waving-1"))) GTEST_SKIP() << "../shared is absent";
+    EXPECT_EQ(later.exit_code, 2);
+    EXPECT_TRUE(mentions(later.err, "from the first one, 1") && mentions(later.err, "--frames 1:B or --frame-count N"))
+        << later.err;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/x.fabric.json"));
+
+    // The global --progress after the command: JSON progress events on stderr.
+    const CliResult simulated = run_flowvid({"simulate", "--preset", example_preset(), "--capture",
+                                             shared_path("captures/cloth-cotton-waving-1"), "--vat", dir + "/a.exr",
+                                             "--resolution", "8x8", "--frames", "1:3", "--json", "--progress", "json"});
+    ASSERT_EQ(simulated.exit_code, 0) << simulated.err;
+    EXPECT_EQ(nlohmann::json::parse(simulated.out)["frames"], 3);
+    EXPECT_TRUE(mentions(simulated.err, "\"event\"")) << simulated.err;
+    const CliResult counted = run_flowvid({"--progress", "none", "simulate", "--preset", example_preset(), "--capture",
+                                           shared_path("captures/cloth-cotton-waving-1"), "--vat", dir + "/b.exr",
+                                           "--resolution", "8x8", "--frame-count", "3"});
+    ASSERT_EQ(counted.exit_code, 0) << counted.err;
+    EXPECT_EQ(read_text(dir + "/a.exr"), read_text(dir + "/b.exr"));  // 1:3 and the first 3 are one run
+    EXPECT_FALSE(mentions(counted.err, "\"event\""));
+    const CliResult too_many = run_flowvid({"simulate", "--preset", example_preset(), "--capture",
+                                            shared_path("captures/cloth-cotton-waving-1"), "--vat", dir + "/c.exr",
+                                            "--frame-count", "100000"});
+    EXPECT_EQ(too_many.exit_code, 2);
+    EXPECT_TRUE(mentions(too_many.err, "the capture's pins cover")) << too_many.err;
+
+    const CliResult help = run_flowvid({"help", "fit", "cloth"});
+    EXPECT_EQ(help.exit_code, 0);
+    EXPECT_TRUE(mentions(help.out, "Usage: flowvid fit cloth")) << help.out;
+    const CliResult unknown = run_flowvid({"help", "fit", "clothes"});
+    EXPECT_EQ(unknown.exit_code, 2);
+    EXPECT_TRUE(mentions(unknown.err, "flowvid help fit")) << unknown.err;
+
+    // eval cloth's old --report: the same files as --out, and a warning.
+    const CliResult old_spelling = run_flowvid({"eval", "cloth", "--preset", example_preset(), "--capture",
+                                                shared_path("captures/cloth-cotton-static-1"), "--resolution", "8x8",
+                                                "--floor-members", "0", "--report", dir + "/eval"});
+    ASSERT_EQ(old_spelling.exit_code, 0) << old_spelling.err;
+    EXPECT_TRUE(mentions(old_spelling.err, "--report is now --out")) << old_spelling.err;
+    EXPECT_TRUE(std::filesystem::exists(dir + "/eval/eval.json"));
 }

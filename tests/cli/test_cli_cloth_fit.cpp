@@ -61,10 +61,10 @@ TEST(CliClothFit, EvalAgreesWithAnIndependentComparisonOfPredictAndTruth) {
     const std::string preset = source_path("formats/examples/cotton.fabric.json");
     const CliResult predicted = run_flowvid({"predict", "cloth", "--preset", preset, "--capture", shared_path(kStatic),
                                              "--out", dir + "/pred.exr", "--grid", "24x24", "--resolution", "12x12",
-                                             "--frames", "1"});
+                                             "--frame-count", "1"});
     ASSERT_EQ(predicted.exit_code, 0) << predicted.err;
     const CliResult eval = run_flowvid({"eval", "cloth", "--preset", preset, "--capture", shared_path(kStatic),
-                                        "--resolution", "12x12", "--floor-members", "2", "--report", dir + "/report",
+                                        "--resolution", "12x12", "--floor-members", "2", "--out", dir + "/report",
                                         "--json"});
     ASSERT_EQ(eval.exit_code, 0) << eval.err;
     const nlohmann::json summary = nlohmann::json::parse(eval.out);

@@ -124,7 +124,7 @@ TEST(CliFlow, TrackFillsGapsSynthesisWouldLeaveOpenAndWarnsWhenToldNotTo) {
 </svg>)");
     const auto track = [&](std::vector<std::string> extra) {
         std::vector<std::string> args = {"track", "--capture", tiny_capture(), "--flowlines", dir + "/sparse.svg",
-                                         "--frames", "12", "--json", "--out", dir + "/bank.exr"};
+                                         "--frame-count", "12", "--json", "--out", dir + "/bank.exr"};
         args.insert(args.end(), extra.begin(), extra.end());
         return run_flowvid(args);
     };
@@ -160,7 +160,7 @@ TEST(CliFlow, TrackFillsGapsSynthesisWouldLeaveOpenAndWarnsWhenToldNotTo) {
 // as an SVG over the first frame, and are what the bank is tracked along.
 TEST(CliFlow, TrackProposesLinesAlongTheClipsMotionWhenAsked) {
     const std::string dir = own_dir("cli_flow_auto");
-    const CliResult r = run_flowvid({"track", "--capture", tiny_capture(), "--auto-lines", dir + "/proposed.svg", "--frames",
+    const CliResult r = run_flowvid({"track", "--capture", tiny_capture(), "--auto-lines", dir + "/proposed.svg", "--frame-count",
                                      "20", "--json", "--out", dir + "/auto.bank.exr"});
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_TRUE(mentions(r.err, "auto lines: ")) << r.err;
@@ -188,7 +188,7 @@ TEST(CliFlow, TrackProposesLinesAlongTheClipsMotionWhenAsked) {
     // The proposal never overwrites a drawing: the capture's own, or one given.
     const std::string drawing = tiny_capture() + "/flowlines.svg";
     const std::string before = file_bytes(drawing);
-    const CliResult onto_capture = run_flowvid({"track", "--capture", tiny_capture(), "--auto-lines", drawing, "--frames",
+    const CliResult onto_capture = run_flowvid({"track", "--capture", tiny_capture(), "--auto-lines", drawing, "--frame-count",
                                                 "20", "--out", dir + "/x.bank.exr"});
     EXPECT_EQ(onto_capture.exit_code, 2) << onto_capture.err;
     EXPECT_TRUE(mentions(onto_capture.err, "would destroy it")) << onto_capture.err;
@@ -206,7 +206,7 @@ TEST(CliFlow, TrackProposesLinesAlongTheClipsMotionWhenAsked) {
 TEST(CliFlow, TrackSaysHowSureItsMatchesWere) {
     const std::string dir = own_dir("cli_flow_sure");
     const auto track = [&](std::vector<std::string> extra) {
-        std::vector<std::string> args = {"track", "--capture", tiny_capture(), "--frames", "16", "--json", "--out", dir + "/bank.exr"};
+        std::vector<std::string> args = {"track", "--capture", tiny_capture(), "--frame-count", "16", "--json", "--out", dir + "/bank.exr"};
         args.insert(args.end(), extra.begin(), extra.end());
         return run_flowvid(args);
     };
@@ -231,13 +231,13 @@ TEST(CliFlow, ABankFindsItsClipFromAnyWorkingDirectory) {
     fs::create_directories(dir + "/project/banks");
     fs::create_symlink(tiny_capture(), dir + "/project/waterfall");
     const CliResult tracked =
-        run_flowvid({"track", "--capture", "waterfall", "--frames", "12", "--out", "banks/w.bank.exr"}, dir + "/project");
+        run_flowvid({"track", "--capture", "waterfall", "--frame-count", "12", "--out", "banks/w.bank.exr"}, dir + "/project");
     ASSERT_EQ(tracked.exit_code, 0) << tracked.err;
     const CliResult info = run_flowvid({"info", dir + "/project/banks/w.bank.exr", "--json"});
     ASSERT_EQ(info.exit_code, 0) << info.err;
     EXPECT_TRUE(mentions(info.out, "../waterfall")) << info.out;  // relative to the bank's folder
     const CliResult synth = run_flowvid(
-        {"synth", "--bank", dir + "/project/banks/w.bank.exr", "--frames", "2", "--out", dir + "/out/%04d.png"});
+        {"synth", "--bank", dir + "/project/banks/w.bank.exr", "--frame-count", "2", "--out", dir + "/out/%04d.png"});
     EXPECT_EQ(synth.exit_code, 0) << synth.err;
     EXPECT_TRUE(fs::exists(dir + "/out/0002.png"));
 }
@@ -250,7 +250,7 @@ TEST(CliFlow, ABankTrackedFromAnImageSequenceFindsItsFrames) {
     fs::create_directories(dir + "/project/banks");
     fs::create_symlink(tiny_capture(), dir + "/project/waterfall");
     const CliResult tracked = run_flowvid({"track", "--clip", "waterfall/frames/%04d.png", "--fps", "25", "--flowlines",
-                                           "waterfall/flowlines.svg", "--frames", "12", "--out", "banks/w.bank.exr"},
+                                           "waterfall/flowlines.svg", "--frame-count", "12", "--out", "banks/w.bank.exr"},
                                           dir + "/project");
     ASSERT_EQ(tracked.exit_code, 0) << tracked.err;
     const CliResult info = run_flowvid({"info", dir + "/project/banks/w.bank.exr", "--json"});
@@ -270,7 +270,7 @@ TEST(CliFlow, ABankTrackedFromAnImageSequenceFindsItsFrames) {
     ASSERT_FALSE(expected.empty());
     EXPECT_EQ(file_bytes(dir + "/recorded/0003.png"), expected);
     EXPECT_EQ(file_bytes(dir + "/given/0003.png"), expected);
-    const CliResult quality = run_flowvid({"quality", "--bank", bank, "--flowlines", lines, "--frames", "8", "--json"});
+    const CliResult quality = run_flowvid({"quality", "--bank", bank, "--flowlines", lines, "--frame-count", "8", "--json"});
     EXPECT_EQ(quality.exit_code, 0) << quality.err;
     EXPECT_TRUE(mentions(quality.out, "%04d.png")) << quality.out;  // the clip it measured against
 }
@@ -279,11 +279,11 @@ TEST(CliFlow, SynthRangesJoinSeamlesslyAndLoop) {
     const std::string dir = own_dir("cli_flow_synth");
     // An output folder that cannot be made (a file is in the way): I/O error naming it.
     std::ofstream(dir + "/file") << "in the way";
-    const CliResult blocked = run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "6", "--out", dir + "/file/a/%04d.png"});
+    const CliResult blocked = run_flowvid({"synth", "--bank", tiny_bank(), "--frame-count", "6", "--out", dir + "/file/a/%04d.png"});
     ASSERT_EQ(blocked.exit_code, 4) << blocked.err;
     EXPECT_TRUE(mentions(blocked.err, dir + "/file/a")) << blocked.err;
     // Missing folders are made (a/ and b/ do not exist yet).
-    const CliResult first = run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "6", "--out", dir + "/a/%04d.png", "--json"});
+    const CliResult first = run_flowvid({"synth", "--bank", tiny_bank(), "--frame-count", "6", "--out", dir + "/a/%04d.png", "--json"});
     ASSERT_EQ(first.exit_code, 0) << first.err;
     const nlohmann::json summary = nlohmann::json::parse(first.out);
     EXPECT_EQ(summary["frames_written"], 6);
@@ -308,7 +308,7 @@ TEST(CliFlow, SynthRangesJoinSeamlesslyAndLoop) {
     const CliResult loop = run_flowvid({"synth", "--bank", tiny_bank(), "--loop", "--out", dir + "/loop", "--json"});
     ASSERT_EQ(loop.exit_code, 0) << loop.err;
     EXPECT_EQ(nlohmann::json::parse(loop.out)["frames_written"], period);
-    const CliResult video = run_flowvid({"synth", "--bank", tiny_bank(), "--frames", "8", "--out", dir + "/clip.mp4",
+    const CliResult video = run_flowvid({"synth", "--bank", tiny_bank(), "--frame-count", "8", "--out", dir + "/clip.mp4",
                                          "--background", "loop"});
     ASSERT_EQ(video.exit_code, 0) << video.err;
     EXPECT_GT(fs::file_size(dir + "/clip.mp4"), 1000u);
@@ -356,7 +356,7 @@ TEST(CliFlow, BadInputExitCodesNameTheProblem) {
   <g id="input"><path id="beside" d="M 120,-4 L 150,84"/></g>
 </svg>)");
     const std::vector<std::pair<std::vector<std::string>, std::string>> untrackable = {
-        {{"--frames", "1"}, "at least 2 frames"},
+        {{"--frame-count", "1"}, "at least 2 frames"},
         {{"--patch", "96"}, "at most 80 px"},
         {{"--flowlines", dir + "/off.svg"}, "beside lies outside the clip's 96 x 80 frame"}};
     for (const auto& [options, says] : untrackable) {
@@ -379,7 +379,7 @@ TEST(CliFlow, BadInputExitCodesNameTheProblem) {
     EXPECT_TRUE(mentions(svg_dense.err, "name it .json")) << svg_dense.err;
     for (const std::string& out : {dir + "/seq/%04d.xyz", dir + "/seq/one.png"}) {
         // The bank named does not exist: the output is what is reported, first.
-        const CliResult r = run_flowvid({"synth", "--bank", dir + "/none.bank.exr", "--frames", "3", "--out", out});
+        const CliResult r = run_flowvid({"synth", "--bank", dir + "/none.bank.exr", "--frame-count", "3", "--out", out});
         EXPECT_EQ(r.exit_code, 4) << r.err;
         EXPECT_TRUE(mentions(r.err, out)) << r.err;
         EXPECT_FALSE(mentions(r.err, "none.bank.exr")) << r.err;
@@ -432,13 +432,13 @@ TEST(CliFlow, QualityPrintsOursAgainstBothBaselines) {
     EXPECT_TRUE(mentions(help.out, "Examples")) << help.out;
     EXPECT_TRUE(mentions(help.out, "pulsing")) << help.out;
 
-    const CliResult table = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60"});
+    const CliResult table = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frame-count", "60"});
     ASSERT_EQ(table.exit_code, 0) << table.err;
     for (const char* part : {"ours", "loop", "flow map", "seam max", "share>p99", "pulsing", "patch d", "HF ratio"})
         EXPECT_TRUE(mentions(table.out, part)) << part << "\n" << table.out;
 
     // Over the median plate (auto would replay the clip, whose own transitions then show).
-    const CliResult json = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60",
+    const CliResult json = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frame-count", "60",
                                         "--background", "median", "--json"});
     ASSERT_EQ(json.exit_code, 0) << json.err;
     const nlohmann::json j = nlohmann::json::parse(json.out);
@@ -507,7 +507,7 @@ TEST(CliFlow, QualitySeriesShowsWhereTheLoopJumpsAndReproducesTheMeasures) {
     const std::string dir = own_dir("cli_flow_series");
     const std::string series = dir + "/series.csv";
     const CliResult run = run_flowvid(
-        {"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60", "--json", "--series", series});
+        {"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frame-count", "60", "--json", "--series", series});
     ASSERT_EQ(run.exit_code, 0) << run.err;
     const nlohmann::json j = nlohmann::json::parse(run.out);
     const Csv csv = read_csv(series);
@@ -558,7 +558,7 @@ TEST(CliFlow, QualitySeriesShowsWhereTheLoopJumpsAndReproducesTheMeasures) {
     for (const std::vector<std::string>& option : {std::vector<std::string>{"--blend", "plain"},
                                                    std::vector<std::string>{"--overlap-sharpness", "1"},
                                                    std::vector<std::string>{"--texture", "moving"}}) {
-        std::vector<std::string> args = {"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60", "--json"};
+        std::vector<std::string> args = {"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frame-count", "60", "--json"};
         args.insert(args.end(), option.begin(), option.end());
         const CliResult other = run_flowvid(args);
         ASSERT_EQ(other.exit_code, 0) << other.err;
@@ -576,14 +576,14 @@ TEST(CliFlow, QualitySeriesShowsWhereTheLoopJumpsAndReproducesTheMeasures) {
     }
     // The moving layer is screened over the dark plate: a looped background
     // would show the flames twice.
-    const CliResult refused = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frames", "60",
+    const CliResult refused = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--frame-count", "60",
                                            "--texture", "moving", "--background", "loop"});
     EXPECT_EQ(refused.exit_code, 2) << refused.err;
     EXPECT_TRUE(mentions(refused.err, "--background median")) << refused.err;
 }
 
 TEST(CliFlow, QualityMeasuresAnEditOverItsOutputLinesRegion) {
-    const CliResult r = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--edit", "--frames",
+    const CliResult r = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--edit", "--frame-count",
                                      "30", "--json"});
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const nlohmann::json j = nlohmann::json::parse(r.out);
@@ -604,7 +604,7 @@ TEST(CliFlow, QualityMeasuresAnEditOverItsOutputLinesRegion) {
     EXPECT_GT(ours.at("detail").get<double>(), 0.0);
     EXPECT_GT(ours.at("patch_fidelity").get<double>(), 0.0);
 
-    const CliResult table = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--edit", "--frames", "10"});
+    const CliResult table = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--edit", "--frame-count", "10"});
     ASSERT_EQ(table.exit_code, 0) << table.err;
     EXPECT_TRUE(mentions(table.out, "edit along 2 output lines")) << table.out;
     EXPECT_TRUE(mentions(table.out, "whole flow region")) << table.out;
@@ -616,7 +616,7 @@ TEST(CliFlow, EditDefaultsFollowTheBankAndTheClip) {
     // Whole textures of a stationary bank. The tiny clip's plate blurs its
     // flow (auto replays it, as `quality` reports), so lines moved off the
     // flow carry the replayed clip from around their input lines.
-    const CliResult water = run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frames", "2", "--json",
+    const CliResult water = run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frame-count", "2", "--json",
                                          "--out", dir + "/w%04d.png"});
     ASSERT_EQ(water.exit_code, 0) << water.err;
     const nlohmann::json w = nlohmann::json::parse(water.out);
@@ -625,11 +625,11 @@ TEST(CliFlow, EditDefaultsFollowTheBankAndTheClip) {
     EXPECT_EQ(w.at("background"), "replay");
     EXPECT_TRUE(w.at("carry_background").get<bool>());
     EXPECT_TRUE(mentions(water.err, "carry it from around their input lines")) << water.err;
-    const CliResult no_carry = run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frames", "2", "--json",
+    const CliResult no_carry = run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frame-count", "2", "--json",
                                             "--no-carry-background", "--out", dir + "/n%04d.png"});
     ASSERT_EQ(no_carry.exit_code, 0) << no_carry.err;
     EXPECT_FALSE(nlohmann::json::parse(no_carry.out).at("carry_background").get<bool>());
-    EXPECT_EQ(run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frames", "2", "--carry-background",
+    EXPECT_EQ(run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frame-count", "2", "--carry-background",
                            "--no-carry-background", "--out", dir + "/x%04d.png"})
                   .exit_code,
               2);
@@ -638,7 +638,7 @@ TEST(CliFlow, EditDefaultsFollowTheBankAndTheClip) {
     // flow adds, fading with the feather; plain synthesis keeps whole patches.
     const std::string flames = dir + "/flames.bank.exr";
     ASSERT_EQ(run_flowvid({"track", "--capture", tiny_capture(), "--dynamics", "non-stationary", "--out", flames}).exit_code, 0);
-    const CliResult fire = run_flowvid({"edit", "--bank", flames, "--flowlines", lines, "--frames", "2", "--json", "--out",
+    const CliResult fire = run_flowvid({"edit", "--bank", flames, "--flowlines", lines, "--frame-count", "2", "--json", "--out",
                                         dir + "/f%04d.png"});
     ASSERT_EQ(fire.exit_code, 0) << fire.err;
     const nlohmann::json f = nlohmann::json::parse(fire.out);
@@ -646,12 +646,12 @@ TEST(CliFlow, EditDefaultsFollowTheBankAndTheClip) {
     EXPECT_EQ(f.at("coverage").get<double>(), 2.0);
     EXPECT_EQ(f.at("background"), "median");
     EXPECT_FALSE(f.at("carry_background").get<bool>());
-    const CliResult synth = run_flowvid({"synth", "--bank", flames, "--frames", "2", "--json", "--out", dir + "/s%04d.png"});
+    const CliResult synth = run_flowvid({"synth", "--bank", flames, "--frame-count", "2", "--json", "--out", dir + "/s%04d.png"});
     ASSERT_EQ(synth.exit_code, 0) << synth.err;
     EXPECT_EQ(nlohmann::json::parse(synth.out).at("texture"), "whole");
     EXPECT_EQ(nlohmann::json::parse(synth.out).at("coverage").get<double>(), 0.5);
     // Asked for, the options win.
-    const CliResult asked = run_flowvid({"edit", "--bank", flames, "--flowlines", lines, "--frames", "2", "--json",
+    const CliResult asked = run_flowvid({"edit", "--bank", flames, "--flowlines", lines, "--frame-count", "2", "--json",
                                          "--texture", "whole", "--coverage", "1", "--out", dir + "/a%04d.png"});
     ASSERT_EQ(asked.exit_code, 0) << asked.err;
     EXPECT_EQ(nlohmann::json::parse(asked.out).at("texture"), "whole");

@@ -28,7 +28,7 @@ TEST(CliGap, ClothCasesAreSealedValidAndDeterministic) {
     if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
     const std::string a = scratch_dir("cli_gap_cloth_a"), b = scratch_dir("cli_gap_cloth_b");
     for (const std::string& out : {a, b}) {
-        const CliResult r = run_flowvid({"--progress", "none", "bench", "gap", "--cases", "2", "--seed", "3", "--frames", "6",
+        const CliResult r = run_flowvid({"--progress", "none", "bench", "gap", "--cases", "2", "--seed", "3", "--frame-count", "6",
                                          "--effects", "pin_lag", "--out", out, "--scene",
                                          shared_path("captures/cloth-cotton-waving-1"), "--fabric",
                                          test_data("cloth/cotton.fabric.json"), "--threads", "2"});

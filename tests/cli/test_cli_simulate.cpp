@@ -30,7 +30,7 @@ TEST(CliSimulate, PinnedCornersFollowTheCapturesPinsAndFilesAgree) {
     const int frames = 12;
     const CliResult result = run_flowvid({"simulate", "--preset", source_path("formats/examples/cotton.fabric.json"),
                                           "--capture", shared_path(kWaving), "--out", dir + "/nested/wave.glb", "--vat",
-                                          dir + "/wave.exr", "--frames", std::to_string(frames), "--grid", "13x13",
+                                          dir + "/wave.exr", "--frame-count", std::to_string(frames), "--grid", "13x13",
                                           "--json"});
     ASSERT_EQ(result.exit_code, 0) << result.err;
     const nlohmann::json summary = nlohmann::json::parse(result.out);
@@ -107,7 +107,7 @@ TEST(CliSimulate, BadRequestsNameTheProblemAndWriteNothing) {
     text.replace(range, 5, "[0.0001");
     write_text(dir + "/limp.fabric.json", text);
     const CliResult limp = run_flowvid({"simulate", "--preset", dir + "/limp.fabric.json", "--capture",
-                                        shared_path(kWaving), "--out", dir + "/limp.glb", "--frames", "20",
+                                        shared_path(kWaving), "--out", dir + "/limp.glb", "--frame-count", "20",
                                         "--integrator", "rk4"});
     EXPECT_EQ(limp.exit_code, 1) << limp.out << limp.err;
     EXPECT_TRUE(mentions(limp.err, "at frame")) << limp.err;

@@ -274,7 +274,7 @@ echo "synth chunk $SLURM_ARRAY_TASK_ID: job $SLURM_JOB_ID (${SLURM_ARRAY_JOB_ID}
 EOF
 
 log "tracking the bank the synth chunks render (outside Slurm): $clip, 30 frames"
-"$flowvid" -q track --capture "$clip" --frames 30 --out "$work/clip.bank.exr" >"$work/logs/track.log" 2>&1 ||
+"$flowvid" -q track --capture "$clip" --frame-count 30 --out "$work/clip.bank.exr" >"$work/logs/track.log" 2>&1 ||
   fail "flowvid track failed: $(tail -n 5 "$work/logs/track.log")"
 
 submit() {  # submit VAR ARGS...: sbatch ARGS, the job id in VAR
