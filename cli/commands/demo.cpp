@@ -32,9 +32,22 @@ namespace flowvid::cli {
 namespace {
 namespace fs = std::filesystem;
 
+// Where the bundled data lies: beside an installed tool
+// (PREFIX/bin/flowvid -> PREFIX/share/flowvid, as `cmake --install` lays it
+// out), else the source tree this tool was built from.
+std::string default_data_folder() {
+    std::error_code error;
+    const fs::path tool = fs::canonical("/proc/self/exe", error);
+    if (!error) {
+        const fs::path installed = tool.parent_path().parent_path() / "share" / "flowvid";
+        if (fs::is_directory(installed / "data" / "demo", error)) return installed.string();
+    }
+    return FLOWVID_BUNDLED_DATA_DIR;
+}
+
 struct DemoOptions {
     std::string out = "out/demo";
-    std::string data = FLOWVID_BUNDLED_DATA_DIR;
+    std::string data = default_data_folder();
     std::vector<std::string> only;
     int fabric_evaluations = 80;
     int blender_frames = 48;
@@ -136,7 +149,7 @@ int run_fabric_stage(const DemoOptions& options, const GlobalOptions& global) {
     fs::create_directories(out);
     const std::string preset = (out / "cotton.fabric.json").string();
     int status = run_flowvid({"fit", "cloth", "--capture", (data / "cotton-static").string(), "--capture",
-                              (data / "cotton-waving").string(), "--out", preset, "--frames", "24", "--resolution",
+                              (data / "cotton-waving").string(), "--out", preset, "--frame-count", "24", "--resolution",
                               "16x16", "--evaluations", std::to_string(options.fabric_evaluations), "--variability-runs",
                               "3", "--variability-evaluations", "14", "--json"},
                              out / "fit.json", global);
@@ -152,8 +165,8 @@ int run_fabric_stage(const DemoOptions& options, const GlobalOptions& global) {
                                     : std::string("  (fixed: the capture's declared mass)"))
                   << '\n';
     }
-    status = run_flowvid({"eval", "cloth", "--preset", preset, "--capture", (data / "cotton-waving").string(), "--frames",
-                          "24", "--resolution", "16x16", "--floor-members", "4", "--report", (out / "eval").string(),
+    status = run_flowvid({"eval", "cloth", "--preset", preset, "--capture", (data / "cotton-waving").string(),
+                          "--frame-count", "24", "--resolution", "16x16", "--floor-members", "4", "--out", (out / "eval").string(),
                           "--json"},
                          out / "eval.json", global);
     if (status != kExitOk) return status;
@@ -232,7 +245,7 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
     const std::string edit_lines = summary.value("flowlines", "");
     if (!edit_lines.empty())
         status = run_flowvid({"quality", "--bank", bank, "--capture", clip.string(), "--flowlines", edit_lines, "--edit",
-                              "--frames", std::to_string(options.blender_frames), "--json"},
+                              "--frame-count", std::to_string(options.blender_frames), "--json"},
                              out / "quality_edit.json", global);
     if (status != kExitOk) return status;
     const nlohmann::json quality = read_json_file(out / "quality.json");
@@ -546,7 +559,7 @@ const RegisterCommand registration{Command{
                    "  flowvid demo --only fabric --only garment --out /tmp/demo\n"
                    "  flowvid demo --only formats --out /tmp/demo");
         app.add_option("--out", options->out, "folder for every output")->capture_default_str();
-        app.add_option("--data", options->data, "flowvid source tree holding the bundled data")->capture_default_str();
+        app.add_option("--data", options->data, "folder holding the bundled data: an installed tool's PREFIX/share/flowvid, else the source tree it was built from")->capture_default_str();
         app.add_option("--only", options->only, "run only these stages");
         app.add_option("--blender-frames", options->blender_frames, "frames the Blender stages simulate and render")
             ->check(CLI::Range(2, 1000))

@@ -49,14 +49,17 @@ def main():
         # The installed zip points at the installed tool and module, not at the build.
         assert recorded == {"tool": tool, "module_dir": python_dir}, recorded
         assert carried, "the installed zip should carry the module"
-        # The demo reads the installed data as it reads the source tree (its formats stage: every example).
+        # The installed demo finds the installed data by itself (no --data), and
+        # reads it as it reads the source tree (its formats stage: every example).
         out = os.path.join(prefix, "demo")
-        subprocess.run([tool, "--quiet", "demo", "--only", "formats", "--data", share, "--out", out], check=True,
-                       stdout=subprocess.DEVNULL)
+        subprocess.run([tool, "--quiet", "demo", "--only", "formats", "--out", out], check=True,
+                       stdout=subprocess.DEVNULL, cwd=prefix)
         with open(os.path.join(out, "formats", "summaries.json")) as handle:
             summaries = json.load(handle)
         examples = os.listdir(os.path.join(source, "formats", "examples"))
         assert len(summaries) == len(examples), (len(summaries), examples)
+        read_from = json.dumps(summaries)
+        assert os.path.join(share, "formats", "examples") in read_from and source not in read_from, read_from[:400]
         print("install: %d files under %s; %s; module %s from %s; %d examples summarised by the demo" % (
             sum(len(f) for _d, _s, f in os.walk(prefix)), prefix, shown, version, python_dir, len(summaries)))
     finally:
