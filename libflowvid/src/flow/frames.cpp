@@ -539,6 +539,8 @@ struct FrameWriter::Impl {
     double fps = 25.0;
     bool video = false;
     std::optional<formats::PendingFile> video_file;  // published by close(), so no half video ever has the name
+    std::string codec;                               // h264, mpeg4, mjpeg
+    int encoded_width = 0, encoded_height = 0;       // H.264: the frame's size rounded up to even
     cv::VideoWriter writer;
 };
 
@@ -596,11 +598,21 @@ FrameWriter::FrameWriter(const std::string& target, int width, int height, doubl
         const fs::path parent = fs::path(target).parent_path();
         if (!parent.empty() && !fs::is_directory(parent, ec))
             throw IoError(target, "", "the folder " + parent.string() + " does not exist", "create it first");
-        const int fourcc = lower_extension(target) == ".avi" ? cv::VideoWriter::fourcc('M', 'J', 'P', 'G')
-                                                              : cv::VideoWriter::fourcc('m', 'p', '4', 'v');
         m_impl->video_file.emplace(target);
-        m_impl->writer.open(m_impl->video_file->temp_path(), cv::CAP_FFMPEG, fourcc, m_impl->fps,
-                            cv::Size(width, height), true);
+        const auto open_with = [&](const char* codec, int fourcc, int encoded_width, int encoded_height) {
+            m_impl->codec = codec;
+            m_impl->encoded_width = encoded_width;
+            m_impl->encoded_height = encoded_height;
+            return m_impl->writer.open(m_impl->video_file->temp_path(), cv::CAP_FFMPEG, fourcc, m_impl->fps,
+                                       cv::Size(encoded_width, encoded_height), true);
+        };
+        if (lower_extension(target) == ".avi") {
+            open_with("mjpeg", cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), width, height);
+        } else if (!open_with("h264", cv::VideoWriter::fourcc('a', 'v', 'c', '1'), width + width % 2, height + height % 2)) {
+            // An OpenCV whose FFmpeg lacks an H.264 encoder: MPEG-4 part 2,
+            // which players (not browsers) show.
+            open_with("mpeg4", cv::VideoWriter::fourcc('m', 'p', '4', 'v'), width, height);
+        }
         if (!m_impl->writer.isOpened())
             throw IoError(target, "", "cannot open the video for writing", "use .mp4 or .avi, or write an image sequence");
         return;
@@ -620,6 +632,8 @@ FrameWriter::~FrameWriter() { discard(); }
 
 bool FrameWriter::is_video() const { return m_impl->video; }
 
+std::string FrameWriter::video_codec() const { return m_impl->video ? m_impl->codec : std::string(); }
+
 std::string FrameWriter::path_of(int frame) const {
     if (m_impl->video || m_impl->single_image) return m_impl->target;
     return *formats::format_frame_pattern(m_impl->pattern, frame);
@@ -632,13 +646,15 @@ void FrameWriter::write(int frame, const RgbImage& linear) {
         write_image_file(path_of(frame), linear);
         return;
     }
-    cv::Mat mat(m_impl->height, m_impl->width, CV_8UC3);
-    for (int y = 0; y < m_impl->height; ++y) {
+    cv::Mat mat(m_impl->encoded_height, m_impl->encoded_width, CV_8UC3);
+    for (int y = 0; y < m_impl->encoded_height; ++y) {
         auto* row = mat.ptr<std::uint8_t>(y);
-        const float* in = linear.pixel(0, y);
-        for (int x = 0; x < m_impl->width; ++x)
+        const float* in = linear.pixel(0, std::min(y, m_impl->height - 1));  // padding repeats the last row
+        for (int x = 0; x < m_impl->encoded_width; ++x) {
+            const int source = std::min(x, m_impl->width - 1);  // and the last column
             for (int c = 0; c < 3; ++c)  // OpenCV wants BGR
-                row[3 * x + c] = static_cast<std::uint8_t>(std::lround(linear_to_srgb(in[3 * x + (2 - c)]) * 255.0f));
+                row[3 * x + c] = static_cast<std::uint8_t>(std::lround(linear_to_srgb(in[3 * source + (2 - c)]) * 255.0f));
+        }
     }
     m_impl->writer.write(mat);
 }

@@ -232,7 +232,10 @@ private:
 // Writes rendered frames: an image pattern with one printf integer
 // ("out/%06d.png"; PNG/JPEG 8-bit sRGB, TIFF 16-bit sRGB, EXR half linear,
 // through OpenImageIO), a folder (written as FOLDER/%06d.png), or a video
-// file (.mp4/.mov/.mkv MPEG-4 part 2, .avi Motion-JPEG, through OpenCV). Image
+// file (.mp4/.mov/.mkv H.264, which browsers and editors play, falling back
+// to MPEG-4 part 2 where OpenCV's FFmpeg has no H.264 encoder; .avi
+// Motion-JPEG; through OpenCV). H.264 needs an even width and height: an odd
+// frame is padded by repeating its last column or row. Image
 // files are named by output frame number, so ranges rendered apart fit
 // together; a video holds the frames in the order written. A caller that
 // writes one frame (frame_count 1) may name a plain image file (still.png).
@@ -248,6 +251,8 @@ public:
     FrameWriter(const FrameWriter&) = delete;
     FrameWriter& operator=(const FrameWriter&) = delete;
     bool is_video() const;
+    // The video's codec: "h264", "mpeg4" or "mjpeg"; empty for images.
+    std::string video_codec() const;
     // The file a frame goes to (the video file for videos).
     std::string path_of(int frame) const;
     // `linear` must have the writer's size. Throws IoError naming the file.
