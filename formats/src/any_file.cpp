@@ -4,6 +4,8 @@
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/diagnosis.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
+#include "flowvid/formats/fabric_u3m.hpp"
+#include "flowvid/formats/fabric_usda.hpp"
 #include "flowvid/formats/fit_shard.hpp"
 #include "flowvid/formats/flowlines.hpp"
 #include "flowvid/formats/gap_bench_labels.hpp"
@@ -100,6 +102,8 @@ const char* file_kind_name(FileKind kind) {
         case FileKind::gap_bench_labels: return "gap-bench labels";
         case FileKind::rigid_fit: return "rigid fit";
         case FileKind::rectification: return "rectification";
+        case FileKind::fabric_u3m: return "fabric preset (U3M)";
+        case FileKind::fabric_usda: return "fabric preset (OpenUSD)";
         case FileKind::unknown: break;
     }
     return "unknown";
@@ -120,6 +124,8 @@ FileKind detect_file_kind(const std::string& path) {
     }
     if (head.rfind("glTF", 0) == 0) return FileKind::motion_gltf;
     if (head.find("<svg") != std::string::npos || ends_with(path, ".svg")) return FileKind::flowline_svg;
+    if (head.rfind("#usda 1.0", 0) == 0) return FileKind::fabric_usda;  // the only usda flowvid reads
+    if (ends_with(path, ".u3m")) return FileKind::fabric_u3m;
     const FileKind declared = kind_from_json_format(declared_json_format_anywhere(path, head));
     if (declared != FileKind::unknown) return declared;
     if (ends_with(path, ".fabric.json")) return FileKind::fabric_preset;
@@ -153,11 +159,13 @@ std::vector<Problem> validate_any_file(const std::string& path, Strictness stric
         case FileKind::gap_bench_labels: return validate_gap_bench_labels_file(path, strictness);
         case FileKind::rigid_fit: return validate_rigid_fit_file(path, strictness);
         case FileKind::rectification: return validate_rectification_file(path, strictness);
+        case FileKind::fabric_u3m: return validate_fabric_u3m_file(path, strictness);
+        case FileKind::fabric_usda: return validate_fabric_usda_file(path, strictness);
         case FileKind::unknown: break;
     }
     return {unrecognised_file(path, "give a *.fabric.json, *.flowlines.json, flow-line SVG, bank or vertex-animation "
-                                    "EXR, .glb, a capture folder, a fit shard, diagnosis.json, labels.json, a rigid fit "
-                                    "or rectify.json")};
+                                    "EXR, .glb, a capture folder, a fit shard, diagnosis.json, labels.json, a rigid fit, "
+                                    "rectify.json, or a fabric preset as .u3m or .usda")};
 }
 
 nlohmann::json summarize_any_file(const std::string& path) {
@@ -176,6 +184,8 @@ nlohmann::json summarize_any_file(const std::string& path) {
         case FileKind::gap_bench_labels: summary = summarize_gap_bench_labels(read_gap_bench_labels(path)); break;
         case FileKind::rigid_fit: summary = summarize_rigid_fit(read_rigid_fit(path)); break;
         case FileKind::rectification: summary = summarize_rectification(read_rectification(path)); break;
+        case FileKind::fabric_u3m: summary = summarize_fabric_preset(read_fabric_u3m(path)); break;
+        case FileKind::fabric_usda: summary = summarize_fabric_preset(read_fabric_usda(path)); break;
         case FileKind::unknown:
             throw ValidationError({unrecognised_file(path, "run 'flowvid validate' on it for details")});
     }

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -113,11 +114,62 @@ TEST(Cli, ConvertSvgToFlowLinesAndBack) {
     ASSERT_EQ(back.exit_code, 0) << back.err;
     EXPECT_EQ(read_text(dir + "/again.flowlines.json"), read_text(dir + "/lines.flowlines.json"));
 
-    CliResult wrong_kind = run_flowvid({"convert", example_preset(), dir + "/x.svg"});
+    const std::string motion = source_path("formats/examples/example.motion.glb");
+    CliResult wrong_kind = run_flowvid({"convert", motion, dir + "/x.svg"});
     EXPECT_EQ(wrong_kind.exit_code, 3);
-    EXPECT_TRUE(mentions(wrong_kind.err, example_preset())) << wrong_kind.err;
+    EXPECT_TRUE(mentions(wrong_kind.err, motion)) << wrong_kind.err;
     CliResult bad_out = run_flowvid({"convert", svg, dir + "/x.txt"});
     EXPECT_EQ(bad_out.exit_code, 2);
+}
+
+// flowvid convert on fabric presets: U3M and OpenUSD out and back to the same
+// preset, Blender settings for a mesh, info on the written files, and the
+// mistakes a user makes (no --mesh, wrong output type, a broken mesh).
+TEST(Cli, ConvertFabricPresetToU3mUsdaBlenderAndBack) {
+    const std::string dir = scratch_dir("cli_convert_preset");
+    const nlohmann::json original = nlohmann::json::parse(read_text(example_preset()));
+    for (const char* type : {".u3m", ".usda"}) {
+        const std::string converted = dir + "/cotton" + type;
+        CliResult to = run_flowvid({"convert", example_preset(), converted});
+        ASSERT_EQ(to.exit_code, 0) << to.err;
+        EXPECT_TRUE(mentions(to.out, converted)) << to.out;
+        const std::string back = dir + "/back" + type + ".fabric.json";
+        CliResult from = run_flowvid({"convert", converted, back});
+        ASSERT_EQ(from.exit_code, 0) << from.err;
+        EXPECT_EQ(nlohmann::json::parse(read_text(back)), original) << type;
+        CliResult info = run_flowvid({"info", "--json", converted});
+        ASSERT_EQ(info.exit_code, 0) << info.err;
+        const nlohmann::json summary = nlohmann::json::parse(info.out);
+        EXPECT_DOUBLE_EQ(summary["parameters"]["bend_stiffness_N_m"]["value"].get<double>(), 2e-5) << type;
+        EXPECT_EQ(run_flowvid({"validate", converted}).exit_code, 0) << type;
+    }
+
+    const std::string mesh = test_data("cloth/panel_9x5.obj");
+    CliResult blender = run_flowvid({"convert", example_preset(), dir + "/panel.blender.json", "--mesh", mesh, "--fps", "30"});
+    ASSERT_EQ(blender.exit_code, 0) << blender.err;
+    const nlohmann::json settings = nlohmann::json::parse(read_text(dir + "/panel.blender.json"));
+    EXPECT_EQ(settings["format"], "flowvid.blender_cloth");
+    EXPECT_EQ(settings["mesh"]["vertex_count"], 45);
+    EXPECT_NEAR(settings["settings"]["time_scale"].get<double>(), std::sqrt(1000.0) / 30.0, 1e-12);
+    EXPECT_NEAR(settings["settings"]["mass"].get<double>(), 1000.0 * 0.15 * 0.12 / 45, 1e-12);
+    EXPECT_EQ(settings["settings"]["bending_model"], "ANGULAR");
+
+    CliResult no_mesh = run_flowvid({"convert", example_preset(), dir + "/x.blender.json"});
+    EXPECT_EQ(no_mesh.exit_code, 2);
+    EXPECT_TRUE(mentions(no_mesh.err, "--mesh")) << no_mesh.err;
+    CliResult svg = run_flowvid({"convert", example_preset(), dir + "/x.svg"});
+    EXPECT_EQ(svg.exit_code, 2);
+    EXPECT_TRUE(mentions(svg.err, ".u3m")) << svg.err;
+    write_text(dir + "/broken.obj", "v 0 0 0\nv 1 0 0\nf 1 2 3\n");
+    CliResult broken = run_flowvid({"convert", example_preset(), dir + "/y.blender.json", "--mesh", dir + "/broken.obj"});
+    EXPECT_EQ(broken.exit_code, 3);
+    EXPECT_TRUE(mentions(broken.err, dir + "/broken.obj")) << broken.err;
+    EXPECT_TRUE(mentions(broken.err, "line 3")) << broken.err;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/y.blender.json"));
+
+    CliResult help = run_flowvid({"convert", "--help"});
+    EXPECT_TRUE(mentions(help.out, "flowvid convert cotton.fabric.json cotton.u3m")) << help.out;
+    EXPECT_TRUE(mentions(help.out, "--mesh")) << help.out;
 }
 
 TEST(Cli, EverySharedCaptureAndExampleValidates) {

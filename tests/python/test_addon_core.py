@@ -165,6 +165,50 @@ class CliBackendTest(unittest.TestCase):
             self.assertEqual(cli.read_flowline_set(path), drawn)
 
 
+@unittest.skipUnless(os.environ.get("FLOWVID_CLI"), "the flowvid tool's path is given by ctest")
+class CliMappingTest(unittest.TestCase):
+    def test_cli_mapping_equals_addon(self):
+        # flowvid convert PRESET OUT.blender.json --mesh (the C++ library's cloth/blender_cloth) gives the
+        # settings this add-on's map_preset gives for the same preset, mesh and fps: one mapping, two homes.
+        with open(EXAMPLE) as handle:
+            preset = json.load(handle)
+        p = preset["parameters"]
+        p["stretch_weft_stiffness_N_per_m"]["value"] = 610.0      # anisotropic
+        p["hem_line_density_kg_per_m"]["value"] = 0.002
+        p["diagonal_tension_stiffness_N_per_m"]["value"] = 35.0
+        p["drag_linear_normal_kg_per_m2_s"]["value"] = 0.04
+        p["stretch_warp_compression_ratio"]["value"] = 0.5
+        p["stretch_weft_compression_ratio"]["value"] = 0.25
+        mesh_path = os.path.join(REPO, "tests", "data", "cloth", "panel_9x5.obj")
+        # The panel measured by hand: 0.4 m x 0.3 m, 9 x 5 vertices, 40 edges of 5 cm along x, 36 of 7.5 cm along y.
+        stats = mapping.MeshStats(vertex_count=45, mean_edge_length_m=(40 * 0.05 + 36 * 0.075) / 76, area_m2=0.12,
+                                  quad_fraction=1.0, boundary_length_m=1.4)
+        with tempfile.TemporaryDirectory() as folder:
+            preset_path = os.path.join(folder, "test.fabric.json")
+            with open(preset_path, "w") as handle:
+                json.dump(preset, handle)
+            out = os.path.join(folder, "panel.blender.json")
+            import subprocess
+            subprocess.run([os.environ["FLOWVID_CLI"], "convert", preset_path, out, "--mesh", mesh_path,
+                            "--fps", "25", "--quality", "12"], check=True, capture_output=True)
+            with open(out) as handle:
+                written = json.load(handle)
+        for key in ("vertex_count", "mean_edge_length_m", "area_m2", "quad_fraction", "boundary_length_m"):
+            self.assertAlmostEqual(written["mesh"][key], getattr(stats, key), places=12, msg=key)
+        expected = mapping.map_preset(preset["parameters"], stats, 25.0, quality=12)
+        self.assertEqual(set(written["settings"]), set(expected.settings))
+        for name, value in expected.settings.items():
+            if isinstance(value, str):
+                self.assertEqual(written["settings"][name], value, msg=name)
+            else:
+                self.assertAlmostEqual(written["settings"][name] / value if value else written["settings"][name],
+                                       1.0 if value else 0.0, places=12, msg=name)
+        for name, value in expected.derived.items():
+            if name in written["derived"]:
+                self.assertAlmostEqual(written["derived"][name], value, places=12, msg=name)
+        self.assertEqual(len(written["not_represented"]), len(expected.not_represented) + 1)  # + the adapter note
+
+
 def write_falling_clip(folder, frames=24, width=64, height=48, speed_px=2):
     """A textured band falling down the middle at speed_px per frame, as binary PPM frames; returns the pattern."""
     os.makedirs(folder, exist_ok=True)

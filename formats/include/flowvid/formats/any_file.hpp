@@ -28,6 +28,8 @@ enum class FileKind {
     gap_bench_labels,   // labels.json, *.labels.json: flowvid bench gap's hidden labels
     rigid_fit,          // *.rigid_fit.json (and fit.json by content): flowvid fit rigid's result
     rectification,      // rectify.json, *.rectify.json: what flowvid rectify did
+    fabric_u3m,         // *.u3m: a fabric preset as a U3M 1.1 material (flowvid convert)
+    fabric_usda,        // *.usda: a fabric preset as an OpenUSD physics material (flowvid convert)
 };
 
 const char* file_kind_name(FileKind kind);
