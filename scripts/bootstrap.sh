@@ -12,7 +12,7 @@ packages=(
   libopencv-dev libtinygltf-dev libcli11-dev libtbb-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-dev pybind11-dev python3-numpy
-  blender ffmpeg chromium
+  blender ffmpeg chromium xvfb
   clang libclang-rt-14-dev
 )
 missing=()

@@ -13,7 +13,7 @@ bl_info = {
     "author": "flowvid developers",
     "version": (0, 1, 0),
     "blender": (3, 4, 0),
-    "location": "Properties > Physics > Cloth > Fabric preset",
+    "location": "Properties > Physics > Cloth (Fabric Preset, at the top); Properties > Particles > Flow Video",
     "description": "Fabric presets fitted from video, and flow-based video from particle systems",
     "category": "Physics",
 }

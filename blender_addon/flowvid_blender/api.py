@@ -19,8 +19,10 @@ from .fabric import (  # noqa: F401
     apply_fabric_preset,
     blender_limits,
     calibrate_fabric_preset,
+    calibrate_steps,
     cloth_modifier,
     export_fabric_preset,
+    export_steps,
     formula_settings,
     mesh_stats,
     read_preset,
@@ -28,7 +30,15 @@ from .fabric import (  # noqa: F401
     set_cloth_settings,
     store_calibration,
 )
-from .flowlines import bake_flowlines, grease_pencil_flowlines, particle_paths, project_to_pixels, render_size  # noqa: F401
+from .flowlines import (  # noqa: F401
+    bake_flowlines,
+    bake_steps,
+    grease_pencil_flowlines,
+    grease_pencil_strokes,
+    particle_paths,
+    project_to_pixels,
+    render_size,
+)
 from .library import get_backend  # noqa: F401
 from .video import (  # noqa: F401
     encode_video,

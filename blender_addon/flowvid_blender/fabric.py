@@ -8,7 +8,7 @@ import os
 import bpy
 
 from .core import calibration as cal
-from .core import mapping
+from .core import jobs, mapping, presentation
 from .core.backend import BackendError
 from .core.errors import FlowvidError
 from .library import get_backend
@@ -71,21 +71,12 @@ def read_preset(path):
 
 
 def _adapter_factors(preset, stats, fps):
-    """(log factors, quality, None) stored for a similar mesh, or (None, None, the reason)."""
-    adapter = preset.get("adapters", {}).get("blender")
-    if not adapter:
-        return None, None, "no Blender calibration stored in the preset"
-    settings = adapter.get("settings", {})
-    factors = [settings.get("flowvid_log_factor_" + name) for name, _ in cal.CALIBRATED_GROUPS]
-    if any(f is None for f in factors):
-        return None, None, "the preset's Blender adapter has no calibration factors (written by another tool)"
-    edge = adapter.get("calibrated_for", {}).get("mean_edge_length_m")
-    if not edge or abs(edge - stats.mean_edge_length_m) > 0.25 * edge:
-        return None, None, ("stored calibration is for mean edge %.1f mm, this mesh has %.1f mm: formula used; "
-                            "run Calibrate for this mesh" % (1000 * (edge or 0), 1000 * stats.mean_edge_length_m))
-    if abs(adapter.get("calibrated_for", {}).get("fps", fps) - fps) > 1e-6:
-        return None, None, "stored calibration is for another fps: formula used"
-    return [float(f) for f in factors], int(settings.get("quality", 0)), None
+    """(log factors, quality, None) stored for a similar mesh, or (None, None, the reason) -- in the words the
+    summary and Details use (core/presentation.adapter_status)."""
+    status = presentation.adapter_status(preset, stats.mean_edge_length_m, fps)
+    if status["usable"]:
+        return status["factors"], status["quality"], None
+    return None, None, status["text"]
 
 
 def formula_settings(preset, obj, scene, **options):
@@ -141,6 +132,7 @@ def apply_fabric_preset(obj, path, calibrate=False, scene=None, progress=None, m
                      % (scene.gravity.length, scene.use_gravity))
     notes.append("Speed Multiplier (time_scale) set to sqrt(1000)/fps = %.4f so that Blender's cloth falls with "
                  "real gravity" % settings["time_scale"])
+    notes.append(presentation.vertex_mass_note(settings, result.derived))
     set_cloth_settings(obj, settings)
     return {"set": settings, "not_represented": notes, "source": source, "derived": result.derived,
             "calibration": calibration_report, "preset_name": preset.get("name", "")}
@@ -178,27 +170,43 @@ class Calibration:
         self.library_integrator = library_integrator
         self.history = []
         self.swatch = None
+        self.library_waving = None
         self.steps = None
         self.done = False
         self.result = None
 
-    def prepare(self):
-        """Runs the library's two experiments and builds Blender's swatch."""
+    def simulate_library(self, progress=None):
+        """The library's two experiments. Needs no bpy: a modal operator runs it in a thread.
+        progress(fraction, text) -> False cancels (FlowvidError)."""
         backend = get_backend()
         static, waving = self.experiments
+
+        def frames(start, share):
+            if progress is None:
+                return None
+            return lambda frame, count: progress(start + share * frame / max(count, 1), "flowvid's swatch") is not False
+
         try:
             # The static drape is the equilibrium itself (frame 1): no need to integrate it.
             equilibrium_only = dict(static, frame_count=1, pins=[dict(pin, positions_m=pin["positions_m"][:1])
                                                                  for pin in static["pins"]])
-            lib_static = backend.simulate_swatch(equilibrium_only, self.preset["parameters"],
-                                                 rows=self.rows, cols=self.cols, integrator=self.library_integrator)
+            lib_static = backend.simulate_swatch(equilibrium_only, self.preset["parameters"], rows=self.rows,
+                                                 cols=self.cols, integrator=self.library_integrator,
+                                                 progress=frames(0.0, 0.05))
             lib_waving = backend.simulate_swatch(waving, self.preset["parameters"], rows=self.rows, cols=self.cols,
-                                                 integrator=self.library_integrator)
+                                                 integrator=self.library_integrator, progress=frames(0.05, 0.15))
         except BackendError as error:
             raise FlowvidError(str(error)) from None
+        self.library_start = lib_static["frames"][0]
         self.library_static = lib_static["frames"][-1]
         self.library_waving = lib_waving["frames"]
-        self.swatch = BlenderSwatchFactory(static, waving, lib_static["frames"][0], self.rows, self.cols)
+
+    def prepare(self):
+        """Runs the library's two experiments (unless simulate_library did) and builds Blender's swatch."""
+        if self.library_waving is None:
+            self.simulate_library()
+        static, waving = self.experiments
+        self.swatch = BlenderSwatchFactory(static, waving, self.library_start, self.rows, self.cols)
         # First the substeps (Blender's implicit Euler damps the waving less with more of them), then
         # a simplex on the three factors with the remaining runs.
         formula_quality = int(self.base["quality"])
@@ -260,7 +268,8 @@ class Calibration:
             return False
 
     def fraction(self):
-        return min(len(self.history) / float(self.max_evaluations), 1.0)
+        # The library's runs take the first 20 %, Blender's the rest.
+        return 0.2 + 0.8 * min(len(self.history) / float(self.max_evaluations), 1.0)
 
     def cleanup(self):
         if self.swatch is not None:
@@ -312,19 +321,36 @@ def store_calibration(path, preset, calibration, stats, fps):
         raise FlowvidError(str(error)) from None
 
 
-def calibrate_fabric_preset(obj, path, scene=None, progress=None, max_evaluations=12):
-    """Calibrates the preset for obj's mesh and stores the result in the preset file.
-
-    Returns the calibration result: rms_vertex_error_m, formula_rms_vertex_error_m, log_factors, history."""
+def calibrate_steps(obj, path, scene=None, max_evaluations=12, apply=False):
+    """calibrate_fabric_preset as a job (core/jobs.py): the library's swatch in the background, then one Blender
+    run per step; the temporary swatch scene is removed however it ends. apply=True then applies the calibrated
+    preset and returns (calibration result, Apply's report)."""
     scene = scene or bpy.context.scene
     path = bpy.path.abspath(path)
     preset = read_preset(path)
     stats = mesh_stats(obj)
     fps = scene_fps(scene)
     calibration = Calibration(preset, stats, fps, max_evaluations=max_evaluations)
-    calibration.run(progress)
+    try:
+        yield jobs.Background(calibration.simulate_library, "flowvid's swatch")
+        yield calibration.fraction(), "building Blender's swatch"
+        calibration.prepare()
+        while calibration.step():
+            yield calibration.fraction(), "RMS %.2f mm" % (1000 * calibration.history[-1]["rms_m"])
+    finally:
+        calibration.cleanup()
     store_calibration(path, preset, calibration, stats, fps)
+    if apply:
+        return calibration.result, apply_fabric_preset(obj, path, scene=scene)
     return calibration.result
+
+
+def calibrate_fabric_preset(obj, path, scene=None, progress=None, max_evaluations=12):
+    """Calibrates the preset for obj's mesh and stores the result in the preset file.
+    progress(fraction, text) -> False cancels (the preset stays as it was).
+
+    Returns the calibration result: rms_vertex_error_m, formula_rms_vertex_error_m, log_factors, history."""
+    return jobs.run_to_end(calibrate_steps(obj, path, scene=scene, max_evaluations=max_evaluations), progress)
 
 
 # ---- export ---------------------------------------------------------------------------
@@ -332,7 +358,15 @@ def calibrate_fabric_preset(obj, path, scene=None, progress=None, max_evaluation
 
 def export_fabric_preset(obj, path, name=None, areal_density_kg_per_m2=0.15, scene=None, max_evaluations=10,
                          progress=None):
-    """Writes obj's current Blender cloth settings as a fabric preset.
+    """Writes obj's current Blender cloth settings as a fabric preset (export_steps to the end; progress(fraction,
+    text) -> False cancels and writes nothing)."""
+    return jobs.run_to_end(export_steps(obj, path, name=name, areal_density_kg_per_m2=areal_density_kg_per_m2,
+                                        scene=scene, max_evaluations=max_evaluations), progress)
+
+
+def export_steps(obj, path, name=None, areal_density_kg_per_m2=0.15, scene=None, max_evaluations=10):
+    """export_fabric_preset as a job (core/jobs.py): the library's runs and the fit in the background, Blender's
+    swatch on the main thread.
 
     Starts from the inverse of the mapping, then fits the library's stretch,
     bending and drag (log-scale Nelder-Mead) so that the library's swatch
@@ -359,10 +393,15 @@ def export_fabric_preset(obj, path, name=None, areal_density_kg_per_m2=0.15, sce
     # The static drape is the library's equilibrium (frame 1); the waving is integrated as in the fits.
     equilibrium_only = dict(static, frame_count=1, pins=[dict(pin, positions_m=pin["positions_m"][:1])
                                                          for pin in static["pins"]])
-    try:
-        start = backend.simulate_swatch(equilibrium_only, values, rows=n, cols=n)
-    except BackendError as error:
-        raise FlowvidError(str(error)) from None
+
+    def equilibrium(_progress):
+        try:
+            return backend.simulate_swatch(equilibrium_only, values, rows=n, cols=n)
+        except BackendError as error:
+            raise FlowvidError(str(error)) from None
+
+    start = yield jobs.Background(equilibrium, "flowvid's swatch")
+    yield 0.05, "Blender's swatch"
     swatch = BlenderSwatchFactory(static, waving, start["frames"][0], n, n)
     try:
         run = swatch.run(blender_settings)
@@ -383,7 +422,7 @@ def export_fabric_preset(obj, path, name=None, areal_density_kg_per_m2=0.15, sce
                 scaled[key] = values[key] * math.exp(factor)
         return scaled
 
-    def objective(log_factors):
+    def objective(log_factors, progress):
         try:
             s = backend.simulate_swatch(equilibrium_only, parameters_for(log_factors), rows=n, cols=n)
             w = backend.simulate_swatch(waving, parameters_for(log_factors), rows=n, cols=n,
@@ -393,11 +432,13 @@ def export_fabric_preset(obj, path, name=None, areal_density_kg_per_m2=0.15, sce
         e = math.sqrt(0.5 * (cal.rms_error([blender_static], [s["frames"][-1]]) ** 2
                              + cal.rms_error(blender_waving, w["frames"]) ** 2))
         history.append(e)
-        if progress is not None:
-            progress(min(len(history) / float(max_evaluations), 1.0), "RMS %.2f mm" % (1000 * e))
+        if progress(0.1 + 0.9 * min(len(history) / float(max_evaluations), 1.0), "RMS %.2f mm" % (1000 * e)) is False:
+            raise jobs.Cancelled("export cancelled: nothing written")
         return e
 
-    best, best_value, _ = cal.nelder_mead(objective, [0.0, 0.0, 0.0], step=0.5, max_evaluations=max_evaluations)
+    best, best_value, _ = yield jobs.Background(
+        lambda progress: cal.nelder_mead(lambda x: objective(x, progress), [0.0, 0.0, 0.0], step=0.5,
+                                         max_evaluations=max_evaluations), "fitting flowvid to Blender")
     fitted = parameters_for(best)
     preset = {
         "format": "flowvid.fabric", "version": "1.0",

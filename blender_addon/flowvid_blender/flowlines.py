@@ -2,7 +2,9 @@
 through a camera, written as *.flowlines.json (needs bpy; which input line an
 output line takes is core/flowlines.py)."""
 import bpy
+from mathutils import Vector
 
+from .core import jobs
 from .core.backend import BackendError
 from .core.errors import FlowvidError
 from .core.flowlines import assign_inputs
@@ -48,6 +50,11 @@ def particle_paths(emitter, frame_start, frame_end, scene=None, system=0, max_po
 
     Paths are resampled to at most max_points by 3D arc length (exact positions
     when the particle lived fewer frames)."""
+    return jobs.run_to_end(_particle_path_steps(emitter, frame_start, frame_end, scene, system, max_points,
+                                                min_length_m))
+
+
+def _particle_path_steps(emitter, frame_start, frame_end, scene, system, max_points, min_length_m, share=1.0):
     scene = scene or bpy.context.scene
     if emitter is None or not emitter.particle_systems:
         raise FlowvidError("%s has no particle system" % (emitter.name if emitter else "nothing"))
@@ -55,6 +62,7 @@ def particle_paths(emitter, frame_start, frame_end, scene=None, system=0, max_po
         raise FlowvidError("%s has no particle system %d" % (emitter.name, system))
     paths = {}
     for frame in range(frame_start, frame_end + 1):
+        yield share * (frame - frame_start) / (frame_end - frame_start + 1), "particles at frame %d" % frame
         scene.frame_set(frame)
         depsgraph = bpy.context.evaluated_depsgraph_get()
         particles = emitter.evaluated_get(depsgraph).particle_systems[system].particles
@@ -82,6 +90,14 @@ def _input_lines(inputs):
 
 def bake_flowlines(emitter, camera, frame_start, frame_end, path, inputs=None, system=0, rule="nearest",
                    by_hand=None, max_points=32, scene=None):
+    """Writes a flow-line set of the particles' trajectories seen through the camera (bake_steps to the end;
+    the scene's current frame is put back)."""
+    return jobs.run_to_end(bake_steps(emitter, camera, frame_start, frame_end, path, inputs, system, rule, by_hand,
+                                      max_points, scene))
+
+
+def bake_steps(emitter, camera, frame_start, frame_end, path, inputs=None, system=0, rule="nearest",
+               by_hand=None, max_points=32, scene=None):
     """Writes a flow-line set whose output lines are the particles' trajectories seen through the camera.
 
     Every particle alive during [frame_start, frame_end] gives one output line
@@ -97,13 +113,24 @@ def bake_flowlines(emitter, camera, frame_start, frame_end, path, inputs=None, s
         raise FlowvidError("no camera: set the scene camera or pass one")
     if frame_end < frame_start:
         raise FlowvidError("frame range %d..%d is empty" % (frame_start, frame_end))
-    paths = particle_paths(emitter, frame_start, frame_end, scene, system, max_points)
+    current = scene.frame_current
+    try:
+        summary = yield from _bake(emitter, camera, frame_start, frame_end, path, inputs, system, rule, by_hand,
+                                   max_points, scene)
+    finally:
+        scene.frame_set(current)
+    return summary
+
+
+def _bake(emitter, camera, frame_start, frame_end, path, inputs, system, rule, by_hand, max_points, scene):
+    paths = yield from _particle_path_steps(emitter, frame_start, frame_end, scene, system, max_points, 1e-4, 0.5)
     if not paths:
         raise FlowvidError("no particle of %s is alive and moving in frames %d..%d" % (emitter.name, frame_start,
                                                                                       frame_end))
     width, height = render_size(scene)
     keys = {index: [] for index in paths}
     for frame in range(frame_start, frame_end + 1):
+        yield 0.5 + 0.5 * (frame - frame_start) / (frame_end - frame_start + 1), "projecting frame %d" % frame
         scene.frame_set(frame)
         for index, path3d in paths.items():
             points = [list(project_to_pixels(scene, camera, p)[0]) for p in path3d]
@@ -137,29 +164,65 @@ def bake_flowlines(emitter, camera, frame_start, frame_end, path, inputs=None, s
             "height": height}
 
 
+# Object types of Grease Pencil: "GPENCIL" up to Blender 4.2, "GREASEPENCIL" (GPv3) from 4.3.
+GREASE_PENCIL_TYPES = ("GPENCIL", "GREASEPENCIL")
+
+
+def _shown_frame(frames, current):
+    """The keyframe shown at `current`: the last one at or before it (else the first)."""
+    frames = list(frames)
+    shown = [f for f in frames if f.frame_number <= current]
+    return max(shown, key=lambda f: f.frame_number) if shown else (frames[0] if frames else None)
+
+
+def _strokes_legacy(data, current):
+    """(layer name, [local points]) per stroke with the Grease Pencil API of Blender 2.8 to 4.2
+    (bpy.types.GreasePencil: layer.info, frame.strokes, point.co)."""
+    for layer in data.layers:
+        frame = _shown_frame(layer.frames, current)
+        for stroke in frame.strokes if frame is not None else ():
+            yield layer.info, [p.co for p in stroke.points]
+
+
+def _strokes_v3(data, current):
+    """The same with Grease Pencil v3, Blender 4.3+ (bpy.types.GreasePencilv3). Checked against
+    docs.blender.org/api/4.3: bpy.types.GreasePencilLayer.html (name, frames), GreasePencilFrame.html
+    (frame_number, drawing), GreasePencilDrawing.html (strokes) and GreasePencilStrokePoint.html (position).
+    Blender 3.4 cannot run this."""
+    for layer in data.layers:
+        frame = _shown_frame(layer.frames, current)
+        drawing = frame.drawing if frame is not None else None
+        for stroke in drawing.strokes if drawing is not None else ():
+            yield layer.name, [Vector(p.position) for p in stroke.points]
+
+
+def grease_pencil_strokes(gpencil, current):
+    """(layer name, [local points]) for each stroke shown at frame `current`, whichever API this Blender has."""
+    layer = next(iter(gpencil.data.layers), None)
+    legacy = layer is None or hasattr(layer, "info")  # v3 layers have `name` only
+    return list(_strokes_legacy(gpencil.data, current) if legacy else _strokes_v3(gpencil.data, current))
+
+
 def grease_pencil_flowlines(gpencil, camera, path, scene=None, frame=None):
     """Exports Grease Pencil strokes as flow lines: strokes on a layer named "input" become input lines,
     on "output" output lines (their `from` by the nearest rule). Stroke point order is the flow direction."""
     scene = scene or bpy.context.scene
-    if gpencil is None or gpencil.type != "GPENCIL":
+    if gpencil is None or gpencil.type not in GREASE_PENCIL_TYPES:
         raise FlowvidError("%s is not a Grease Pencil object" % (gpencil.name if gpencil else "nothing"))
     if camera is None:
         raise FlowvidError("no camera to project the strokes through")
     if frame is not None:
         scene.frame_set(frame)
     lines = {"input": [], "output": []}
-    for layer in gpencil.data.layers:
-        kind = layer.info.lower()
-        # The drawing shown at the current frame: the last keyframe at or before it.
-        shown = [f for f in layer.frames if f.frame_number <= scene.frame_current] or list(layer.frames)[:1]
-        if kind not in lines or not shown:
+    for name, stroke in grease_pencil_strokes(gpencil, scene.frame_current):
+        kind = name.lower()
+        if kind not in lines:
             continue
-        for stroke in max(shown, key=lambda f: f.frame_number).strokes:
-            points = [list(project_to_pixels(scene, camera, gpencil.matrix_world @ p.co)[0]) for p in stroke.points]
-            cleaned = [p for i, p in enumerate(points) if i == 0 or p != points[i - 1]]
-            if len(cleaned) >= 2:
-                lines[kind].append({"id": "%s-%d" % ("in" if kind == "input" else "out", len(lines[kind]) + 1),
-                                    "points": cleaned})
+        points = [list(project_to_pixels(scene, camera, gpencil.matrix_world @ p)[0]) for p in stroke]
+        cleaned = [p for i, p in enumerate(points) if i == 0 or p != points[i - 1]]
+        if len(cleaned) >= 2:
+            lines[kind].append({"id": "%s-%d" % ("in" if kind == "input" else "out", len(lines[kind]) + 1),
+                                "points": cleaned})
     if not lines["input"]:
         raise FlowvidError("no strokes on a Grease Pencil layer named 'input' (draw the input flow lines there)")
     assign_inputs(lines["output"], lines["input"])

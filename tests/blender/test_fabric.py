@@ -231,10 +231,14 @@ def test_register_twice():
         flowvid_blender.register()
         assert hasattr(bpy.types.Object, "flowvid") and hasattr(bpy.types.Scene, "flowvid")
         assert hasattr(bpy.ops.flowvid, "apply_fabric_preset")
-        assert bpy.types.Panel.bl_rna_get_subclass_py("PHYSICS_PT_flowvid_fabric") is not None
+        # The Fabric Preset block draws at the top of Blender's Cloth panel, once however often registered.
+        drawn = bpy.types.PHYSICS_PT_cloth._dyn_ui_initialize()
+        assert [f.__name__ for f in drawn].count("cloth_panel_top") == 1, drawn
+        assert bpy.types.Panel.bl_rna_get_subclass_py("PARTICLE_PT_flowvid_video") is not None
         flowvid_blender.unregister()
         assert not hasattr(bpy.types.Object, "flowvid")
-        assert bpy.types.Panel.bl_rna_get_subclass_py("PHYSICS_PT_flowvid_fabric") is None
+        assert "cloth_panel_top" not in [f.__name__ for f in bpy.types.PHYSICS_PT_cloth._dyn_ui_initialize()]
+        assert bpy.types.Panel.bl_rna_get_subclass_py("PARTICLE_PT_flowvid_video") is None
 
     flowvid_blender.register()
     try:

@@ -139,6 +139,35 @@ class CliBackend:
         arguments += ["--capture", capture] if capture else []
         return json.loads(self.run(*arguments, progress=progress))
 
-    def simulate_swatch(self, experiment, parameters, **options):
-        raise BackendError("the swatch simulation needs the native flowvid module built for this Python (set its "
-                           "folder in the add-on's preferences); the flowvid tool cannot run it yet")
+    def simulate_swatch(self, experiment, parameters, rows=12, cols=12, integrator="implicit_euler", substeps=10,
+                        initial_bow=1.0, progress=None):
+        """As NativeBackend.simulate_swatch, through `flowvid swatch` (same defaults, same frames): the
+        parameters go in a minimal preset, the experiment and the frames as JSON files. progress(frame,
+        frame_count) -> False stops the tool (SIGINT) and raises BackendError."""
+        count = experiment["frame_count"]
+        with tempfile.TemporaryDirectory(prefix="flowvid-swatch-") as folder:
+            preset_path = os.path.join(folder, "swatch.fabric.json")
+            experiment_path = os.path.join(folder, "experiment.json")
+            out = os.path.join(folder, "frames.json")
+            values = {key: {"value": float(entry["value"] if isinstance(entry, dict) else entry)}
+                      for key, entry in parameters.items()}
+            with open(preset_path, "w", encoding="utf-8") as stream:
+                json.dump({"format": "flowvid.fabric", "version": "1.1", "name": "swatch", "parameters": values,
+                           "provenance": {"method": "manual", "created_utc": "1970-01-01T00:00:00Z"}}, stream)
+            with open(experiment_path, "w", encoding="utf-8") as stream:
+                json.dump(experiment, stream)
+            try:
+                self.run("swatch", "--preset", preset_path, "--experiment", experiment_path, "--out", out,
+                         "--grid", "%dx%d" % (rows, cols), "--integrator", integrator, "--substeps", substeps,
+                         "--initial-bow", initial_bow,
+                         progress=None if progress is None else
+                         lambda _stage, fraction, _m: progress(round(fraction * count), count))
+            except BackendError:
+                if not os.path.isfile(out):  # a blow-up writes its frames and status: reported below
+                    raise
+            with open(out, encoding="utf-8") as stream:
+                result = json.load(stream)
+        if result["status"] != "ok":
+            raise BackendError("the library's swatch simulation stopped: %s (%s)" % (result["status"], result["reason"]))
+        result["frames"] = [[tuple(p) for p in frame] for frame in result["frames"]]
+        return result

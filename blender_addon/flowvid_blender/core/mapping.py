@@ -248,6 +248,8 @@ def map_preset(parameters, mesh, fps, quality=None, mass_scale=DEFAULT_MASS_SCAL
         "mean_edge_length_m": L, "area_m2": mesh.area_m2, "vertex_count": n, "fps": fps,
         "linear_drag_kg_per_m2_s": c_drag, "reference_speed_m_per_s": reference_speed_m_per_s,
         "tension_spring_N_per_m": tension_spring, "shear_spring_N_per_m": shear_spring,
+        "areal_density_kg_per_m2": values["areal_density_kg_per_m2"], "hem_line_density_kg_per_m": hem,
+        "boundary_length_m": mesh.boundary_length_m,
     }
     return Mapping(settings=settings, not_represented=notes, derived=derived)
 
@@ -300,34 +302,7 @@ def parameters_from_settings(settings, mesh, areal_density_kg_per_m2=0.15,
 
 
 def summarize_preset(preset):
-    """Readable lines for the UI: name, density, stiffness, drag, uncertainty, provenance."""
-    p = preset.get("parameters", {})
+    """The panel's summary as "Label: value" lines (core/presentation.py words them, with units)."""
+    from .presentation import summary_pairs
 
-    def fmt(key, unit, scale=1.0):
-        entry = p.get(key)
-        if not isinstance(entry, dict):
-            return "%s: -" % key
-        text = "%.4g %s" % (entry["value"] * scale, unit)
-        if entry.get("uncertainty") is not None:
-            text += " +- %.2g" % (entry["uncertainty"] * scale)
-        return text
-
-    prov = preset.get("provenance", {})
-    lines = [
-        "Fabric: %s" % preset.get("name", "?"),
-        "Areal density: %s" % fmt("areal_density_kg_per_m2", "kg/m^2"),
-        "Stretch warp/weft: %s / %s" % (fmt("stretch_warp_stiffness_N_per_m", "N/m"),
-                                        fmt("stretch_weft_stiffness_N_per_m", "N/m")),
-        "Shear: %s" % fmt("shear_stiffness_N_per_m", "N/m"),
-        "Bending: %s" % fmt("bend_stiffness_N_m", "uN m", 1e6),
-        "Drag normal: %s, degradation %s" % (fmt("drag_normal_kg_per_m3", "kg/m^3"),
-                                             fmt("drag_degradation_s2_per_m2", "s^2/m^2")),
-        "Provenance: %s %s (%s, %d captures)" % (prov.get("method", "?"), prov.get("created_utc", ""),
-                                                prov.get("optimizer", "-"), len(prov.get("captures", []))),
-    ]
-    if "blender" in preset.get("adapters", {}):
-        adapter = preset["adapters"]["blender"]
-        err = adapter.get("rms_vertex_error_m")
-        lines.append("Calibrated for Blender: %s%s" % (adapter.get("calibrated_for", {}),
-                                                       "" if err is None else ", RMS %.1f mm" % (err * 1000)))
-    return lines
+    return ["%s: %s" % pair for pair in summary_pairs(preset)]

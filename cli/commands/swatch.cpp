@@ -1,0 +1,186 @@
+// flowvid swatch: a fabric preset in a swatch experiment given as JSON (the
+// experiments the Blender add-on calibrates Blender's cloth against), with
+// every simulated frame written as JSON. The command-line twin of the Python
+// module's flowvid.cloth.simulate_swatch, same defaults, so the add-on's
+// calibration and export run through the tool where the module cannot load.
+
+#include "command.hpp"
+#include "output.hpp"
+
+#include "flowvid/cloth/material.hpp"
+#include "flowvid/cloth/swatch.hpp"
+#include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/json_fields.hpp"
+
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+namespace flowvid::cli {
+namespace {
+
+struct SwatchCommandOptions {
+    std::string preset;
+    std::string experiment;
+    std::string out;
+    std::string grid = "12x12";
+    std::string integrator = "implicit_euler";
+    int substeps = 10;
+    double initial_bow = 1.0;
+    bool json = false;
+};
+
+// {"width_m", "height_m", "fps", "frame_count", "mass_kg"?, "pins": [{"uv": [u, v], "positions_m": [[x, y, z]...]}]},
+// every problem reported at once.
+cloth::SwatchExperiment read_experiment(const std::string& path) {
+    Diagnostics diagnostics(path);
+    const std::optional<nlohmann::json> document = formats::parse_json_text(formats::read_text_or_throw(path), diagnostics);
+    cloth::SwatchExperiment experiment;
+    experiment.source = path;
+    if (document) {
+        const formats::JsonView root(*document, "", diagnostics);
+        experiment.width_m = root.number("width_m", formats::NumberRange::positive("m")).value_or(0.0);
+        experiment.height_m = root.number("height_m", formats::NumberRange::positive("m")).value_or(0.0);
+        experiment.fps = root.number("fps", formats::NumberRange::positive("1/s")).value_or(30.0);
+        experiment.frame_count = static_cast<int>(root.integer("frame_count", 1, 1000000).value_or(1));
+        experiment.mass_kg = root.number("mass_kg", formats::NumberRange::non_negative("kg"), false).value_or(0.0);
+        if (const std::optional<formats::JsonView> pins = root.array("pins")) {
+            for (std::size_t i = 0; i < pins->size(); ++i) {
+                const formats::JsonView pin = pins->element(i);
+                cloth::PinTrajectory trajectory;
+                if (const auto uv = pin.numbers("uv", 2, formats::NumberRange::closed(0.0, 1.0)))
+                    trajectory.uv = {(*uv)[0], (*uv)[1]};
+                if (const std::optional<formats::JsonView> positions = pin.array("positions_m")) {
+                    for (std::size_t f = 0; f < positions->size(); ++f) {
+                        const formats::JsonView point = positions->element(f);
+                        if (point.json().is_array() && point.json().size() == 3 && point.json()[0].is_number() &&
+                            point.json()[1].is_number() && point.json()[2].is_number())
+                            trajectory.positions_m.emplace_back(point.json()[0].get<double>(), point.json()[1].get<double>(),
+                                                                point.json()[2].get<double>());
+                        else
+                            diagnostics.error(point.pointer(), "expected [x, y, z]", "give three numbers in metres");
+                    }
+                }
+                experiment.pins.push_back(std::move(trajectory));
+            }
+        }
+    }
+    diagnostics.throw_if_errors();
+    return experiment;
+}
+
+cloth::Integrator integrator_named(const std::string& name) {
+    for (cloth::Integrator integrator : {cloth::Integrator::rk4_adaptive, cloth::Integrator::dopri54,
+                                         cloth::Integrator::bogacki_shampine32, cloth::Integrator::implicit_euler,
+                                         cloth::Integrator::bdf2})
+        if (name == cloth::integrator_name(integrator) || name == cloth::integrator_short_name(integrator))
+            return integrator;
+    throw UsageError("", "--integrator", "unknown integrator '" + name + "'",
+                     "use implicit_euler (implicit), rk4_adaptive (rk4), dopri54, bs32 or bdf2");
+}
+
+int run_swatch(const SwatchCommandOptions& options, const GlobalOptions& global) {
+    const formats::FabricPreset preset = cloth::read_preset_for_simulation(options.preset);
+    const cloth::SwatchExperiment experiment = read_experiment(options.experiment);
+    int rows = 0;
+    int cols = 0;
+    char by = 0;
+    if (std::sscanf(options.grid.c_str(), "%d%c%d", &rows, &by, &cols) != 3 || by != 'x' || rows < 2 || cols < 2)
+        throw UsageError("", "--grid", "'" + options.grid + "' is not a grid", "give rows x cols, e.g. --grid 12x12");
+    // The module's defaults (flowvid.cloth.simulate_swatch), so both backends give the same frames.
+    cloth::SwatchOptions swatch;
+    swatch.rows = rows;
+    swatch.cols = cols;
+    swatch.simulation.integrator = integrator_named(options.integrator);
+    swatch.simulation.implicit_substeps_per_frame = options.substeps;
+    swatch.initial_bow = options.initial_bow;
+    formats::create_parent_folder(options.out);
+
+    // Ctrl-C (or the add-on's Esc, a SIGINT) is polled inside the equilibrium and every step.
+    const InterruptWatch interrupt;
+    swatch.equilibrium.cancel = interrupt.flag();
+    swatch.simulation.cancel = interrupt.flag();
+    std::optional<TerminalProgress> progress;
+    progress.emplace(global, "swatch");
+    const cloth::SwatchRun run =
+        cloth::simulate_swatch(experiment, cloth::material_from_fabric(preset.parameters), swatch, progress->callback());
+    const bool interrupted = progress->interrupted() || interrupt.requested();
+    progress.reset();
+    const cloth::SimulationReport& report = run.simulation.report;
+    if (interrupted || report.status == cloth::SimulationReport::Status::cancelled) {
+        log_message("interrupted at frame " + std::to_string(report.frame) + ": nothing written");
+        return kExitInterrupted;
+    }
+    nlohmann::json frames = nlohmann::json::array();
+    for (const Eigen::MatrixX3d& frame : cloth::sample_frames(run.swatch.mesh, run.simulation.frames, rows, cols)) {
+        nlohmann::json points = nlohmann::json::array();
+        for (Eigen::Index i = 0; i < frame.rows(); ++i) points.push_back({frame(i, 0), frame(i, 1), frame(i, 2)});
+        frames.push_back(std::move(points));
+    }
+    nlohmann::json pinned = nlohmann::json::array();
+    for (const cloth::PinnedVertex& pin : run.swatch.pins) pinned.push_back(pin.vertex);
+    // A blow-up is written too (its status says so): the add-on's calibration scores it as a bad guess.
+    const nlohmann::json result = {{"status", cloth::status_name(report.status)},
+                                   {"reason", report.reason},
+                                   {"equilibrium_converged", run.equilibrium.converged},
+                                   {"grid", {rows, cols}},
+                                   {"pinned_vertices", pinned},
+                                   {"wall_time_s", run.simulation.statistics.wall_time_s},
+                                   {"frames", frames}};
+    formats::write_file_atomically(options.out, [&](std::ostream& stream) { stream << result.dump() << '\n'; });
+    const nlohmann::json summary = {{"status", result["status"]},
+                                    {"frames", static_cast<int>(frames.size())},
+                                    {"grid", options.grid},
+                                    {"integrator", cloth::integrator_name(swatch.simulation.integrator)},
+                                    {"equilibrium_residual_N", run.equilibrium.max_residual_force_N},
+                                    {"out", options.out}};
+    if (options.json) std::cout << summary.dump(2) << '\n';
+    else std::cout << human_readable(summary);
+    if (!report.ok()) {
+        log_message(std::string("error: the simulation stopped (") + cloth::status_name(report.status) + ") at frame " +
+                    std::to_string(report.frame) + ": " + report.reason);
+        return kExitFailure;
+    }
+    return kExitOk;
+}
+
+const RegisterCommand registration{Command{
+    "swatch", "simulate a fabric preset in a swatch experiment written as JSON (frames as JSON)",
+    [](CLI::App& app) -> CommandRunner {
+        auto options = std::make_shared<SwatchCommandOptions>();
+        app.footer(
+            "Builds a width x height swatch whose pins sit at their uv ((0,0) bottom-left as hung,\n"
+            "(1,1) top-right), solves its static equilibrium under the pins' first positions, then\n"
+            "moves the pins frame by frame and simulates the preset's fabric (frame 1 = the\n"
+            "equilibrium). This is the experiment the Blender add-on runs in Blender's solver and in\n"
+            "flowvid side by side to calibrate and export presets; `flowvid simulate` runs the same\n"
+            "from a capture folder instead.\n\n"
+            "The experiment file (metres, seconds):\n"
+            "  {\"width_m\": 0.3, \"height_m\": 0.3, \"fps\": 30, \"frame_count\": 2,\n"
+            "   \"pins\": [{\"uv\": [0, 1], \"positions_m\": [[0, 0, 1], [0.01, 0, 1]]},\n"
+            "            {\"uv\": [1, 1], \"positions_m\": [[0.3, 0, 1], [0.31, 0, 1]]}]}\n"
+            "(optional \"mass_kg\" > 0 overrides the preset's areal density). --out receives\n"
+            "{\"status\", \"reason\", \"grid\": [rows, cols], \"pinned_vertices\", \"frames\": one\n"
+            "[x, y, z] per grid vertex r*cols + c per frame}; a blow-up is written with its status and\n"
+            "exits 1.\n\n"
+            "Examples:\n"
+            "  flowvid swatch --preset cotton.fabric.json --experiment drape.json --out drape.frames.json\n"
+            "  flowvid swatch --preset silk.fabric.json --experiment wave.json --grid 16x16 --integrator rk4 --out w.json\n\n"
+            "Exit codes: 0 ok, 1 the simulation blew up, 2 bad option, 3 invalid preset or experiment,\n"
+            "4 unreadable or unwritable file, 130 interrupted.");
+        app.add_option("--preset", options->preset, "fabric preset (*.fabric.json)")->required();
+        app.add_option("--experiment", options->experiment, "swatch experiment (JSON, see below)")->required();
+        app.add_option("--out", options->out, "frames to write (JSON)")->required();
+        app.add_option("--grid", options->grid, "simulation mesh, rows x cols of vertices")->capture_default_str();
+        app.add_option("--integrator", options->integrator,
+                       "implicit_euler, rk4_adaptive, dopri54, bogacki_shampine32 or bdf2 (or rk4, bs32, implicit)")
+            ->capture_default_str();
+        app.add_option("--substeps", options->substeps, "implicit integrators' substeps per frame")->capture_default_str();
+        app.add_option("--initial-bow", options->initial_bow,
+                       "scale of the start's out-of-plane bow (-1 bows to the back)")->capture_default_str();
+        app.add_flag("--json", options->json, "print the summary as JSON");
+        return [options](const GlobalOptions& global) { return run_swatch(*options, global); };
+    }}};
+
+}  // namespace
+}  // namespace flowvid::cli
