@@ -158,11 +158,13 @@ int run_fabric_stage(const DemoOptions& options, const GlobalOptions& global) {
     std::cout << "  fitted " << fitted.name << " (" << preset << "):\n";
     for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table()) {
         const formats::FabricParameter& p = fitted.parameters.*info.member;
-        std::cout << "    " << info.key << " = " << html::format_compact(p.value)
-                  << ' ' << info.unit
+        const std::string unit = std::string(info.unit) == "1" ? "" : " " + std::string(info.unit);  // ratios have none
+        const bool mass = std::string(info.key) == "areal_density_kg_per_m2";
+        std::cout << "    " << info.key << " = " << html::format_compact(p.value) << unit
                   << (p.uncertainty ? "  +- " + html::format_compact(*p.uncertainty, 2)
                       : p.range     ? std::string("  (no uncertainty)")
-                                    : std::string("  (fixed: the capture's declared mass)"))
+                      : mass        ? std::string("  (fixed: the capture's declared mass)")
+                                    : std::string("  (not fitted: held at its neutral value)"))
                   << '\n';
     }
     status = run_flowvid({"eval", "cloth", "--preset", preset, "--capture", (data / "cotton-waving").string(),
@@ -363,6 +365,28 @@ std::string link(const fs::path& target, const fs::path& index_dir, const std::s
     return "<a href=\"" + html::escape(fs::relative(target, index_dir).generic_string()) + "\">" + html::escape(text) + "</a>";
 }
 
+// A video the browser plays in the page (H.264: FrameWriter and the
+// add-on's encoder write it), with a link for those who would rather download.
+std::string video(const fs::path& target, const fs::path& index_dir, const std::string& text, int width_px,
+                  const fs::path& poster = {}) {
+    if (target.empty() || !fs::exists(target)) return "<p>" + html::escape(text) + " (missing)</p>\n";
+    const auto relative = [&](const fs::path& p) { return html::escape(fs::relative(p, index_dir).generic_string()); };
+    const std::string poster_attribute =
+        !poster.empty() && fs::exists(poster) ? " poster=\"" + relative(poster) + "\"" : std::string();
+    return "<figure><video src=\"" + relative(target) + "\" width=\"" + std::to_string(width_px) + "\"" + poster_attribute +
+           " controls loop muted playsinline preload=\"auto\"></video><figcaption>" + link(target, index_dir, text) +
+           "</figcaption></figure>\n";
+}
+
+// One sentence that says how a stage went, boxed: good, warn or bad.
+std::string verdict(const std::string& sentence, const std::string& kind) {
+    return "<div class=\"verdict " + kind + "\"><p>" + html::escape(sentence) + "</p></div>\n";
+}
+
+double number_or_nan(const nlohmann::json& object, const char* key) {
+    return object.is_object() && object.contains(key) && object[key].is_number() ? object[key].get<double>() : NAN;
+}
+
 // index.html beside the stages' folders: every output that exists, linked,
 // with the key figures (fit error, time taken, floor, diagnosis verdict).
 void write_index(const DemoOptions& options, const std::string& stages_run, double seconds) {
@@ -377,7 +401,32 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
     const nlohmann::json fit = read_json_file(out / "fabric" / "fit.json");
     const nlohmann::json eval = read_json_file(out / "fabric" / "eval.json");
     if (!fit.is_discarded() && fit.is_object()) {
-        body << html::element("h2", "Fabric from footage")
+        body << html::element("h2", "Fabric from footage");
+        // The verdict: the first frames (the predictable part of a wave)
+        // against what repeated takes of the experiment differ by.
+        const nlohmann::json* first_window = nullptr;
+        if (!eval.is_discarded() && eval.contains("captures") && !eval["captures"].empty())
+            for (const auto& w : eval["captures"][0]["windows"])
+                if (first_window == nullptr) first_window = &w;
+        const double start = number_or_nan(fit, "start_error"), final = number_or_nan(fit, "final_error");
+        if (first_window != nullptr) {
+            const double ratio = number_or_nan(*first_window, "metric_mean") / number_or_nan(*first_window, "metric_floor");
+            const double floor_mm = number_or_nan(*first_window, "vertex_floor_mm");
+            const double rms_mm = number_or_nan(*first_window, "vertex_rms_mm");
+            std::string sentence = "The fit lowered its error by " + html::format_percent(1.0 - final / start) + " in " +
+                                   html::format_number(number_or_nan(fit, "seconds")) + " s; over frames " +
+                                   first_window->value("frames", "") + " the fitted fabric misses the footage by " +
+                                   html::format_number(ratio) + " times the predictability floor";
+            if (std::isfinite(floor_mm))
+                sentence += " (repeated takes of the experiment differ by " + html::format_number(floor_mm) + " mm RMS)";
+            if (std::isfinite(rms_mm)) sentence += "; its vertices lie " + html::format_number(rms_mm) + " mm RMS from the truth";
+            sentence += ratio <= 3.0 ? ": it reproduces the fabric about as closely as the footage allows."
+                                     : ": this demo-sized fit (80 simulations on a 16 x 16 mesh) is a start; the "
+                                       "product's setting is a full fit (fit cloth --budget-seconds 600, 24 x 24), "
+                                       "docs/cloth_fitting.md.";
+            body << verdict(sentence, ratio <= 3.0 ? "good" : "warn");
+        }
+        body
              << "<p>" << link(out / "fabric" / "cotton.fabric.json", out, "cotton.fabric.json") << ": weighted metric error "
              << html::format_number(fit.value("start_error", NAN)) << " &rarr; "
              << html::format_number(fit.value("final_error", NAN)) << " (floor "
@@ -409,34 +458,48 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
             body << html::table(table);
         }
     }
-    const auto thumbnail = [&](const nlohmann::json& frames) {
-        if (!frames.is_array() || frames.empty()) return std::string();
-        const fs::path middle = frames[frames.size() / 2].get<std::string>();
-        return "<p><img src=\"" + html::escape(fs::relative(middle, out).generic_string()) +
-               "\" alt=\"a rendered frame\" width=\"320\"></p>\n";
+    // A video's poster: its middle rendered frame (what a thumbnail showed before).
+    const auto middle_frame = [](const nlohmann::json& frames) {
+        return frames.is_array() && !frames.empty() ? fs::path(frames[frames.size() / 2].get<std::string>()) : fs::path();
     };
     const nlohmann::json garment = read_json_file(out / "garment" / "garment.json");
     if (!garment.is_discarded() && garment.is_object()) {
-        body << html::element("h2", "Onto a garment (Blender)") << "<p>"
-             << link(garment.value("video", ""), out, "garment.mp4") << ": the preset through the add-on's "
-             << html::escape(garment.value("mapping", "")) << " mapping, rendered in "
-             << html::format_number(garment.value("render_seconds", NAN)) << " s.</p>\n"
-             << thumbnail(garment["frames"]);
+        const std::size_t frame_count = garment["frames"].is_array() ? garment["frames"].size() : 0;
+        body << html::element("h2", "Onto a garment (Blender)")
+             << verdict("The fitted fabric went onto a skirt through the add-on's " + garment.value("mapping", std::string()) +
+                            " mapping; Blender simulated and rendered its " + std::to_string(frame_count) + " frames (" +
+                            html::format_number(frame_count / 24.0) + " s of animation) in " +
+                            html::format_number(garment.value("render_seconds", NAN)) + " s.",
+                        "good")
+             << video(garment.value("video", ""), out, "garment.mp4", 640, middle_frame(garment["frames"]));
     }
     const nlohmann::json edit = read_json_file(out / "video" / "edit.json");
     const nlohmann::json quality = read_json_file(out / "video" / "quality.json");
     const bool have_edit = !edit.is_discarded() && edit.is_object();
     const bool have_quality = !quality.is_discarded() && quality.contains("methods");
     if (have_edit || have_quality) {
-        body << html::element("h2", "Video editing") << "<p>";
+        body << html::element("h2", "Video editing");
+        if (have_quality && quality["methods"].contains("ours") && quality["methods"].contains("loop")) {
+            const double ours = number_or_nan(quality["methods"]["ours"], "seam_max_ratio");
+            const double naive = number_or_nan(quality["methods"]["loop"], "seam_max_ratio");
+            const double clip = quality.contains("clip_reference") ? number_or_nan(quality["clip_reference"], "seam_max_ratio")
+                                                                   : NAN;
+            const bool seamless = std::isfinite(clip) ? ours <= clip : ours <= 1.0;
+            body << verdict("The loop's largest frame-to-frame change is " + html::format_number(ours) +
+                                " times the clip's 95th-percentile change (the clip's own largest: " +
+                                html::format_number(clip) + "; naive looping: " + html::format_number(naive) + ")" +
+                                (seamless ? ": no seam stands out from the footage's own changes."
+                                          : ": its worst seam changes more than the footage ever does."),
+                            seamless ? "good" : "warn");
+        }
         if (fs::exists(out / "video" / "loop.mp4"))
-            body << link(out / "video" / "loop.mp4", out, "loop.mp4") << " (seamless infinite loop)";
+            body << video(out / "video" / "loop.mp4", out, "loop.mp4: the seamless infinite loop (one period)", 640);
         if (have_edit)
-            body << " &middot; " << link(edit.value("video", ""), out, "edit.mp4") << " (along " << edit.value("lines", 0)
-                 << " lines of a Blender particle system seen through the panning camera) &middot; "
-                 << link(edit.value("flowlines", ""), out, "the flow lines");
-        body << "</p>\n";
-        if (have_edit) body << thumbnail(edit["frames"]);
+            body << video(edit.value("video", ""), out,
+                          "edit.mp4: along " + std::to_string(edit.value("lines", 0)) +
+                              " lines of a Blender particle system seen through the panning camera",
+                          640, middle_frame(edit["frames"]))
+                 << "<p>" << link(edit.value("flowlines", ""), out, "the edit's flow lines") << "</p>\n";
         const std::string stem = "video/frame" + kSideBySideFrame;
         if (fs::exists(out / (stem + "_clip.png")) && fs::exists(out / (stem + "_synth.png")) &&
             fs::exists(out / (stem + "_edit.png"))) {
@@ -487,9 +550,19 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
     }
     const nlohmann::json diagnosis = read_json_file(out / "diagnosis" / "diagnose.json");
     if (!diagnosis.is_discarded() && diagnosis.is_object()) {
-        const std::string verdict = diagnosis.value("verdict", "");
-        body << html::element("h2", "Diagnosis") << html::element("p", "verdict: " + verdict, "verdict")
-             << html::element("p", diagnosis.value("message", "")) << "<p>held-out error / floor "
+        const std::string verdict_name = diagnosis.value("verdict", "");
+        const double over_floor = number_or_nan(diagnosis, "held_out_over_floor");
+        const double closed = number_or_nan(diagnosis, "gap_closed");
+        std::string sentence = "On footage with an effect it was not told about, the fitted model misses held-out frames by " +
+                               html::format_number(over_floor) + " times the predictability floor";
+        if (verdict_name == "named" && std::isfinite(closed))
+            sentence += "; modelling the named effect closes " + html::format_percent(closed) + " of that gap.";
+        else
+            sentence += ".";
+        body << html::element("h2", "Diagnosis")
+             << verdict(sentence, verdict_name == "named" ? "good" : verdict_name == "no structural gap" ? "good" : "warn")
+             << html::element("p", "verdict: " + verdict_name) << html::element("p", diagnosis.value("message", ""))
+             << "<p>held-out error / floor "
              << html::format_number(diagnosis["held_out_over_floor"].is_number() ? diagnosis["held_out_over_floor"].get<double>() : NAN)
              << ", gap closed "
              << html::format_percent(diagnosis["gap_closed"].is_number() ? diagnosis["gap_closed"].get<double>() : NAN)

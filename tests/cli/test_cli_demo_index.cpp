@@ -3,6 +3,7 @@
 // The stages themselves take minutes; here their outputs are stand-ins
 // written by the test, so the page is checked against known figures.
 
+#include "cli_fixtures.hpp"
 #include "cli_runner.hpp"
 #include "test_support.hpp"
 
@@ -46,14 +47,27 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
     fs::copy_file(source_path("formats/examples/cotton.fabric.json"), out / "fabric" / "cotton.fabric.json");
     write_json(out / "fabric" / "eval.json",
                {{"captures", {{{"windows", {{{"frames", "1-10"}, {"metric_mean", 382.0}, {"metric_floor", 20.9}}}}}}}});
+    // Real videos, as the product writes them (flowvid synth's .mp4), so the
+    // browser can be asked to play them.
+    const fs::path bank = out / "tiny.bank.exr";
+    ASSERT_EQ(run_flowvid({"--progress", "none", "track", "--capture", tiny_flow_capture((out / "tiny").string()), "--out",
+                           bank.string()})
+                  .exit_code,
+              0);
+    fs::create_directories(out / "video");
+    const CliResult looped = run_flowvid({"--progress", "none", "synth", "--bank", bank.string(), "--frame-count", "12", "--out",
+                                          (out / "video" / "loop.mp4").string()});
+    ASSERT_EQ(looped.exit_code, 0) << looped.err;
     write_frame(out / "garment" / "frames" / "0001.png");
-    std::ofstream(out / "garment" / "garment.mp4") << "stand-in";
+    fs::copy_file(out / "video" / "loop.mp4", out / "garment" / "garment.mp4");
+    fs::create_directories(out / "video" / "edit");
+    fs::copy_file(out / "video" / "loop.mp4", out / "video" / "edit" / "edit.mp4");
+    write_json(out / "video" / "edit.json", {{"video", (out / "video" / "edit" / "edit.mp4").string()}, {"lines", 14},
+                                             {"flowlines", ""}, {"frames", nlohmann::json::array()}});
     write_json(out / "garment" / "garment.json", {{"video", (out / "garment" / "garment.mp4").string()},
                                                   {"mapping", "formula"},
                                                   {"render_seconds", 40.0},
                                                   {"frames", {(out / "garment" / "frames" / "0001.png").string()}}});
-    fs::create_directories(out / "video");
-    std::ofstream(out / "video" / "loop.mp4") << "stand-in";
     for (const char* which : {"clip", "synth", "edit"}) write_frame(out / "video" / ("frame50_" + std::string(which) + ".png"));
     write_json(out / "video" / "quality.json",
                {{"methods", {{"ours", {{"seam_max_ratio", 0.954}, {"share_above_clip_p99", 0.0}, {"motion_ratio", 0.973}}},
@@ -71,10 +85,11 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
 
     // Every link resolves to a file the stages wrote.
     std::set<std::string> targets;
-    const std::regex href("(?:href|src)=\"([^\"]+)\"");
+    const std::regex href("(?:href|src|poster)=\"([^\"]+)\"");
     for (auto it = std::sregex_iterator(index.begin(), index.end(), href); it != std::sregex_iterator(); ++it)
         targets.insert((*it)[1].str());
     for (const char* expected : {"fabric/cotton.fabric.json", "garment/garment.mp4", "garment/frames/0001.png", "video/loop.mp4",
+                                 "video/edit/edit.mp4",
                                  "formats/summaries.json", "video/frame50_clip.png", "video/frame50_synth.png",
                                  "video/frame50_edit.png"})
         EXPECT_EQ(targets.count(expected), 1u) << expected << " not linked";
@@ -83,6 +98,14 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
     for (const char* figure : {"11000", "9030", "1230", "151", "382", "20.9", "0.954", "5.52", "0.973", "1.12", "verdict: named", "43%",
                                "the gap is explained by wind"})
         EXPECT_NE(index.find(figure), std::string::npos) << figure << " missing from index.html";
+    // Each stage's verdict in one sentence with its units (as a reader sees it: quotes unescaped).
+    const std::string text = std::regex_replace(index, std::regex("&#39;"), "'");
+    for (const char* sentence :
+         {"over frames 1-10 the fitted fabric misses the footage by 18.3 times the predictability floor",
+          "is 0.954 times the clip's 95th-percentile change (the clip's own largest: 1.12; naive looping: 5.52): no seam",
+          "misses held-out frames by 7.50 times the predictability floor; modelling the named effect closes 43% of that gap",
+          "Blender simulated and rendered its 1 frames"})
+        EXPECT_NE(text.find(sentence), std::string::npos) << sentence;
 
     // A person sees it: headless Chromium renders the page, thumbnail included.
     const char* chromium = "/usr/bin/chromium";
@@ -111,4 +134,41 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
     EXPECT_GT(spread[0], 10.0) << "blank page";
     EXPECT_GT(thumbnail_pixels, 0.9 * 320 * 240) << "the thumbnail did not render";
     EXPECT_GT(dark_pixels, 2000) << "no text rendered";
+
+    // The page's videos play: a copy of the page with a script that waits for
+    // each <video> to load its first frame (or fail) and writes readyState and
+    // error code into the DOM, which headless Chromium dumps. MPEG-4 part 2,
+    // which OpenCV wrote before, ends at readyState 0 with error 4.
+    std::string harness = index;
+    const std::string script = R"(<script>
+(function () {
+  const videos = Array.from(document.querySelectorAll('video'));
+  const settle = v => v.readyState >= 2 ? Promise.resolve() : new Promise(done => {
+    v.addEventListener('loadeddata', done); v.addEventListener('error', done); });
+  Promise.all(videos.map(settle)).then(() => document.body.setAttribute('data-video-states',
+    videos.map(v => v.getAttribute('src') + '=' + v.readyState + '/' + (v.error ? v.error.code : 0)).join(' ')));
+})();
+</script>)";
+    harness.insert(harness.rfind("</body>"), script);
+    std::ofstream(out / "harness.html") << harness;
+    const std::string dump = out / "harness.dom";
+    const std::string play = std::string(chromium) +
+                             " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run"
+                             " --disable-background-networking --disable-component-update --disable-sync"
+                             " --allow-file-access-from-files --virtual-time-budget=10000 --user-data-dir=" +
+                             (out / "chromium-profile").string() + " --dump-dom file://" +
+                             fs::absolute(out / "harness.html").string() + " > " + dump + " 2> " +
+                             (out / "chromium-play.log").string();
+    ASSERT_EQ(std::system(play.c_str()), 0) << read_text((out / "chromium-play.log").string());
+    const std::string dom = read_text(dump);
+    const std::regex state("([^ \"=]+\\.mp4)=(\\d)/(\\d)");
+    int videos = 0;
+    for (auto it = std::sregex_iterator(dom.begin(), dom.end(), state); it != std::sregex_iterator(); ++it) {
+        ++videos;
+        std::printf("[ measured ] %s: readyState %s, error %s\n", (*it)[1].str().c_str(), (*it)[2].str().c_str(),
+                    (*it)[3].str().c_str());
+        EXPECT_GE(std::stoi((*it)[2].str()), 2) << (*it)[1] << " does not play in Chromium";
+        EXPECT_EQ((*it)[3].str(), "0") << (*it)[1];
+    }
+    EXPECT_EQ(videos, 3) << "garment, loop and edit videos in the page; the DOM: " << dom.substr(0, 400);
 }
