@@ -322,15 +322,18 @@ FabricPreset read_fabric_preset(const std::string& path, std::vector<Problem>* w
     return read_json_format_file<FabricPreset>(path, parse_fabric_preset, warnings);
 }
 
-void write_fabric_preset(const std::string& path, const FabricPreset& preset) {
+void check_fabric_preset_before_writing(const std::string& path, const FabricPreset& preset) {
     Diagnostics diagnostics(path);
     check_finite_before_writing(preset, diagnostics);
     diagnostics.throw_if_errors();
-    const nlohmann::json document = fabric_preset_to_json(preset);
-    // Validate exactly what will be written with the reader's own rules.
-    parse_fabric_preset(document, diagnostics, Strictness::strict);
+    parse_fabric_preset(fabric_preset_to_json(preset), diagnostics, Strictness::strict);
     diagnostics.throw_if_errors();
-    const std::string text = dump_json(document);
+}
+
+void write_fabric_preset(const std::string& path, const FabricPreset& preset) {
+    // Validated exactly as it will be written, with the reader's own rules.
+    check_fabric_preset_before_writing(path, preset);
+    const std::string text = dump_json(fabric_preset_to_json(preset));
     write_file_atomically(path, [&](std::ostream& out) { out << text; });
 }
 

@@ -140,16 +140,7 @@ std::optional<FabricPreset> parse_fabric_u3m(const nlohmann::json& document, Dia
 }
 
 void write_fabric_u3m(const std::string& path, const FabricPreset& preset) {
-    // The preset's own checks first (finite values, valid ranges), naming the preset field.
-    Diagnostics diagnostics(path);
-    parse_fabric_preset(fabric_preset_to_json(preset), diagnostics, Strictness::strict);
-    for (const FabricParameterInfo& info : fabric_parameter_table()) {
-        const FabricParameter& p = preset.parameters.*info.member;
-        if (!std::isfinite(p.value) || (p.uncertainty && !std::isfinite(*p.uncertainty)))
-            diagnostics.error(std::string("/parameters/") + info.key, "not a finite number",
-                              "fix the preset before converting it");
-    }
-    diagnostics.throw_if_errors();
+    check_fabric_preset_before_writing(path, preset);  // finite values, valid ranges, naming the preset field
     const nlohmann::json document = fabric_preset_to_u3m(preset);
     // Read back exactly what will be written, with the reader's rules.
     Diagnostics check(path);

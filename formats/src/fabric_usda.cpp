@@ -712,15 +712,7 @@ std::optional<FabricPreset> parse_fabric_usda(const std::string& text, Diagnosti
 }
 
 void write_fabric_usda(const std::string& path, const FabricPreset& preset) {
-    Diagnostics diagnostics(path);
-    parse_fabric_preset(fabric_preset_to_json(preset), diagnostics, Strictness::strict);
-    for (const FabricParameterInfo& info : fabric_parameter_table()) {
-        const FabricParameter& p = preset.parameters.*info.member;
-        if (!std::isfinite(p.value) || (p.uncertainty && !std::isfinite(*p.uncertainty)))
-            diagnostics.error(std::string("/parameters/") + info.key, "not a finite number",
-                              "fix the preset before converting it");
-    }
-    diagnostics.throw_if_errors();
+    check_fabric_preset_before_writing(path, preset);  // finite values, valid ranges, naming the preset field
     const std::string text = fabric_preset_to_usda(preset);
     Diagnostics check(path);
     parse_fabric_usda(text, check, Strictness::strict);

@@ -75,13 +75,7 @@ def bake_lines(path, frame_end=10):
     where the particle's recorded position projects through the camera at that key's frame (< 0.5 px)."""
     lines = _helpers("test_flowlines")
     scene, camera, emitter = lines.particle_scene(frame_end=frame_end, keep_preferences=True)
-    recorded = {}
-    for frame in range(1, frame_end + 1):
-        scene.frame_set(frame)
-        depsgraph = bpy.context.evaluated_depsgraph_get()
-        for index, particle in enumerate(emitter.evaluated_get(depsgraph).particle_systems[0].particles):
-            if particle.alive_state == "ALIVE":
-                recorded.setdefault(index, []).append(tuple(particle.location))
+    recorded = lines.record_alive_particles(scene, emitter, frame_end)
     settings = scene.flowvid
     settings.emitter, settings.camera = emitter, camera
     settings.frame_start, settings.frame_end = 1, frame_end

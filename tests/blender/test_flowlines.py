@@ -62,6 +62,19 @@ def particle_scene(count=12, frame_end=10, keep_preferences=False):
     return scene, camera, emitter
 
 
+def record_alive_particles(scene, emitter, frame_end):
+    """Each live particle's world position at frames 1..frame_end, read independently of the add-on:
+    {particle index: [(x, y, z), ...]}."""
+    recorded = {}
+    for frame in range(1, frame_end + 1):
+        scene.frame_set(frame)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        for index, particle in enumerate(emitter.evaluated_get(depsgraph).particle_systems[0].particles):
+            if particle.alive_state == "ALIVE":
+                recorded.setdefault(index, []).append(tuple(particle.location))
+    return recorded
+
+
 def independent_projection(scene, camera, point):
     """Pixel (x, y), OpenCV convention, from the camera's matrix, lens, sensor, shift and resolution,
     written out as K [R | t] (sensor fit AUTO, square pixels)."""
@@ -85,14 +98,7 @@ def test_particles_projection():
 
     frame_end = 10
     scene, camera, emitter = particle_scene(frame_end=frame_end)
-    # Record the particles independently of the add-on.
-    recorded = {}
-    for frame in range(1, frame_end + 1):
-        scene.frame_set(frame)
-        depsgraph = bpy.context.evaluated_depsgraph_get()
-        for index, particle in enumerate(emitter.evaluated_get(depsgraph).particle_systems[0].particles):
-            if particle.alive_state == "ALIVE":
-                recorded.setdefault(index, []).append(tuple(particle.location))
+    recorded = record_alive_particles(scene, emitter, frame_end)
     folder = tempfile.mkdtemp(prefix="flowvid_lines_")
     try:
         path = os.path.join(folder, "particles.flowlines.json")

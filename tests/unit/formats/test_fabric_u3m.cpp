@@ -4,6 +4,7 @@
 #include "flowvid/formats/any_file.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/fabric_u3m.hpp"
+#include "converter_test_preset.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -24,24 +25,6 @@ using flowvid::testing::write_text;
 
 namespace {
 
-// The example preset made anisotropic, with every 1.1 parameter away from its
-// neutral value and a description needing escapes: a conversion that drops or
-// swaps a value cannot pass.
-FabricPreset test_preset() {
-    FabricPreset preset = read_fabric_preset(source_path("formats/examples/cotton.fabric.json"));
-    FabricParameters& p = preset.parameters;
-    p.stretch_weft_stiffness_N_per_m.value = 610.25;
-    p.stretch_weft_stiffness_N_per_m.uncertainty = 33.5;
-    p.bend_stiffness_N_m.value = 1.2345678901234567e-5;
-    p.stretch_warp_compression_ratio.value = 0.125;
-    p.stretch_weft_compression_ratio.value = 0.0625;
-    p.drag_linear_normal_kg_per_m2_s = {0.07, 0.01, std::array<double, 2>{0.0, 10.0}};
-    p.hem_line_density_kg_per_m.value = 0.003;
-    p.diagonal_tension_stiffness_N_per_m.value = 45.0;
-    preset.description = "line one \"quoted\"\nline two \\ backslash";
-    return preset;
-}
-
 std::set<std::string> keys_of(const nlohmann::json& object) {
     std::set<std::string> keys;
     for (auto it = object.begin(); it != object.end(); ++it) keys.insert(it.key());
@@ -51,7 +34,7 @@ std::set<std::string> keys_of(const nlohmann::json& object) {
 }  // namespace
 
 TEST(FabricU3m, RoundTripGivesThePresetsValues) {
-    const FabricPreset preset = test_preset();
+    const FabricPreset preset = flowvid::testing::converter_test_preset();
     const std::string path = scratch_dir("u3m_round_trip") + "/cotton.u3m";
     write_fabric_u3m(path, preset);
     const FabricPreset back = read_fabric_u3m(path);
@@ -79,7 +62,7 @@ TEST(FabricU3m, RoundTripGivesThePresetsValues) {
 // these objects has additionalProperties false), and the types and units of
 // the fields (u3m1.1/spec/u3m_schema.json).
 TEST(FabricU3m, DocumentHasTheShapeOfTheU3m11Schema) {
-    const FabricPreset preset = test_preset();
+    const FabricPreset preset = flowvid::testing::converter_test_preset();
     const nlohmann::json u3m = fabric_preset_to_u3m(preset);
     EXPECT_EQ(keys_of(u3m), (std::set<std::string>{"schema", "material", "custom"}));
     EXPECT_EQ(u3m["schema"], "1.1");
@@ -123,7 +106,7 @@ TEST(FabricU3m, DocumentHasTheShapeOfTheU3m11Schema) {
 
 TEST(FabricU3m, BadFilesNameTheFieldAndTheFix) {
     const std::string dir = scratch_dir("u3m_bad");
-    const nlohmann::json good = fabric_preset_to_u3m(test_preset());
+    const nlohmann::json good = fabric_preset_to_u3m(flowvid::testing::converter_test_preset());
 
     nlohmann::json wrong_unit = good;
     wrong_unit["custom"]["flowvid"]["parameters"]["bend_stiffness_N_m"]["unit"] = "uN m";
@@ -165,9 +148,9 @@ TEST(FabricU3m, BadFilesNameTheFieldAndTheFix) {
 
 TEST(FabricU3m, AFailedWriteLeavesThePreviousFile) {
     const std::string path = scratch_dir("u3m_atomic") + "/cotton.u3m";
-    write_fabric_u3m(path, test_preset());
+    write_fabric_u3m(path, flowvid::testing::converter_test_preset());
     const std::string before = read_text(path);
-    FabricPreset broken = test_preset();
+    FabricPreset broken = flowvid::testing::converter_test_preset();
     broken.parameters.shear_stiffness_N_per_m.value = std::numeric_limits<double>::quiet_NaN();
     const std::string messages = validation_messages([&] { write_fabric_u3m(path, broken); });
     EXPECT_TRUE(mentions(messages, "shear_stiffness_N_per_m")) << messages;

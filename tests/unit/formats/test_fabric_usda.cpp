@@ -5,6 +5,7 @@
 #include "flowvid/formats/any_file.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/fabric_usda.hpp"
+#include "converter_test_preset.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -24,20 +25,6 @@ using flowvid::testing::write_text;
 
 namespace {
 
-FabricPreset test_preset() {
-    FabricPreset preset = read_fabric_preset(source_path("formats/examples/cotton.fabric.json"));
-    FabricParameters& p = preset.parameters;
-    p.stretch_weft_stiffness_N_per_m.value = 610.25;
-    p.stretch_weft_stiffness_N_per_m.uncertainty = 33.5;
-    p.bend_stiffness_N_m.value = 1.2345678901234567e-5;
-    p.stretch_warp_compression_ratio.value = 0.125;
-    p.stretch_weft_compression_ratio.value = 0.0625;
-    p.drag_linear_normal_kg_per_m2_s = {0.07, 0.01, std::array<double, 2>{0.0, 10.0}};
-    p.hem_line_density_kg_per_m.value = 0.003;
-    p.diagonal_tension_stiffness_N_per_m.value = 45.0;
-    preset.description = "line one \"quoted\"\nline two \\ backslash";
-    return preset;
-}
 
 // The proposal's material attributes: PhysicsMaterialAPI (density, friction,
 // restitution) and PhysicsSurfaceDeformableMaterialAPI, with their types.
@@ -57,7 +44,7 @@ double relative_difference(double a, double b) { return std::abs(a - b) / std::m
 }  // namespace
 
 TEST(FabricUsda, RoundTripGivesThePresetsValues) {
-    const FabricPreset preset = test_preset();
+    const FabricPreset preset = flowvid::testing::converter_test_preset();
     const std::string path = scratch_dir("usda_round_trip") + "/cotton.usda";
     write_fabric_usda(path, preset);
     const FabricPreset back = read_fabric_usda(path);
@@ -78,7 +65,7 @@ TEST(FabricUsda, RoundTripGivesThePresetsValues) {
 // four flowvid maps are there with the preset's values in the units the layer
 // states; everything else is a custom flowvid: attribute.
 TEST(FabricUsda, AttributesFollowTheDeformablesProposal) {
-    const FabricPreset preset = test_preset();
+    const FabricPreset preset = flowvid::testing::converter_test_preset();
     Diagnostics diagnostics("cotton.usda");
     const std::optional<UsdaLayer> layer = parse_usda(fabric_preset_to_usda(preset), diagnostics);
     ASSERT_TRUE(layer) << diagnostics.problems().front().to_string();
@@ -203,7 +190,7 @@ def Xform "World" (
 
 TEST(FabricUsda, BadFilesNameTheAttributeAndTheFix) {
     const std::string dir = scratch_dir("usda_bad");
-    const std::string good = fabric_preset_to_usda(test_preset());
+    const std::string good = fabric_preset_to_usda(flowvid::testing::converter_test_preset());
     auto replaced = [&](const std::string& from, const std::string& to) {
         std::string text = good;
         const std::size_t at = text.find(from);
@@ -232,7 +219,7 @@ TEST(FabricUsda, BadFilesNameTheAttributeAndTheFix) {
     write_text(edited, text.replace(at, end - at, "float physics:surfaceBendStiffness = 0.5"));
     std::vector<Problem> warnings;
     const FabricPreset back = read_fabric_usda(edited, &warnings);
-    EXPECT_EQ(back.parameters.bend_stiffness_N_m.value, test_preset().parameters.bend_stiffness_N_m.value);
+    EXPECT_EQ(back.parameters.bend_stiffness_N_m.value, flowvid::testing::converter_test_preset().parameters.bend_stiffness_N_m.value);
     ASSERT_EQ(warnings.size(), 1u);
     EXPECT_TRUE(mentions(warnings[0].field, "physics:surfaceBendStiffness")) << warnings[0].field;
 

@@ -139,6 +139,10 @@ FabricPreset read_fabric_preset(const std::string& path, std::vector<Problem>* w
 // Validates, then writes atomically. Throws ValidationError if the preset is
 // not valid (e.g. NaN), leaving any previous file untouched.
 void write_fabric_preset(const std::string& path, const FabricPreset& preset);
+// What every writer of a preset (this format, U3M, USD) checks first: finite
+// values and the reader's strict rules on the preset as JSON. Throws
+// ValidationError naming `path` and the preset field.
+void check_fabric_preset_before_writing(const std::string& path, const FabricPreset& preset);
 // Every problem of a file, for `flowvid validate` (never throws on bad content).
 std::vector<Problem> validate_fabric_preset_file(const std::string& path, Strictness strictness);
 nlohmann::json summarize_fabric_preset(const FabricPreset& preset);
