@@ -176,6 +176,10 @@ const RegisterCommand registration{Command{
             ->capture_default_str();
         app.add_option("--seed", options->settings.seed, "bootstrap seed")->capture_default_str();
         add_cloth_run_options(app, options->cloth.run);
+        // Not the fits' 24x24: said where a user compares the defaults.
+        app.get_option("--resolution")
+            ->description("the diagnoser's mesh, RxC vertices: coarser than the fits' 24x24 so that its many refits stay "
+                          "quick, fine enough that its drape stays within reach of a finer mesh's (docs/gap.md)");
         app.add_flag("--json", options->json, "print the summary as JSON");
         return [options](const GlobalOptions& global) {
             if (const std::optional<int> count = resolve_waving_frame_count(options->frame_selection, options->captures))
