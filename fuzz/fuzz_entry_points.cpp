@@ -1,6 +1,7 @@
 #include "fuzz_entry_points.hpp"
 
 #include "flowvid/formats/any_file.hpp"
+#include "flowvid/formats/blender_cloth_settings.hpp"
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/diagnosis.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
@@ -41,6 +42,7 @@ const std::vector<FuzzTarget>& fuzz_targets() {
         {"rectification", "rectify.json", InputKind::json, "rectification (rectify.json)"},
         {"diagnosis_json", "diagnosis.json", InputKind::json, "gap diagnosis (diagnosis.json)"},
         {"gap_bench_labels", "labels.json", InputKind::json, "gap-bench labels (labels.json)"},
+        {"blender_cloth", "input.blender.json", InputKind::json, "Blender cloth settings (*.blender.json, flowvid convert)"},
     };
     return targets;
 }
@@ -235,6 +237,14 @@ std::size_t run_target(const FuzzTarget& target, const std::uint8_t* data, std::
         tolerate_flowvid_errors([&] { formats::rectification_to_json(formats::read_rectification(file)); });
     } else if (target.name == "gap_bench_labels") {
         tolerate_flowvid_errors([&] { formats::gap_bench_labels_to_json(formats::read_gap_bench_labels(file)); });
+    } else if (target.name == "blender_cloth") {
+        // What was read is written back the way `flowvid convert` writes it (validated, strictly).
+        tolerate_flowvid_errors([&] {
+            const formats::BlenderClothSettings settings = formats::read_blender_cloth_settings(file);
+            formats::blender_cloth_settings_to_json(settings);
+            formats::summarize_blender_cloth_settings(settings);
+            formats::write_blender_cloth_settings((folder / "written.blender.json").string(), settings);
+        });
     }
     return problems;
 }

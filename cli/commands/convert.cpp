@@ -1,19 +1,19 @@
 // flowvid convert IN OUT: flow lines between SVG (what artists draw) and
 // *.flowlines.json (what flowvid reads), in both directions; fabric presets to
 // U3M, OpenUSD and Blender cloth settings for a mesh, and back. The formats
-// live in formats/ (fabric_u3m, fabric_usda, polygon_mesh), the Blender
-// mapping in cloth/blender_cloth: this command only picks them by file type.
+// live in formats/ (fabric_u3m, fabric_usda, polygon_mesh, blender_cloth_settings),
+// the Blender mapping in cloth/blender_cloth: this command only picks them by file type.
 
 #include "command.hpp"
 #include "output.hpp"
 
 #include "flowvid/cloth/blender_cloth.hpp"
 #include "flowvid/formats/any_file.hpp"
+#include "flowvid/formats/blender_cloth_settings.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/fabric_u3m.hpp"
 #include "flowvid/formats/fabric_usda.hpp"
 #include "flowvid/formats/flowlines.hpp"
-#include "flowvid/formats/polygon_mesh.hpp"
 
 #include <iostream>
 #include <memory>
@@ -82,16 +82,13 @@ int convert_preset(const ConvertOptions& options, formats::FileKind input_kind) 
 
     if (blender) {
         std::vector<Problem> mesh_warnings;
-        const formats::PolygonMesh mesh = formats::read_polygon_mesh(options.mesh, &mesh_warnings);
+        const formats::BlenderClothSettings settings =
+            cloth::blender_cloth_settings_for_mesh(preset, options.mesh, options.blender, &mesh_warnings);
         print_problems(mesh_warnings);
-        const cloth::BlenderMeshStats stats = cloth::blender_mesh_stats(mesh);
-        const cloth::BlenderClothMapping mapping =
-            cloth::map_preset_to_blender_cloth(preset.parameters, stats, options.blender, options.mesh);
-        cloth::write_blender_cloth_settings(out, cloth::blender_cloth_document(preset, options.mesh, stats,
-                                                                               options.blender, mapping));
+        formats::write_blender_cloth_settings(out, settings);
         std::cout << out << ": Blender cloth settings for \"" << preset.name << "\" on " << options.mesh << " ("
-                  << stats.vertex_count << " vertices, mean edge " << stats.mean_edge_length_m * 1000.0 << " mm) at "
-                  << options.blender.fps << " fps; " << mapping.not_represented.size()
+                  << settings.mesh.vertex_count << " vertices, mean edge " << settings.mesh.mean_edge_length_m * 1000.0
+                  << " mm) at " << settings.scene.fps << " fps; " << settings.not_represented.size()
                   << " notes on what Blender cannot express\n";
         return kExitOk;
     }

@@ -1,6 +1,7 @@
 #include "flowvid/formats/any_file.hpp"
 
 #include "flowvid/formats/atomic_file.hpp"
+#include "flowvid/formats/blender_cloth_settings.hpp"
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/diagnosis.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
@@ -45,6 +46,7 @@ FileKind kind_from_json_format(const std::string& format) {
     if (format == kGapBenchLabelsFormatName) return FileKind::gap_bench_labels;
     if (format == kRigidFitFormatName) return FileKind::rigid_fit;
     if (format == kRectificationFormatName) return FileKind::rectification;
+    if (format == kBlenderClothSettingsFormatName) return FileKind::blender_cloth_settings;
     return FileKind::unknown;
 }
 
@@ -82,7 +84,8 @@ Problem unrecognised_file(const std::string& path, const std::string& fix) {
         return Problem{Problem::Severity::error, path, "/format", "\"" + format + "\" is not a format flowvid reads",
                        "flowvid's JSON formats are flowvid.fabric (fabric presets), flowvid.flowlines, "
                        "flowvid.capture (a capture folder's capture.json), flowvid.fit_shard, flowvid.diagnosis, "
-                       "flowvid.gap_bench_labels, flowvid.rigid_fit and flowvid.rectification"};
+                       "flowvid.gap_bench_labels, flowvid.rigid_fit, flowvid.rectification and flowvid.blender_cloth "
+                       "(Blender cloth settings)"};
     return Problem{Problem::Severity::error, path, "", "not a flowvid file (unrecognised content)", fix};
 }
 
@@ -104,6 +107,7 @@ const char* file_kind_name(FileKind kind) {
         case FileKind::rectification: return "rectification";
         case FileKind::fabric_u3m: return "fabric preset (U3M)";
         case FileKind::fabric_usda: return "fabric preset (OpenUSD)";
+        case FileKind::blender_cloth_settings: return "Blender cloth settings";
         case FileKind::unknown: break;
     }
     return "unknown";
@@ -135,6 +139,7 @@ FileKind detect_file_kind(const std::string& path) {
     if (ends_with(path, "labels.json")) return FileKind::gap_bench_labels;
     if (ends_with(path, ".rigid_fit.json")) return FileKind::rigid_fit;
     if (ends_with(path, "rectify.json") || ends_with(path, ".rectification.json")) return FileKind::rectification;
+    if (ends_with(path, ".blender.json")) return FileKind::blender_cloth_settings;
     if (ends_with(path, ".glb")) return FileKind::motion_gltf;
     return FileKind::unknown;
 }
@@ -161,11 +166,13 @@ std::vector<Problem> validate_any_file(const std::string& path, Strictness stric
         case FileKind::rectification: return validate_rectification_file(path, strictness);
         case FileKind::fabric_u3m: return validate_fabric_u3m_file(path, strictness);
         case FileKind::fabric_usda: return validate_fabric_usda_file(path, strictness);
+        case FileKind::blender_cloth_settings: return validate_blender_cloth_settings_file(path, strictness);
         case FileKind::unknown: break;
     }
     return {unrecognised_file(path, "give a *.fabric.json, *.flowlines.json, flow-line SVG, bank or vertex-animation "
                                     "EXR, .glb, a capture folder, a fit shard, diagnosis.json, labels.json, a rigid fit, "
-                                    "rectify.json, or a fabric preset as .u3m or .usda")};
+                                    "rectify.json, a fabric preset as .u3m or .usda, or Blender "
+                                    "cloth settings (*.blender.json)")};
 }
 
 nlohmann::json summarize_any_file(const std::string& path) {
@@ -186,6 +193,9 @@ nlohmann::json summarize_any_file(const std::string& path) {
         case FileKind::rectification: summary = summarize_rectification(read_rectification(path)); break;
         case FileKind::fabric_u3m: summary = summarize_fabric_preset(read_fabric_u3m(path)); break;
         case FileKind::fabric_usda: summary = summarize_fabric_preset(read_fabric_usda(path)); break;
+        case FileKind::blender_cloth_settings:
+            summary = summarize_blender_cloth_settings(read_blender_cloth_settings(path));
+            break;
         case FileKind::unknown:
             throw ValidationError({unrecognised_file(path, "run 'flowvid validate' on it for details")});
     }

@@ -153,6 +153,35 @@ TEST(Cli, ConvertFabricPresetToU3mUsdaBlenderAndBack) {
     EXPECT_NEAR(settings["settings"]["time_scale"].get<double>(), std::sqrt(1000.0) / 30.0, 1e-12);
     EXPECT_NEAR(settings["settings"]["mass"].get<double>(), 1000.0 * 0.15 * 0.12 / 45, 1e-12);
     EXPECT_EQ(settings["settings"]["bending_model"], "ANGULAR");
+    EXPECT_EQ(settings["settings"]["quality"], 10);
+    EXPECT_EQ(settings["scene"]["fps"], 30.0);
+    // What convert wrote is a file flowvid validates and describes.
+    CliResult valid = run_flowvid({"validate", dir + "/panel.blender.json"});
+    EXPECT_EQ(valid.exit_code, 0) << valid.out << valid.err;
+    EXPECT_TRUE(mentions(valid.out, "panel.blender.json: valid")) << valid.out;
+    CliResult described = run_flowvid({"info", "--json", dir + "/panel.blender.json"});
+    ASSERT_EQ(described.exit_code, 0) << described.err;
+    const nlohmann::json summary = nlohmann::json::parse(described.out);
+    EXPECT_EQ(summary["kind"], "Blender cloth settings");
+    EXPECT_EQ(summary["preset"], "cotton (example)");
+    EXPECT_EQ(summary["vertex_count"], 45);
+    EXPECT_EQ(summary["fps"], 30.0);
+    EXPECT_EQ(summary["settings"]["quality"], 10);
+    EXPECT_NEAR(summary["settings"]["time_scale"].get<double>(), std::sqrt(1000.0) / 30.0, 1e-12);
+    // The bundled example too; a broken copy is refused naming the field.
+    const std::string example = source_path("formats/examples/panel.blender.json");
+    EXPECT_EQ(run_flowvid({"validate", example}).exit_code, 0);
+    CliResult example_info = run_flowvid({"info", "--json", example});
+    ASSERT_EQ(example_info.exit_code, 0) << example_info.err;
+    EXPECT_EQ(nlohmann::json::parse(example_info.out)["settings"]["bending_model"], "ANGULAR");
+    nlohmann::json broken_settings = settings;
+    broken_settings["settings"]["mass"] = -0.4;
+    broken_settings["scene"].erase("fps");
+    write_text(dir + "/broken.blender.json", broken_settings.dump(2));
+    CliResult refused = run_flowvid({"validate", dir + "/broken.blender.json"});
+    EXPECT_NE(refused.exit_code, 0);
+    EXPECT_TRUE(mentions(refused.out + refused.err, "/settings/mass: value -0.4 is out of range")) << refused.out << refused.err;
+    EXPECT_TRUE(mentions(refused.out + refused.err, "/scene/fps: missing")) << refused.out << refused.err;
 
     CliResult no_mesh = run_flowvid({"convert", example_preset(), dir + "/x.blender.json"});
     EXPECT_EQ(no_mesh.exit_code, 2);

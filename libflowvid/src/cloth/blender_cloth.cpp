@@ -1,7 +1,5 @@
 #include "flowvid/cloth/blender_cloth.hpp"
 
-#include "flowvid/formats/atomic_file.hpp"
-
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -9,27 +7,12 @@
 #include <cstdio>
 #include <limits>
 #include <map>
-#include <ostream>
 
 namespace flowvid::cloth {
 namespace {
 
 // Blender 3.4's solver constants (SIM_mass_spring.cpp), as in the add-on.
 constexpr double kBlenderAirDampingScale = 0.01;  // drag = Cvi * 0.01
-
-struct Limit {
-    const char* name;
-    double low, high;
-};
-// Hard limits of Blender 3.4's ClothSettings RNA properties (the add-on's BLENDER_LIMITS).
-constexpr Limit kBlenderLimits[] = {
-    {"quality", 1, 2147483647},           {"time_scale", 0.0, 3.4e38},
-    {"mass", 0.0, 3.4e38},                {"tension_stiffness", 0.0, 10000.0},
-    {"compression_stiffness", 0.0, 10000.0}, {"shear_stiffness", 0.0, 10000.0},
-    {"bending_stiffness", 0.0, 10000.0},  {"tension_damping", 0.0, 50.0},
-    {"compression_damping", 0.0, 50.0},   {"shear_damping", 0.0, 50.0},
-    {"bending_damping", 0.0, 1000.0},     {"air_damping", 0.0, 10.0},
-};
 
 std::string g(double value, const char* format = "%g") {
     char text[64];
@@ -155,11 +138,11 @@ BlenderClothMapping map_preset_to_blender_cloth(const formats::FabricParameters&
         {"air_damping", c_drag * (mesh.area_m2 / n) * damping / kBlenderAirDampingScale},
     };
     for (auto& [name, value] : result.settings) {
-        for (const Limit& limit : kBlenderLimits) {
-            if (name != limit.name || (value <= limit.high && value >= limit.low)) continue;
-            const double clamped = std::min(std::max(value, limit.low), limit.high);
-            notes.push_back(name + " = " + g(value, "%.4g") + " is outside Blender's range [" + g(limit.low) + ", " +
-                            g(limit.high) + "]: set to " + g(clamped));
+        for (const formats::BlenderClothSettingRange& limit : formats::blender_cloth_setting_ranges()) {
+            if (name != limit.name || (value <= limit.max && value >= limit.min)) continue;
+            const double clamped = std::min(std::max(value, limit.min), limit.max);
+            notes.push_back(name + " = " + g(value, "%.4g") + " is outside Blender's range [" + g(limit.min) + ", " +
+                            g(limit.max) + "]: set to " + g(clamped));
             value = clamped;
         }
     }
@@ -176,49 +159,33 @@ BlenderClothMapping map_preset_to_blender_cloth(const formats::FabricParameters&
     return result;
 }
 
-nlohmann::json blender_cloth_document(const formats::FabricPreset& preset, const std::string& mesh_path,
-                                      const BlenderMeshStats& mesh, const BlenderClothOptions& options,
-                                      const BlenderClothMapping& mapping) {
-    nlohmann::json settings = nlohmann::json::object();
-    for (const auto& [name, value] : mapping.settings) {
-        if (name == "quality") settings[name] = static_cast<long long>(value);
-        else settings[name] = value;
-    }
-    settings["bending_model"] = mapping.bending_model;
-    nlohmann::json derived = nlohmann::json::object();
-    for (const auto& [name, value] : mapping.derived) derived[name] = value;
-    std::vector<std::string> notes = mapping.not_represented;
+formats::BlenderClothSettings blender_cloth_settings(const formats::FabricPreset& preset, const std::string& mesh_path,
+                                                     const BlenderMeshStats& mesh, const BlenderClothOptions& options,
+                                                     const BlenderClothMapping& mapping) {
+    formats::BlenderClothSettings out;
+    out.preset = preset.name;
+    out.settings = mapping.settings;
+    out.bending_model = mapping.bending_model;
+    out.mesh = {mesh_path, mesh.vertex_count, mesh.mean_edge_length_m, mesh.area_m2, mesh.quad_fraction,
+                mesh.boundary_length_m};
+    out.scene = {options.fps, options.quality};
+    out.options = {options.mass_scale, options.reference_speed_m_per_s, options.min_quality};
+    out.derived = {mapping.derived.begin(), mapping.derived.end()};
+    out.not_represented = mapping.not_represented;
     if (preset.adapters.count("blender"))
-        notes.push_back("the preset's stored Blender adapter (adapters.blender) is not applied here: these are the "
-                        "formula's settings; applying the preset in Blender uses a stored calibration for a similar mesh");
-    return {
-        {"format", "flowvid.blender_cloth"},
-        {"version", "1.0"},
-        {"preset", preset.name},
-        {"blender", "3.4 cloth solver (the add-on's mapping, docs/blender.md)"},
-        {"settings", settings},
-        {"units", "settings in Blender's ClothSettings units (Speed Multiplier time_scale makes Blender's time "
-                  "seconds-true at this fps; mass in units of 1/mass_scale kg); mesh statistics and options in SI"},
-        {"mesh",
-         {{"path", mesh_path},
-          {"vertex_count", mesh.vertex_count},
-          {"mean_edge_length_m", mesh.mean_edge_length_m},
-          {"area_m2", mesh.area_m2},
-          {"quad_fraction", mesh.quad_fraction},
-          {"boundary_length_m", mesh.boundary_length_m}}},
-        {"scene", {{"fps", options.fps}, {"quality", options.quality}}},
-        {"options",
-         {{"mass_scale", options.mass_scale},
-          {"reference_speed_m_per_s", options.reference_speed_m_per_s},
-          {"min_quality", options.min_quality}}},
-        {"derived", derived},
-        {"not_represented", notes},
-    };
+        out.not_represented.push_back(
+            "the preset's stored Blender adapter (adapters.blender) is not applied here: these are the formula's "
+            "settings; applying the preset in Blender uses a stored calibration for a similar mesh");
+    return out;
 }
 
-void write_blender_cloth_settings(const std::string& path, const nlohmann::json& document) {
-    const std::string text = formats::dump_json(document);
-    formats::write_file_atomically(path, [&](std::ostream& out) { out << text; });
+formats::BlenderClothSettings blender_cloth_settings_for_mesh(const formats::FabricPreset& preset,
+                                                              const std::string& mesh_path,
+                                                              const BlenderClothOptions& options,
+                                                              std::vector<Problem>* warnings) {
+    const BlenderMeshStats stats = blender_mesh_stats(formats::read_polygon_mesh(mesh_path, warnings));
+    return blender_cloth_settings(preset, mesh_path, stats, options,
+                                  map_preset_to_blender_cloth(preset.parameters, stats, options, mesh_path));
 }
 
 }  // namespace flowvid::cloth

@@ -5,6 +5,7 @@
 // python.addon_core (MappingTest.test_cli_mapping_equals_addon).
 
 #include "flowvid/cloth/blender_cloth.hpp"
+#include "flowvid/formats/blender_cloth_settings.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/polygon_mesh.hpp"
 #include "test_support.hpp"
@@ -129,4 +130,53 @@ TEST(BlenderCloth, UnusableInputNamesTheFieldAndTheFix) {
     ASSERT_TRUE(diagnostics.has_errors());
     EXPECT_EQ(diagnostics.problems()[0].field, "line 4");
     EXPECT_TRUE(mentions(diagnostics.problems()[0].message, "\"7\"")) << diagnostics.problems()[0].message;
+}
+
+TEST(BlenderCloth, SettingsFileHoldsTheMappingAndReadsBack) {
+    const ff::FabricPreset preset = ff::read_fabric_preset(source_path("formats/examples/cotton.fabric.json"));
+    const std::string mesh_path = test_data("cloth/panel_9x5.obj");
+    const fc::BlenderMeshStats mesh = fc::blender_mesh_stats(ff::read_polygon_mesh(mesh_path));
+    fc::BlenderClothOptions options;
+    options.fps = 30.0;
+    options.quality = 14;
+    const fc::BlenderClothMapping mapping = fc::map_preset_to_blender_cloth(preset.parameters, mesh, options);
+    const ff::BlenderClothSettings s = fc::blender_cloth_settings_for_mesh(preset, mesh_path, options);
+
+    EXPECT_EQ(s.preset, "cotton (example)");
+    EXPECT_EQ(s.mesh.path, mesh_path);
+    EXPECT_EQ(s.mesh.vertex_count, kVertices);
+    EXPECT_NEAR(s.mesh.mean_edge_length_m, kMeanEdge, 1e-12);
+    EXPECT_NEAR(s.mesh.boundary_length_m, kBoundary, 1e-12);
+    EXPECT_EQ(s.scene.fps, 30.0);
+    EXPECT_EQ(s.scene.quality, 14);
+    EXPECT_EQ(s.options.min_quality, 10);
+    EXPECT_EQ(s.settings, mapping.settings);
+    ASSERT_EQ(s.settings.size(), ff::blender_cloth_setting_ranges().size());
+    for (std::size_t i = 0; i < s.settings.size(); ++i) EXPECT_EQ(s.settings[i].first, ff::blender_cloth_setting_ranges()[i].name);
+    EXPECT_EQ(s.setting("quality"), 14.0);
+    EXPECT_NEAR(*s.setting("time_scale"), std::sqrt(1000.0) / 30.0, 1e-12);
+    EXPECT_EQ(s.derived.size(), mapping.derived.size());
+    EXPECT_EQ(s.derived.at("tension_spring_N_per_m"), as_map(mapping.derived)["tension_spring_N_per_m"]);
+    // The example preset carries a Blender calibration: said, not applied.
+    ASSERT_EQ(s.not_represented.size(), mapping.not_represented.size() + 1);
+    EXPECT_TRUE(mentions(s.not_represented.back(), "adapters.blender"));
+    ff::FabricPreset bare = preset;
+    bare.adapters.clear();
+    EXPECT_EQ(fc::blender_cloth_settings(bare, mesh_path, mesh, options, mapping).not_represented, mapping.not_represented);
+
+    // The file holds exactly this, and the bundled example is this mapping at 24 fps.
+    const std::string path = flowvid::testing::scratch_dir("blender_cloth_file") + "/panel.blender.json";
+    ff::write_blender_cloth_settings(path, s);
+    EXPECT_TRUE(ff::read_blender_cloth_settings(path) == s);
+    ff::BlenderClothSettings example = ff::read_blender_cloth_settings(source_path("formats/examples/panel.blender.json"));
+    example.mesh.path = mesh_path;
+    EXPECT_TRUE(fc::blender_cloth_settings_for_mesh(preset, mesh_path, {}) == example)
+        << "formats/examples/panel.blender.json is stale: write it again with flowvid convert (formats/specs/blender_cloth_settings.md)";
+
+    // A mesh the mapping cannot use is named.
+    const std::string flat = flowvid::testing::scratch_dir("blender_cloth_flat") + "/flat.obj";
+    flowvid::testing::write_text(flat, "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n");
+    const std::string messages = validation_messages([&] { fc::blender_cloth_settings_for_mesh(preset, flat, {}); });
+    EXPECT_TRUE(mentions(messages, "flat.obj")) << messages;
+    EXPECT_TRUE(mentions(messages, "non-zero area")) << messages;
 }

@@ -9,10 +9,9 @@
 // (adapters.blender, written by the add-on's Calibrate) needs Blender to check
 // and is applied by the add-on, not here (noted in the result when present).
 
+#include "flowvid/formats/blender_cloth_settings.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/polygon_mesh.hpp"
-
-#include <nlohmann/json.hpp>
 
 #include <string>
 #include <utility>
@@ -40,7 +39,8 @@ struct BlenderClothOptions {
 };
 
 struct BlenderClothMapping {
-    // ClothSettings name -> value, in the add-on's order, clamped to Blender 3.4's hard limits.
+    // ClothSettings name -> value, in the add-on's order, clamped to Blender 3.4's hard limits
+    // (formats::blender_cloth_setting_ranges(), what the settings file accepts).
     std::vector<std::pair<std::string, double>> settings;
     std::string bending_model = "ANGULAR";
     std::vector<std::string> not_represented;                // what Blender cannot express, each clamp
@@ -53,10 +53,21 @@ BlenderClothMapping map_preset_to_blender_cloth(const formats::FabricParameters&
                                                 const BlenderMeshStats& mesh, const BlenderClothOptions& options,
                                                 const std::string& mesh_name = "mesh");
 
-// The settings file flowvid convert writes (format "flowvid.blender_cloth").
-nlohmann::json blender_cloth_document(const formats::FabricPreset& preset, const std::string& mesh_path,
-                                      const BlenderMeshStats& mesh, const BlenderClothOptions& options,
-                                      const BlenderClothMapping& mapping);
-void write_blender_cloth_settings(const std::string& path, const nlohmann::json& document);
+// The settings file flowvid convert writes (formats/blender_cloth_settings,
+// "flowvid.blender_cloth"): the mapping with the preset's name, the mesh
+// (`mesh_path` as given), the options, and a note when the preset carries a
+// Blender calibration that this formula does not apply.
+formats::BlenderClothSettings blender_cloth_settings(const formats::FabricPreset& preset, const std::string& mesh_path,
+                                                     const BlenderMeshStats& mesh, const BlenderClothOptions& options,
+                                                     const BlenderClothMapping& mapping);
+
+// Reads the mesh, measures it, maps the preset: what `flowvid convert PRESET
+// OUT.blender.json --mesh GARMENT` writes. Throws IoError / ValidationError
+// naming the mesh (its line) or the preset field; the mesh's warnings go to
+// `warnings` when given.
+formats::BlenderClothSettings blender_cloth_settings_for_mesh(const formats::FabricPreset& preset,
+                                                              const std::string& mesh_path,
+                                                              const BlenderClothOptions& options,
+                                                              std::vector<Problem>* warnings = nullptr);
 
 }  // namespace flowvid::cloth
