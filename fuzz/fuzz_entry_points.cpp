@@ -11,6 +11,8 @@
 #include "flowvid/formats/rectification.hpp"
 #include "flowvid/formats/rigid_fit.hpp"
 #include "flowvid/formats/rigid_mesh.hpp"
+#include "flowvid/formats/swatch_experiment.hpp"
+#include "flowvid/formats/swatch_frames.hpp"
 #include "flowvid/formats/vertex_animation.hpp"
 
 #include <cstdlib>
@@ -42,6 +44,8 @@ const std::vector<FuzzTarget>& fuzz_targets() {
         {"rectification", "rectify.json", InputKind::json, "rectification (rectify.json)"},
         {"diagnosis_json", "diagnosis.json", InputKind::json, "gap diagnosis (diagnosis.json)"},
         {"gap_bench_labels", "labels.json", InputKind::json, "gap-bench labels (labels.json)"},
+        {"swatch_experiment", "input.swatch_experiment.json", InputKind::json, "swatch experiment (flowvid swatch --experiment)"},
+        {"swatch_frames", "input.swatch_frames.json", InputKind::json, "swatch frames (flowvid swatch --out)"},
         {"blender_cloth", "input.blender.json", InputKind::json, "Blender cloth settings (*.blender.json, flowvid convert)"},
     };
     return targets;
@@ -237,6 +241,19 @@ std::size_t run_target(const FuzzTarget& target, const std::uint8_t* data, std::
         tolerate_flowvid_errors([&] { formats::rectification_to_json(formats::read_rectification(file)); });
     } else if (target.name == "gap_bench_labels") {
         tolerate_flowvid_errors([&] { formats::gap_bench_labels_to_json(formats::read_gap_bench_labels(file)); });
+    } else if (target.name == "swatch_experiment") {
+        // What was read is written back the way the writer writes it (validated, strictly).
+        tolerate_flowvid_errors([&] {
+            const formats::SwatchExperimentFile experiment = formats::read_swatch_experiment(file);
+            formats::summarize_swatch_experiment(experiment);
+            formats::write_swatch_experiment((folder / "written.swatch_experiment.json").string(), experiment);
+        });
+    } else if (target.name == "swatch_frames") {
+        tolerate_flowvid_errors([&] {
+            const formats::SwatchFramesFile frames = formats::read_swatch_frames(file);
+            formats::summarize_swatch_frames(frames);
+            formats::write_swatch_frames((folder / "written.swatch_frames.json").string(), frames);
+        });
     } else if (target.name == "blender_cloth") {
         // What was read is written back the way `flowvid convert` writes it (validated, strictly).
         tolerate_flowvid_errors([&] {

@@ -1,6 +1,7 @@
-// flowvid swatch: a fabric preset in a swatch experiment given as JSON (the
-// experiments the Blender add-on calibrates Blender's cloth against), with
-// every simulated frame written as JSON. The command-line twin of the Python
+// flowvid swatch: a fabric preset in a swatch experiment (flowvid.swatch_experiment,
+// the experiments the Blender add-on calibrates Blender's cloth against), with
+// every simulated frame written as flowvid.swatch_frames; both files are read
+// and written by flowvid::formats (formats/specs/swatch_*.md). The command-line twin of the Python
 // module's flowvid.cloth.simulate_swatch, same defaults, so the add-on's
 // calibration and export run through the tool where the module cannot load.
 
@@ -10,7 +11,8 @@
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/cloth/swatch.hpp"
 #include "flowvid/formats/atomic_file.hpp"
-#include "flowvid/formats/json_fields.hpp"
+#include "flowvid/formats/swatch_experiment.hpp"
+#include "flowvid/formats/swatch_frames.hpp"
 
 #include <cstdio>
 #include <iostream>
@@ -30,42 +32,21 @@ struct SwatchCommandOptions {
     bool json = false;
 };
 
-// {"width_m", "height_m", "fps", "frame_count", "mass_kg"?, "pins": [{"uv": [u, v], "positions_m": [[x, y, z]...]}]},
-// every problem reported at once.
-cloth::SwatchExperiment read_experiment(const std::string& path) {
-    Diagnostics diagnostics(path);
-    const std::optional<nlohmann::json> document = formats::parse_json_text(formats::read_text_or_throw(path), diagnostics);
+// The file's experiment as the simulator takes it (the file knows nothing of simulators).
+cloth::SwatchExperiment swatch_experiment_from_file(const formats::SwatchExperimentFile& file, const std::string& path) {
     cloth::SwatchExperiment experiment;
     experiment.source = path;
-    if (document) {
-        const formats::JsonView root(*document, "", diagnostics);
-        experiment.width_m = root.number("width_m", formats::NumberRange::positive("m")).value_or(0.0);
-        experiment.height_m = root.number("height_m", formats::NumberRange::positive("m")).value_or(0.0);
-        experiment.fps = root.number("fps", formats::NumberRange::positive("1/s")).value_or(30.0);
-        experiment.frame_count = static_cast<int>(root.integer("frame_count", 1, 1000000).value_or(1));
-        experiment.mass_kg = root.number("mass_kg", formats::NumberRange::non_negative("kg"), false).value_or(0.0);
-        if (const std::optional<formats::JsonView> pins = root.array("pins")) {
-            for (std::size_t i = 0; i < pins->size(); ++i) {
-                const formats::JsonView pin = pins->element(i);
-                cloth::PinTrajectory trajectory;
-                if (const auto uv = pin.numbers("uv", 2, formats::NumberRange::closed(0.0, 1.0)))
-                    trajectory.uv = {(*uv)[0], (*uv)[1]};
-                if (const std::optional<formats::JsonView> positions = pin.array("positions_m")) {
-                    for (std::size_t f = 0; f < positions->size(); ++f) {
-                        const formats::JsonView point = positions->element(f);
-                        if (point.json().is_array() && point.json().size() == 3 && point.json()[0].is_number() &&
-                            point.json()[1].is_number() && point.json()[2].is_number())
-                            trajectory.positions_m.emplace_back(point.json()[0].get<double>(), point.json()[1].get<double>(),
-                                                                point.json()[2].get<double>());
-                        else
-                            diagnostics.error(point.pointer(), "expected [x, y, z]", "give three numbers in metres");
-                    }
-                }
-                experiment.pins.push_back(std::move(trajectory));
-            }
-        }
+    experiment.width_m = file.width_m;
+    experiment.height_m = file.height_m;
+    experiment.mass_kg = file.mass_kg.value_or(0.0);  // 0: the preset's areal density
+    experiment.fps = file.fps;
+    experiment.frame_count = file.frame_count;
+    for (const formats::SwatchPinTrajectory& pin : file.pins) {
+        cloth::PinTrajectory trajectory;
+        trajectory.uv = pin.uv;
+        trajectory.positions_m = pin.positions_m;
+        experiment.pins.push_back(std::move(trajectory));
     }
-    diagnostics.throw_if_errors();
     return experiment;
 }
 
@@ -81,7 +62,10 @@ cloth::Integrator integrator_named(const std::string& name) {
 
 int run_swatch(const SwatchCommandOptions& options, const GlobalOptions& global) {
     const formats::FabricPreset preset = cloth::read_preset_for_simulation(options.preset);
-    const cloth::SwatchExperiment experiment = read_experiment(options.experiment);
+    std::vector<Problem> warnings;
+    const cloth::SwatchExperiment experiment = swatch_experiment_from_file(
+        formats::read_swatch_experiment(options.experiment, &warnings), options.experiment);
+    print_problems(warnings);
     int rows = 0;
     int cols = 0;
     char by = 0;
@@ -111,25 +95,24 @@ int run_swatch(const SwatchCommandOptions& options, const GlobalOptions& global)
         log_message("interrupted at frame " + std::to_string(report.frame) + ": nothing written");
         return kExitInterrupted;
     }
-    nlohmann::json frames = nlohmann::json::array();
+    formats::SwatchFramesFile written;
+    written.status = cloth::status_name(report.status);
+    written.reason = report.reason;
+    written.equilibrium_converged = run.equilibrium.converged;
+    written.rows = rows;
+    written.cols = cols;
+    for (const cloth::PinnedVertex& pin : run.swatch.pins) written.pinned_vertices.push_back(pin.vertex);
+    written.wall_time_s = run.simulation.statistics.wall_time_s;
     for (const Eigen::MatrixX3d& frame : cloth::sample_frames(run.swatch.mesh, run.simulation.frames, rows, cols)) {
-        nlohmann::json points = nlohmann::json::array();
-        for (Eigen::Index i = 0; i < frame.rows(); ++i) points.push_back({frame(i, 0), frame(i, 1), frame(i, 2)});
-        frames.push_back(std::move(points));
+        std::vector<Eigen::Vector3d> points;
+        points.reserve(static_cast<std::size_t>(frame.rows()));
+        for (Eigen::Index i = 0; i < frame.rows(); ++i) points.push_back(frame.row(i).transpose());
+        written.frames_m.push_back(std::move(points));
     }
-    nlohmann::json pinned = nlohmann::json::array();
-    for (const cloth::PinnedVertex& pin : run.swatch.pins) pinned.push_back(pin.vertex);
     // A blow-up is written too (its status says so): the add-on's calibration scores it as a bad guess.
-    const nlohmann::json result = {{"status", cloth::status_name(report.status)},
-                                   {"reason", report.reason},
-                                   {"equilibrium_converged", run.equilibrium.converged},
-                                   {"grid", {rows, cols}},
-                                   {"pinned_vertices", pinned},
-                                   {"wall_time_s", run.simulation.statistics.wall_time_s},
-                                   {"frames", frames}};
-    formats::write_file_atomically(options.out, [&](std::ostream& stream) { stream << result.dump() << '\n'; });
-    const nlohmann::json summary = {{"status", result["status"]},
-                                    {"frames", static_cast<int>(frames.size())},
+    formats::write_swatch_frames(options.out, written);
+    const nlohmann::json summary = {{"status", written.status},
+                                    {"frames", static_cast<int>(written.frames_m.size())},
                                     {"grid", options.grid},
                                     {"integrator", cloth::integrator_name(swatch.simulation.integrator)},
                                     {"equilibrium_residual_N", run.equilibrium.max_residual_force_N},
@@ -155,22 +138,26 @@ const RegisterCommand registration{Command{
             "equilibrium). This is the experiment the Blender add-on runs in Blender's solver and in\n"
             "flowvid side by side to calibrate and export presets; `flowvid simulate` runs the same\n"
             "from a capture folder instead.\n\n"
-            "The experiment file (metres, seconds):\n"
-            "  {\"width_m\": 0.3, \"height_m\": 0.3, \"fps\": 30, \"frame_count\": 2,\n"
+            "The experiment file (flowvid.swatch_experiment, formats/specs/swatch_experiment.md;\n"
+            "metres, seconds):\n"
+            "  {\"format\": \"flowvid.swatch_experiment\", \"version\": \"1.0\",\n"
+            "   \"width_m\": 0.3, \"height_m\": 0.3, \"fps\": 30, \"frame_count\": 2,\n"
             "   \"pins\": [{\"uv\": [0, 1], \"positions_m\": [[0, 0, 1], [0.01, 0, 1]]},\n"
             "            {\"uv\": [1, 1], \"positions_m\": [[0.3, 0, 1], [0.31, 0, 1]]}]}\n"
             "(optional \"mass_kg\" > 0 overrides the preset's areal density). --out receives\n"
-            "{\"status\", \"reason\", \"grid\": [rows, cols], \"pinned_vertices\", \"frames\": one\n"
-            "[x, y, z] per grid vertex r*cols + c per frame}; a blow-up is written with its status and\n"
-            "exits 1.\n\n"
+            "flowvid.swatch_frames (formats/specs/swatch_frames.md): {\"status\", \"reason\",\n"
+            "\"grid\": [rows, cols], \"pinned_vertices\", \"frames\": one [x, y, z] per grid vertex\n"
+            "r*cols + c per frame}; a blow-up is written with its status and exits 1. Both files\n"
+            "check with `flowvid validate`.\n\n"
             "Examples:\n"
-            "  flowvid swatch --preset cotton.fabric.json --experiment drape.json --out drape.frames.json\n"
+            "  flowvid swatch --preset cotton.fabric.json --experiment drape.swatch_experiment.json \\\n"
+            "      --out drape.swatch_frames.json\n"
             "  flowvid swatch --preset silk.fabric.json --experiment wave.json --grid 16x16 --integrator rk4 --out w.json\n\n"
             "Exit codes: 0 ok, 1 the simulation blew up, 2 bad option, 3 invalid preset or experiment,\n"
             "4 unreadable or unwritable file, 130 interrupted.");
         app.add_option("--preset", options->preset, "fabric preset (*.fabric.json)")->required();
-        app.add_option("--experiment", options->experiment, "swatch experiment (JSON, see below)")->required();
-        app.add_option("--out", options->out, "frames to write (JSON)")->required();
+        app.add_option("--experiment", options->experiment, "swatch experiment (flowvid.swatch_experiment, see below)")->required();
+        app.add_option("--out", options->out, "frames to write (flowvid.swatch_frames)")->required();
         app.add_option("--grid", options->grid, "simulation mesh, rows x cols of vertices")->capture_default_str();
         app.add_option("--integrator", options->integrator,
                        "implicit_euler, rk4_adaptive, dopri54, bogacki_shampine32 or bdf2 (or rk4, bs32, implicit)")

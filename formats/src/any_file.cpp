@@ -14,6 +14,8 @@
 #include "flowvid/formats/particle_bank.hpp"
 #include "flowvid/formats/rectification.hpp"
 #include "flowvid/formats/rigid_fit.hpp"
+#include "flowvid/formats/swatch_experiment.hpp"
+#include "flowvid/formats/swatch_frames.hpp"
 #include "flowvid/formats/vertex_animation.hpp"
 
 #include <algorithm>
@@ -46,6 +48,8 @@ FileKind kind_from_json_format(const std::string& format) {
     if (format == kGapBenchLabelsFormatName) return FileKind::gap_bench_labels;
     if (format == kRigidFitFormatName) return FileKind::rigid_fit;
     if (format == kRectificationFormatName) return FileKind::rectification;
+    if (format == kSwatchExperimentFormatName) return FileKind::swatch_experiment;
+    if (format == kSwatchFramesFormatName) return FileKind::swatch_frames;
     if (format == kBlenderClothSettingsFormatName) return FileKind::blender_cloth_settings;
     return FileKind::unknown;
 }
@@ -107,6 +111,8 @@ const char* file_kind_name(FileKind kind) {
         case FileKind::rectification: return "rectification";
         case FileKind::fabric_u3m: return "fabric preset (U3M)";
         case FileKind::fabric_usda: return "fabric preset (OpenUSD)";
+        case FileKind::swatch_experiment: return "swatch experiment";
+        case FileKind::swatch_frames: return "swatch frames";
         case FileKind::blender_cloth_settings: return "Blender cloth settings";
         case FileKind::unknown: break;
     }
@@ -138,6 +144,8 @@ FileKind detect_file_kind(const std::string& path) {
     if (ends_with(path, "diagnosis.json")) return FileKind::diagnosis;
     if (ends_with(path, "labels.json")) return FileKind::gap_bench_labels;
     if (ends_with(path, ".rigid_fit.json")) return FileKind::rigid_fit;
+    if (ends_with(path, ".swatch_experiment.json")) return FileKind::swatch_experiment;
+    if (ends_with(path, ".swatch_frames.json")) return FileKind::swatch_frames;
     if (ends_with(path, "rectify.json") || ends_with(path, ".rectification.json")) return FileKind::rectification;
     if (ends_with(path, ".blender.json")) return FileKind::blender_cloth_settings;
     if (ends_with(path, ".glb")) return FileKind::motion_gltf;
@@ -166,6 +174,8 @@ std::vector<Problem> validate_any_file(const std::string& path, Strictness stric
         case FileKind::rectification: return validate_rectification_file(path, strictness);
         case FileKind::fabric_u3m: return validate_fabric_u3m_file(path, strictness);
         case FileKind::fabric_usda: return validate_fabric_usda_file(path, strictness);
+        case FileKind::swatch_experiment: return validate_swatch_experiment_file(path, strictness);
+        case FileKind::swatch_frames: return validate_swatch_frames_file(path, strictness);
         case FileKind::blender_cloth_settings: return validate_blender_cloth_settings_file(path, strictness);
         case FileKind::unknown: break;
     }
@@ -193,6 +203,8 @@ nlohmann::json summarize_any_file(const std::string& path) {
         case FileKind::rectification: summary = summarize_rectification(read_rectification(path)); break;
         case FileKind::fabric_u3m: summary = summarize_fabric_preset(read_fabric_u3m(path)); break;
         case FileKind::fabric_usda: summary = summarize_fabric_preset(read_fabric_usda(path)); break;
+        case FileKind::swatch_experiment: summary = summarize_swatch_experiment(read_swatch_experiment(path)); break;
+        case FileKind::swatch_frames: summary = summarize_swatch_frames(read_swatch_frames(path)); break;
         case FileKind::blender_cloth_settings:
             summary = summarize_blender_cloth_settings(read_blender_cloth_settings(path));
             break;

@@ -43,7 +43,10 @@ std::string write_experiment(const std::string& dir, const flowvid::cloth::Swatc
         pins.push_back({{"uv", {pin.uv.x(), pin.uv.y()}}, {"positions_m", positions}});
     }
     const std::string path = dir + "/experiment.json";
-    std::ofstream(path) << nlohmann::json{{"width_m", experiment.width_m}, {"height_m", experiment.height_m},
+    // As the Blender add-on writes it (flowvid.swatch_experiment 1.0, unsorted keys, compact).
+    std::ofstream(path) << nlohmann::json{{"format", "flowvid.swatch_experiment"}, {"version", "1.0"},
+                                          {"name", "moving corners"},
+                                          {"width_m", experiment.width_m}, {"height_m", experiment.height_m},
                                           {"fps", experiment.fps}, {"frame_count", experiment.frame_count},
                                           {"pins", pins}}
                                .dump();
@@ -63,6 +66,11 @@ TEST(CliSwatch, FramesAreTheLibrarysAndThePinsFollowTheExperiment) {
     nlohmann::json written;
     std::ifstream(dir + "/nested/frames.json") >> written;
     ASSERT_EQ(written["status"], "ok");
+    EXPECT_EQ(written["format"], "flowvid.swatch_frames");
+    EXPECT_EQ(written["version"], "1.0");
+    // What the add-on writes and what the command writes are both files `flowvid validate` accepts.
+    const CliResult validated = run_flowvid({"validate", dir + "/experiment.json", dir + "/nested/frames.json"});
+    EXPECT_EQ(validated.exit_code, 0) << validated.out << validated.err;
     ASSERT_EQ(written["frames"].size(), static_cast<std::size_t>(frames));
 
     // Reference: the library's own run with the options the Python module uses (flowvid.cloth.simulate_swatch).
@@ -100,19 +108,35 @@ TEST(CliSwatch, FramesAreTheLibrarysAndThePinsFollowTheExperiment) {
 
 TEST(CliSwatch, AnExperimentMissingFieldsIsRefusedNamingThemAll) {
     const std::string dir = own_dir("cli_swatch_bad");
-    std::ofstream(dir + "/bad.json") << R"({"width_m": 0.2, "fps": 30, "frame_count": 2, "pins": [{"uv": [0, 1]}]})";
+    std::ofstream(dir + "/bad.json") << R"({"format": "flowvid.swatch_experiment", "version": "1.0", "width_m": 0.2,
+        "fps": 30, "frame_count": 2, "pins": [{"uv": [0, 1.5]}, {"uv": [1, 1], "positions_m": [[0, 0, 0]]}]})";
     const CliResult result = run_flowvid({"swatch", "--preset", source_path("formats/examples/cotton.fabric.json"),
                                           "--experiment", dir + "/bad.json", "--out", dir + "/frames.json"});
     EXPECT_EQ(result.exit_code, 3) << result.err;
     EXPECT_NE(result.err.find("/height_m"), std::string::npos) << result.err;
     EXPECT_NE(result.err.find("/pins/0/positions_m"), std::string::npos) << result.err;
+    EXPECT_NE(result.err.find("/pins/0/uv/1"), std::string::npos) << result.err;
+    EXPECT_NE(result.err.find("/pins/1/positions_m"), std::string::npos) << result.err;  // 1 point, 2 frames
+    EXPECT_FALSE(std::filesystem::exists(dir + "/frames.json"));
+}
+
+TEST(CliSwatch, AnExperimentWithoutItsFormatIsRefusedNamingIt) {
+    const std::string dir = own_dir("cli_swatch_headerless");
+    std::ofstream(dir + "/old.json") << R"({"width_m": 0.2, "height_m": 0.2, "fps": 30, "frame_count": 1,
+        "pins": [{"uv": [0, 1], "positions_m": [[0, 0, 0]]}]})";
+    const CliResult result = run_flowvid({"swatch", "--preset", source_path("formats/examples/cotton.fabric.json"),
+                                          "--experiment", dir + "/old.json", "--out", dir + "/frames.json"});
+    EXPECT_EQ(result.exit_code, 3) << result.err;
+    EXPECT_NE(result.err.find("/format"), std::string::npos) << result.err;
+    EXPECT_NE(result.err.find("flowvid.swatch_experiment"), std::string::npos) << result.err;
     EXPECT_FALSE(std::filesystem::exists(dir + "/frames.json"));
 }
 
 TEST(CliSwatch, HelpTeachesTheExperimentFile) {
     const CliResult result = run_flowvid({"swatch", "--help"});
     EXPECT_EQ(result.exit_code, 0);
-    for (const char* taught : {"\"positions_m\"", "--experiment", "Examples:", "Exit codes"})
+    for (const char* taught : {"\"positions_m\"", "--experiment", "Examples:", "Exit codes", "flowvid.swatch_experiment",
+                               "flowvid.swatch_frames"})
         EXPECT_NE(result.out.find(taught), std::string::npos) << taught;
 }
 

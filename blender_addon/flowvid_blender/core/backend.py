@@ -147,15 +147,17 @@ class CliBackend:
         count = experiment["frame_count"]
         with tempfile.TemporaryDirectory(prefix="flowvid-swatch-") as folder:
             preset_path = os.path.join(folder, "swatch.fabric.json")
-            experiment_path = os.path.join(folder, "experiment.json")
-            out = os.path.join(folder, "frames.json")
+            experiment_path = os.path.join(folder, "experiment.swatch_experiment.json")
+            out = os.path.join(folder, "frames.swatch_frames.json")
             values = {key: {"value": float(entry["value"] if isinstance(entry, dict) else entry)}
                       for key, entry in parameters.items()}
             with open(preset_path, "w", encoding="utf-8") as stream:
                 json.dump({"format": "flowvid.fabric", "version": "1.1", "name": "swatch", "parameters": values,
                            "provenance": {"method": "manual", "created_utc": "1970-01-01T00:00:00Z"}}, stream)
             with open(experiment_path, "w", encoding="utf-8") as stream:
-                json.dump(experiment, stream)
+                # flowvid.swatch_experiment 1.0 (formats/specs/swatch_experiment.md): the experiment's own keys
+                # under the format's header; the frames come back as flowvid.swatch_frames 1.0.
+                json.dump(dict({"format": "flowvid.swatch_experiment", "version": "1.0"}, **experiment), stream)
             try:
                 self.run("swatch", "--preset", preset_path, "--experiment", experiment_path, "--out", out,
                          "--grid", "%dx%d" % (rows, cols), "--integrator", integrator, "--substeps", substeps,

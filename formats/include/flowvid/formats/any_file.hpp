@@ -30,6 +30,8 @@ enum class FileKind {
     rectification,      // rectify.json, *.rectify.json: what flowvid rectify did
     fabric_u3m,         // *.u3m: a fabric preset as a U3M 1.1 material (flowvid convert)
     fabric_usda,        // *.usda: a fabric preset as an OpenUSD physics material (flowvid convert)
+    swatch_experiment,  // *.swatch_experiment.json: a swatch experiment (flowvid swatch, the Blender add-on)
+    swatch_frames,      // *.swatch_frames.json: a swatch experiment's simulated frames (flowvid swatch)
     blender_cloth_settings,  // *.blender.json: a preset's Blender cloth settings for a mesh (flowvid convert)
 };
 
