@@ -88,8 +88,8 @@ Problem unrecognised_file(const std::string& path, const std::string& fix) {
         return Problem{Problem::Severity::error, path, "/format", "\"" + format + "\" is not a format flowvid reads",
                        "flowvid's JSON formats are flowvid.fabric (fabric presets), flowvid.flowlines, "
                        "flowvid.capture (a capture folder's capture.json), flowvid.fit_shard, flowvid.diagnosis, "
-                       "flowvid.gap_bench_labels, flowvid.rigid_fit, flowvid.rectification and flowvid.blender_cloth "
-                       "(Blender cloth settings)"};
+                       "flowvid.gap_bench_labels, flowvid.rigid_fit, flowvid.rectification, flowvid.blender_cloth "
+                       "(Blender cloth settings), flowvid.swatch_experiment and flowvid.swatch_frames"};
     return Problem{Problem::Severity::error, path, "", "not a flowvid file (unrecognised content)", fix};
 }
 
@@ -181,8 +181,9 @@ std::vector<Problem> validate_any_file(const std::string& path, Strictness stric
     }
     return {unrecognised_file(path, "give a *.fabric.json, *.flowlines.json, flow-line SVG, bank or vertex-animation "
                                     "EXR, .glb, a capture folder, a fit shard, diagnosis.json, labels.json, a rigid fit, "
-                                    "rectify.json, a fabric preset as .u3m or .usda, or Blender "
-                                    "cloth settings (*.blender.json)")};
+                                    "rectify.json, a fabric preset as .u3m or .usda, Blender "
+                                    "cloth settings (*.blender.json), or a swatch experiment or its frames "
+                                    "(*.swatch_experiment.json, *.swatch_frames.json)")};
 }
 
 nlohmann::json summarize_any_file(const std::string& path) {
