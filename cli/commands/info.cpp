@@ -4,6 +4,7 @@
 #include "output.hpp"
 
 #include "flowvid/formats/any_file.hpp"
+#include "flowvid/formats/fabric_preset.hpp"
 
 #include <iostream>
 #include <memory>
@@ -17,6 +18,14 @@ struct InfoOptions {
 };
 
 int run_info(const InfoOptions& options) {
+    // A preset's summary would look like a preset without being one (units
+    // beside the values, no version): for machines it prints as the preset
+    // itself, as flowvid reads it, which `flowvid validate` accepts and any
+    // preset reader takes. Its units are in its key names.
+    if (options.json && formats::detect_file_kind(options.path) == formats::FileKind::fabric_preset) {
+        std::cout << formats::fabric_preset_to_json(formats::read_fabric_preset(options.path)).dump(2) << '\n';
+        return kExitOk;
+    }
     const nlohmann::json summary = formats::summarize_any_file(options.path);
     if (options.json) std::cout << summary.dump(2) << '\n';
     else std::cout << human_readable(summary);
@@ -29,7 +38,9 @@ const RegisterCommand registration{Command{
         app.footer(
             "Prints what FILE holds: a fabric preset's parameters with units and uncertainty and its\n"
             "provenance; a flow-line set's lines; a bank's particles and patch size; a capture's kind,\n"
-            "camera, frame count and experiment. An invalid file is refused with its problems (exit 3).\n\n"
+            "camera, frame count and experiment. An invalid file is refused with its problems (exit 3).\n"
+            "With --json a summary with \"kind\" and \"path\"; a fabric preset prints as the preset itself\n"
+            "(normalised: `flowvid validate` accepts it; units are in its key names, SI).\n\n"
             "Examples:\n"
             "  flowvid info cotton.fabric.json\n"
             "  flowvid info --json ../shared/captures/rigid-toss-major > summary.json");

@@ -3,6 +3,8 @@
 #include "cli_runner.hpp"
 #include "test_support.hpp"
 
+#include "flowvid/formats/fabric_preset.hpp"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -78,11 +80,24 @@ TEST(Cli, InfoForPeopleAndMachines) {
     EXPECT_EQ(human.exit_code, 0) << human.err;
     EXPECT_TRUE(mentions(human.out, "areal_density_kg_per_m2")) << human.out;
 
+    // For machines a preset prints as the preset itself: saved, it validates
+    // and reads back as the same preset.
     CliResult machine = run_flowvid({"info", "--json", example_preset()});
     ASSERT_EQ(machine.exit_code, 0) << machine.err;
     const nlohmann::json summary = nlohmann::json::parse(machine.out);
-    EXPECT_EQ(summary["kind"], "fabric preset");
+    EXPECT_EQ(summary["format"], "flowvid.fabric");
     EXPECT_DOUBLE_EQ(summary["parameters"]["areal_density_kg_per_m2"]["value"].get<double>(), 0.15);
+    const std::string saved = scratch_dir("cli_info_json") + "/from_info.fabric.json";
+    write_text(saved, machine.out);
+    const CliResult revalidated = run_flowvid({"validate", saved});
+    EXPECT_EQ(revalidated.exit_code, 0) << revalidated.err;
+    EXPECT_EQ(flowvid::formats::read_fabric_preset(saved), flowvid::formats::read_fabric_preset(example_preset()));
+    // Other files print a summary with their kind and path.
+    const std::string fit = source_path("formats/examples/toss.rigid_fit.json");
+    CliResult fit_info = run_flowvid({"info", "--json", fit});
+    ASSERT_EQ(fit_info.exit_code, 0) << fit_info.err;
+    EXPECT_EQ(nlohmann::json::parse(fit_info.out)["kind"], "rigid fit");
+    EXPECT_EQ(nlohmann::json::parse(fit_info.out)["path"], fit);
 
     CliResult missing = run_flowvid({"info", "/nonexistent/file.fabric.json"});
     EXPECT_EQ(missing.exit_code, 4) << missing.err;
