@@ -133,6 +133,11 @@ nlohmann::json read_json_file(const fs::path& path) {
     return nlohmann::json::parse(in, nullptr, false);  // discarded (is_discarded) when not JSON
 }
 
+// A number of a JSON summary, or NaN where it is absent or null (JSON's NaN).
+double number_or_nan(const nlohmann::json& object, const char* key) {
+    return object.is_object() && object.contains(key) && object[key].is_number() ? object[key].get<double>() : NAN;
+}
+
 // The fitted fabric the later stages use: the fabric stage's, or the bundled example.
 fs::path demo_preset(const DemoOptions& options) {
     const fs::path fitted = fs::path(options.out) / "fabric" / "cotton.fabric.json";
@@ -180,7 +185,7 @@ int run_fabric_stage(const DemoOptions& options, const GlobalOptions& global) {
               << " s; per window (metric / floor):";
     for (const auto& w : eval["captures"][0]["windows"])
         std::cout << "  " << w["frames"].get<std::string>() << ": " << html::format_number(w["metric_mean"].get<double>())
-                  << " / " << html::format_number(w["metric_floor"].is_number() ? w["metric_floor"].get<double>() : NAN);
+                  << " / " << html::format_number(number_or_nan(w, "metric_floor"));
     std::cout << "\n  report: " << (out / "eval" / "eval.html").string() << '\n';
     return kExitOk;
 }
@@ -383,10 +388,6 @@ std::string verdict(const std::string& sentence, const std::string& kind) {
     return "<div class=\"verdict " + kind + "\"><p>" + html::escape(sentence) + "</p></div>\n";
 }
 
-double number_or_nan(const nlohmann::json& object, const char* key) {
-    return object.is_object() && object.contains(key) && object[key].is_number() ? object[key].get<double>() : NAN;
-}
-
 // index.html beside the stages' folders: every output that exists, linked,
 // with the key figures (fit error, time taken, floor, diagnosis verdict).
 void write_index(const DemoOptions& options, const std::string& stages_run, double seconds) {
@@ -421,9 +422,9 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
                 sentence += " (repeated takes of the experiment differ by " + html::format_number(floor_mm) + " mm RMS)";
             if (std::isfinite(rms_mm)) sentence += "; its vertices lie " + html::format_number(rms_mm) + " mm RMS from the truth";
             sentence += ratio <= 3.0 ? ": it reproduces the fabric about as closely as the footage allows."
-                                     : ": this demo-sized fit (80 simulations on a 16 x 16 mesh) is a start; the "
-                                       "product's setting is a full fit (fit cloth --budget-seconds 600, 24 x 24), "
-                                       "docs/cloth_fitting.md.";
+                                     : ": this demo-sized fit (" + std::to_string(fit.value("evaluations", 0)) +
+                                           " simulations on a 16 x 16 mesh) is a start; the product's setting is a "
+                                           "full fit (fit cloth --budget-seconds 600, 24 x 24), docs/cloth_fitting.md.";
             body << verdict(sentence, ratio <= 3.0 ? "good" : "warn");
         }
         body
@@ -453,8 +454,8 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
             table.caption = "metric E_k per window next to its predictability floor";
             table.header = {"frames", "metric E_k", "floor"};
             for (const auto& w : eval["captures"][0]["windows"])
-                table.rows.push_back({w.value("frames", ""), html::format_number(w["metric_mean"].is_number() ? w["metric_mean"].get<double>() : NAN),
-                                      html::format_number(w["metric_floor"].is_number() ? w["metric_floor"].get<double>() : NAN)});
+                table.rows.push_back({w.value("frames", ""), html::format_number(number_or_nan(w, "metric_mean")),
+                                      html::format_number(number_or_nan(w, "metric_floor"))});
             body << html::table(table);
         }
     }
@@ -560,12 +561,10 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
         else
             sentence += ".";
         body << html::element("h2", "Diagnosis")
-             << verdict(sentence, verdict_name == "named" ? "good" : verdict_name == "no structural gap" ? "good" : "warn")
+             << verdict(sentence, verdict_name == "named" || verdict_name == "no_gap" ? "good" : "warn")
              << html::element("p", "verdict: " + verdict_name) << html::element("p", diagnosis.value("message", ""))
              << "<p>held-out error / floor "
-             << html::format_number(diagnosis["held_out_over_floor"].is_number() ? diagnosis["held_out_over_floor"].get<double>() : NAN)
-             << ", gap closed "
-             << html::format_percent(diagnosis["gap_closed"].is_number() ? diagnosis["gap_closed"].get<double>() : NAN)
+             << html::format_number(over_floor) << ", gap closed " << html::format_percent(closed)
              << ", " << html::format_number(diagnosis.value("seconds", NAN)) << " s. "
              << link(out / "diagnosis" / "report" / "report.html", out, "full report (heat maps, ablation table)") << "</p>\n";
     }

@@ -6,6 +6,7 @@
 // calibration and export run through the tool where the module cannot load.
 
 #include "command.hpp"
+#include "commands/cloth_options.hpp"
 #include "output.hpp"
 
 #include "flowvid/cloth/material.hpp"
@@ -14,7 +15,6 @@
 #include "flowvid/formats/swatch_experiment.hpp"
 #include "flowvid/formats/swatch_frames.hpp"
 
-#include <cstdio>
 #include <iostream>
 #include <memory>
 
@@ -51,11 +51,7 @@ cloth::SwatchExperiment swatch_experiment_from_file(const formats::SwatchExperim
 }
 
 cloth::Integrator integrator_named(const std::string& name) {
-    for (cloth::Integrator integrator : {cloth::Integrator::rk4_adaptive, cloth::Integrator::dopri54,
-                                         cloth::Integrator::bogacki_shampine32, cloth::Integrator::implicit_euler,
-                                         cloth::Integrator::bdf2})
-        if (name == cloth::integrator_name(integrator) || name == cloth::integrator_short_name(integrator))
-            return integrator;
+    if (const std::optional<cloth::Integrator> integrator = cloth::integrator_from_name(name)) return *integrator;
     throw UsageError("", "--integrator", "unknown integrator '" + name + "'",
                      "use implicit_euler (implicit), rk4_adaptive (rk4), dopri54, bs32 or bdf2");
 }
@@ -66,11 +62,9 @@ int run_swatch(const SwatchCommandOptions& options, const GlobalOptions& global)
     const cloth::SwatchExperiment experiment = swatch_experiment_from_file(
         formats::read_swatch_experiment(options.experiment, &warnings), options.experiment);
     print_problems(warnings);
-    int rows = 0;
-    int cols = 0;
-    char by = 0;
-    if (std::sscanf(options.grid.c_str(), "%d%c%d", &rows, &by, &cols) != 3 || by != 'x' || rows < 2 || cols < 2)
-        throw UsageError("", "--grid", "'" + options.grid + "' is not a grid", "give rows x cols, e.g. --grid 12x12");
+    const std::optional<std::pair<int, int>> grid = parse_grid(options.grid, "--grid");
+    if (!grid) return kExitUsage;
+    const auto [rows, cols] = *grid;
     // The module's defaults (flowvid.cloth.simulate_swatch), so both backends give the same frames.
     cloth::SwatchOptions swatch;
     swatch.rows = rows;

@@ -1,6 +1,7 @@
 #include "json_extras.hpp"
 
 #include <cmath>
+#include <limits>
 
 namespace flowvid::formats::detail {
 
@@ -91,6 +92,28 @@ std::optional<std::string> non_empty_string(const JsonView& view, const std::str
         return std::nullopt;
     }
     return text;
+}
+
+std::optional<Eigen::Vector3d> point_m(const JsonView& point, bool allow_null) {
+    if (!point.json().is_array() || point.size() != 3) {
+        point.diagnostics().error(point.pointer(), "expected [x, y, z], found " + point.json().dump().substr(0, 40),
+                                  "write the position as three numbers in metres");
+        return std::nullopt;
+    }
+    Eigen::Vector3d p;
+    bool ok = true;
+    for (std::size_t k = 0; k < 3; ++k) {
+        const JsonView coordinate = point.element(k);
+        if (allow_null && coordinate.json().is_null()) {
+            p(static_cast<Eigen::Index>(k)) = std::numeric_limits<double>::quiet_NaN();
+            continue;
+        }
+        const std::optional<double> v = coordinate.as_number(NumberRange{});
+        if (v) p(static_cast<Eigen::Index>(k)) = *v;
+        else ok = false;
+    }
+    if (!ok) return std::nullopt;
+    return p;
 }
 
 bool expect_object(const JsonView& element, const std::string& fix) {

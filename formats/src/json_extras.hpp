@@ -6,6 +6,7 @@
 #include "flowvid/error.hpp"
 #include "flowvid/formats/json_fields.hpp"
 
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include <optional>
@@ -38,6 +39,11 @@ std::optional<std::vector<std::string>> string_array(const JsonView& view, const
 // A non-empty string (empty is an error naming the field with `fix`).
 std::optional<std::string> non_empty_string(const JsonView& view, const std::string& key, const std::string& fix,
                                             bool required = true);
+
+// A point [x, y, z] in metres (the view itself, an array element), finite; a
+// null coordinate reads as NaN where `allow_null` (a writer's NaN). nullopt
+// after an error naming the element.
+std::optional<Eigen::Vector3d> point_m(const JsonView& point, bool allow_null = false);
 
 // An element of an array that must be an object: false (and an error) otherwise.
 bool expect_object(const JsonView& element, const std::string& fix);

@@ -6,24 +6,6 @@ namespace flowvid::formats {
 
 namespace {
 
-// [x, y, z] in metres, finite.
-std::optional<Eigen::Vector3d> parse_point_m(const JsonView& point) {
-    if (!point.json().is_array() || point.size() != 3) {
-        point.diagnostics().error(point.pointer(), "expected [x, y, z], found " + point.json().dump().substr(0, 40),
-                                  "write the position as three numbers in metres");
-        return std::nullopt;
-    }
-    Eigen::Vector3d p;
-    bool ok = true;
-    for (std::size_t k = 0; k < 3; ++k) {
-        const std::optional<double> v = point.element(k).as_number(NumberRange{});
-        if (v) p(static_cast<Eigen::Index>(k)) = *v;
-        else ok = false;
-    }
-    if (!ok) return std::nullopt;
-    return p;
-}
-
 // frame_count < 1: not known (its own field was refused).
 std::optional<SwatchPinTrajectory> parse_pin(const JsonView& pin, int frame_count) {
     if (!detail::expect_object(pin, "write each pin as {\"uv\": [u, v], \"positions_m\": [[x, y, z], ...]}"))
@@ -46,7 +28,7 @@ std::optional<SwatchPinTrajectory> parse_pin(const JsonView& pin, int frame_coun
     }
     out.positions_m.reserve(positions->size());
     for (std::size_t f = 0; f < positions->size(); ++f) {
-        if (const std::optional<Eigen::Vector3d> p = parse_point_m(positions->element(f))) out.positions_m.push_back(*p);
+        if (const std::optional<Eigen::Vector3d> p = detail::point_m(positions->element(f))) out.positions_m.push_back(*p);
         else ok = false;
     }
     if (!ok) return std::nullopt;

@@ -16,29 +16,6 @@ bool known_status(const std::string& status) {
     return false;
 }
 
-// [x, y, z] in metres; null (a NaN or infinity) only where `allow_null`.
-std::optional<Eigen::Vector3d> parse_point_m(const JsonView& point, bool allow_null) {
-    if (!point.json().is_array() || point.size() != 3) {
-        point.diagnostics().error(point.pointer(), "expected [x, y, z], found " + point.json().dump().substr(0, 40),
-                                  "write the vertex position as three numbers in metres");
-        return std::nullopt;
-    }
-    Eigen::Vector3d p;
-    bool ok = true;
-    for (std::size_t k = 0; k < 3; ++k) {
-        const JsonView coordinate = point.element(k);
-        if (allow_null && coordinate.json().is_null()) {
-            p(static_cast<Eigen::Index>(k)) = std::numeric_limits<double>::quiet_NaN();
-            continue;
-        }
-        const std::optional<double> v = coordinate.as_number(NumberRange{});
-        if (v) p(static_cast<Eigen::Index>(k)) = *v;
-        else ok = false;
-    }
-    if (!ok) return std::nullopt;
-    return p;
-}
-
 }  // namespace
 
 std::optional<SwatchFramesFile> parse_swatch_frames(const nlohmann::json& document, Diagnostics& diagnostics,
@@ -117,7 +94,7 @@ std::optional<SwatchFramesFile> parse_swatch_frames(const nlohmann::json& docume
             points.reserve(frame.size());
             bool ok = true;
             for (std::size_t i = 0; i < frame.size(); ++i) {
-                if (const std::optional<Eigen::Vector3d> p = parse_point_m(frame.element(i), allow_null)) points.push_back(*p);
+                if (const std::optional<Eigen::Vector3d> p = detail::point_m(frame.element(i), allow_null)) points.push_back(*p);
                 else ok = false;
             }
             if (ok) out.frames_m.push_back(std::move(points));

@@ -78,10 +78,7 @@ cloth::SwatchExperiment experiment_from_dict(const py::dict& experiment) {
 }
 
 cloth::Integrator integrator_from_name(const std::string& name) {
-    for (cloth::Integrator integrator : {cloth::Integrator::rk4_adaptive, cloth::Integrator::dopri54,
-                                         cloth::Integrator::bogacki_shampine32, cloth::Integrator::implicit_euler,
-                                         cloth::Integrator::bdf2})
-        if (name == cloth::integrator_name(integrator)) return integrator;
+    if (const std::optional<cloth::Integrator> integrator = cloth::integrator_from_name(name)) return *integrator;
     throw Error("<options>", "integrator", "unknown integrator '" + name + "'",
                 "use rk4_adaptive, rk45_adaptive, rk23_adaptive, implicit_euler or bdf2");
 }

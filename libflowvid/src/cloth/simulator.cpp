@@ -94,6 +94,12 @@ const char* integrator_short_name(Integrator integrator) {
     return "?";
 }
 
+std::optional<Integrator> integrator_from_name(const std::string& name) {
+    for (const auto& [short_name, integrator] : integrators_by_short_name())
+        if (name == short_name || name == integrator_name(integrator)) return integrator;
+    return std::nullopt;
+}
+
 const char* status_name(SimulationReport::Status status) {
     switch (status) {
         case SimulationReport::Status::ok: return "ok";

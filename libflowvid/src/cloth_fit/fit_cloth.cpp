@@ -74,7 +74,7 @@ struct FitStep {
     double fraction = 0.0;      // of the whole fit
     long long evaluations = 0;  // objective evaluations so far
     double best_error = 0.0;
-    std::string detail;  // the optimiser's own message, when a search or polish reports (its counts are its own)
+    std::string detail = {};  // the optimiser's own message, when a search or polish reports (its counts are its own)
 };
 using Reporter = std::function<bool(const FitStep&)>;
 

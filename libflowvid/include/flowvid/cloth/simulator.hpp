@@ -24,6 +24,7 @@
 #include <atomic>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,9 @@ const char* integrator_name(Integrator integrator);
 // (rk4, dopri54, bs32, implicit, bdf2).
 const std::map<std::string, Integrator>& integrators_by_short_name();
 const char* integrator_short_name(Integrator integrator);
+// By its full name (integrator_name: "implicit_euler") or its short one
+// ("implicit"); nullopt for neither.
+std::optional<Integrator> integrator_from_name(const std::string& name);
 
 struct SimulationSettings {
     Integrator integrator = Integrator::rk4_adaptive;
