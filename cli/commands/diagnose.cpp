@@ -101,6 +101,9 @@ int run_diagnose(DiagnoseOptions& options, const GlobalOptions& global) {
                               {"verdict", diagnosis.status},
                               {"effects", diagnosis.named},
                               {"message", diagnosis.message},
+                              {"next_step", diagnosis.next_step},
+                              {"model_terms", diagnosis.model_terms},
+                              {"model_gap_closed", diagnosis.model_gap_closed ? number(*diagnosis.model_gap_closed) : nlohmann::json()},
                               {"gap_closed", diagnosis.gap_closed ? number(*diagnosis.gap_closed) : nlohmann::json()},
                               {"evaluations", diagnosis.evaluations},
                               {"seconds", diagnosis.seconds}};
@@ -119,16 +122,21 @@ const RegisterCommand registration{Command{
             "footage in units of its floor (how far repeated takes of the experiment spread: what even a\n"
             "perfect model leaves). Frames alternate in blocks of 5 between training and held out. When\n"
             "the held-out residual is beyond --gap-threshold times the floor, the fabric's bend, stretch\n"
-            "and drag are refitted alone on training frames (the null refit), every catalogue effect is\n"
-            "screened from there, the most promising are refitted jointly with the fabric, and one is\n"
+            "and drag are refitted alone on training frames (the null refit). First the model's own terms\n"
+            "that the preset was fitted without (soft compression, hem, diagonal fibres, linear drag: a\n"
+            "preset from `fit cloth --fit-to scan` has them) are tried: a term that closes the gap is\n"
+            "named first and the effects are judged on top of it. Then every catalogue effect is\n"
+            "screened, the most promising are refitted jointly with the fabric, and one is\n"
             "named only when it beats the null refit on held-out frames by a clear share of the gap,\n"
             "with a strong BIC margin, in most bootstrap resamples, and closes 10 points more of the gap\n"
             "than the fabric on a finer mesh does (--control-resolution-step: else the gap may be the\n"
             "model's own discretisation, and the verdict is unexplained).\n"
+            "Model terms: compression_softness hem_mass diagonal_fibres drag_linear.\n"
             "Effects: drag_nonlinear wind anisotropy hysteresis pin_lag pin_slip camera_roll\n"
             "lens_distortion rolling_shutter motion_blur (rigid: air_drag inertia_error).\n"
             "camera_roll is reported with gravity_tilt as one class: one camera cannot tell them apart.\n"
-            "Writes OUT/diagnosis.json and OUT/report.html (open it in a browser).\n\n"
+            "The verdict is one sentence with its figures and a next step (refit with ..., check the\n"
+            "camera calibration, ...). Writes OUT/diagnosis.json and OUT/report.html (open it in a browser).\n\n"
             "Examples:\n"
             "  flowvid diagnose --preset cotton.fabric.json --capture ../shared/captures/cloth-cotton-waving-wind --out diag/\n"
             "  flowvid diagnose --preset silk.fabric.json --capture DIR --effects pin_lag,wind --out diag/\n"

@@ -116,7 +116,12 @@ std::string verdict_box(const json& d) {
         if (e.is_string()) effects.push_back(e.get<std::string>());
 
     std::string css = "verdict warn", headline;
+    std::vector<std::string> model_terms;
+    for (const json& e : array(verdict, "model_terms"))
+        if (e.is_string()) model_terms.push_back(e.get<std::string>());
     if (!member(d, "gap") && !member(d, "verdict")) headline = "No verdict: this diagnosis has neither a gap nor a verdict";
+    else if (status == "no_gap" && !model_terms.empty())
+        headline = "No gap left once the fabric model has " + join(model_terms, " + ");
     else if (status == "no_gap") css = "verdict good", headline = "No gap: the model explains the footage down to its floor";
     else if (status == "named")
         headline = "Gap detected \xE2\x80\x94 named effect: " + (effects.empty() ? std::string("\xE2\x80\x94") : join(effects, " + "));
@@ -138,8 +143,11 @@ std::string verdict_box(const json& d) {
                                  " apart, so the class is named rather than one of its members.",
                              "note");
     }
-    if (status == "named" || member(verdict, "gap_closed"))
+    // The message states the shares closed; older files without one get the figure here.
+    if (text(verdict, "message").empty() && (status == "named" || member(verdict, "gap_closed")))
         out << html::element("p", "Fraction of the held-out gap closed: " + html::format_percent(number(verdict, "gap_closed")) + ".");
+    if (const std::string next = text(verdict, "next_step"); !next.empty())
+        out << html::element("p", "Next step: " + next + ".", "next-step");
     if (member(d, "discretisation_control")) {
         const json& control = d["discretisation_control"];
         const std::string failure = text(control, "failure");

@@ -18,7 +18,7 @@ using detail::nullable_number_value;
 using detail::string_array;
 
 constexpr const char* kKinds[] = {"cloth", "rigid"};
-constexpr const char* kDomains[] = {"cloth", "camera", "rigid"};
+constexpr const char* kDomains[] = {"model", "cloth", "camera", "rigid"};
 constexpr std::int64_t kMaxCount = std::numeric_limits<std::int32_t>::max();
 
 template <std::size_t N>
@@ -95,7 +95,9 @@ std::optional<DiagnosisGap> parse_gap(const JsonView& root) {
 std::optional<DiagnosisVerdict> parse_verdict(const JsonView& root) {
     const std::optional<JsonView> verdict = root.object("verdict");
     if (!verdict) return std::nullopt;
-    verdict->check_known_keys({"status", "effects", "class", "message", "gap_closed", "parameters", "base_changes"});
+    verdict->check_known_keys({"status", "effects", "class", "message", "next_step", "gap_closed", "parameters", "base_changes",
+                               "model_terms", "model_gap_closed", "ratio_with_model_terms", "model_parameters",
+                               "model_base_changes"});
     const std::optional<std::string> status = enumerated(*verdict, "status", kDiagnosisStatuses);
     const std::optional<std::vector<std::string>> effects = string_array(*verdict, "effects");
     const std::optional<std::string> effect_class = verdict->string("class");
@@ -103,6 +105,16 @@ std::optional<DiagnosisVerdict> parse_verdict(const JsonView& root) {
     const auto closed = nullable_number(*verdict, "gap_closed", NumberRange{});
     if (verdict->has("parameters")) parse_parameter_values(*verdict, "parameters");
     if (verdict->has("base_changes")) parse_base_changes(*verdict, "base_changes");
+    // Since 2026-11-28 (optional: earlier files have none of these).
+    if (verdict->has("next_step")) verdict->string("next_step");
+    std::vector<std::string> model_terms;
+    if (verdict->has("model_terms"))
+        if (const auto terms = string_array(*verdict, "model_terms")) model_terms = *terms;
+    if (verdict->has("model_gap_closed")) nullable_number(*verdict, "model_gap_closed", NumberRange{});
+    if (verdict->has("ratio_with_model_terms"))
+        nullable_number(*verdict, "ratio_with_model_terms", NumberRange::non_negative("(floors)"));
+    if (verdict->has("model_parameters")) parse_parameter_values(*verdict, "model_parameters");
+    if (verdict->has("model_base_changes")) parse_base_changes(*verdict, "model_base_changes");
     if (effects) {
         for (std::size_t i = 0; i < effects->size(); ++i)
             if ((*effects)[i].empty())
@@ -115,11 +127,11 @@ std::optional<DiagnosisVerdict> parse_verdict(const JsonView& root) {
                                          "list the named effects exactly when \"status\" is \"named\"");
     }
     if (!status || !effects || !effect_class || !message || !closed.ok) return std::nullopt;
-    return DiagnosisVerdict{*status, *effects, *effect_class, *message, closed.value};
+    return DiagnosisVerdict{*status, *effects, *effect_class, *message, closed.value, model_terms};
 }
 
-void parse_candidates(const JsonView& root) {
-    const std::optional<JsonView> candidates = root.array("candidates");
+void parse_candidates(const JsonView& root, const std::string& key) {
+    const std::optional<JsonView> candidates = root.array(key);
     if (!candidates) return;
     for (std::size_t i = 0; i < candidates->size(); ++i) {
         const JsonView c = candidates->element(i);
@@ -242,7 +254,7 @@ std::optional<Diagnosis> parse_diagnosis(const nlohmann::json& document, Diagnos
     const JsonView root(document, "", diagnostics, strictness);
     if (!detail::check_integer_format_header(root, kDiagnosisFormatName, kDiagnosisFormatVersion)) return std::nullopt;
     root.check_known_keys({"format", "version", "kind", "trials", "model", "gap", "verdict", "discretisation_control",
-                           "candidates", "null_refit", "frames", "maps", "spectrum", "equivalence_classes", "evaluations",
+                           "candidates", "model_candidates", "null_refit", "frames", "maps", "spectrum", "equivalence_classes", "evaluations",
                            "seconds"});
     Diagnosis out;
     const std::optional<std::string> kind = enumerated(root, "kind", kKinds);
@@ -252,13 +264,15 @@ std::optional<Diagnosis> parse_diagnosis(const nlohmann::json& document, Diagnos
     root.object("model");  // free-form: how the base model was set up
     const std::optional<DiagnosisGap> gap = parse_gap(root);
     const std::optional<DiagnosisVerdict> verdict = parse_verdict(root);
-    if (gap && verdict && gap->detected == (verdict->status == "no_gap"))
+    // "no_gap" with a gap detected: the model's own terms closed it (no effect of the world is left).
+    if (gap && verdict && gap->detected == (verdict->status == "no_gap") && !(gap->detected && !verdict->model_terms.empty()))
         diagnostics.error("/verdict/status",
-                          gap->detected ? "\"no_gap\" although /gap/detected is true"
+                          gap->detected ? "\"no_gap\" although /gap/detected is true and no model term was named"
                                         : "\"" + verdict->status + "\" although /gap/detected is false",
-                          "the status is \"no_gap\" exactly when no gap was detected");
+                          "the status is \"no_gap\" exactly when no gap was detected or the named model terms closed it");
     parse_control(root);
-    parse_candidates(root);
+    parse_candidates(root, "candidates");
+    if (root.has("model_candidates")) parse_candidates(root, "model_candidates");
     if (const std::optional<JsonView> null_refit = root.object("null_refit")) {
         null_refit->check_known_keys({"base_changes", "held_out_score"});
         parse_base_changes(*null_refit, "base_changes");

@@ -22,8 +22,10 @@ namespace {
 
 std::vector<std::string> default_effects(bool rigid) {
     std::vector<std::string> names;
-    for (const Effect& e : effect_catalogue())
+    for (const Effect& e : effect_catalogue()) {
+        if (e.domain == EffectDomain::model) continue;  // the diagnoser's own model: nothing footage hides
         if (e.domain != EffectDomain::rigid || rigid) names.push_back(e.name);
+    }
     return names;
 }
 
@@ -154,6 +156,9 @@ std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scene
     int rigid_effects = 0;
     for (const std::string& e : effects) {
         const bool rigid = find_effect(e).domain == EffectDomain::rigid;
+        if (find_effect(e).domain == EffectDomain::model)
+            throw std::invalid_argument("flowvid bench gap: '" + e + "' is a term of the cloth model, not an effect footage can hide; "
+                                        "diagnose a preset fitted without it instead");
         if (rigid && rigid_scenes < 1) throw std::invalid_argument("flowvid bench gap: '" + e + "' needs a rigid scene (--rigid-scene)");
         rigid_effects += rigid ? 1 : 0;
     }

@@ -83,7 +83,19 @@ ClothScenario apply_cloth_effects(const cloth_fit::ClothTrial& trial, const clot
             throw std::invalid_argument("effect '" + name + "' needs " + std::to_string(effect.parameters.size()) +
                                         " values, got " + std::to_string(values.size()));
         if (is_neutral(effect, values)) continue;
-        if (name == "drag_nonlinear") {
+        if (name == "compression_softness") {
+            const double ratio = std::exp(-values(0));
+            s.material.stretch_warp_compression_ratio *= ratio;
+            s.material.stretch_weft_compression_ratio *= ratio;
+        } else if (name == "hem_mass") {
+            s.material.hem_line_density_kg_per_m = values(0);  // the swatch keeps its declared mass
+        } else if (name == "diagonal_fibres") {
+            // Relative to the stretch stiffness, so that one range suits every fabric.
+            s.material.diagonal_tension_N_per_m =
+                values(0) * std::sqrt(s.material.stretch_warp_N_per_m * s.material.stretch_weft_N_per_m);
+        } else if (name == "drag_linear") {
+            s.material.drag_linear_normal_kg_per_m2_s = values(0);
+        } else if (name == "drag_nonlinear") {
             s.material.drag_normal_kg_per_m3 = values(0);
             s.material.drag_degradation_s2_per_m2 = values(1);
         } else if (name == "wind") {
@@ -250,8 +262,16 @@ std::vector<std::string> ClothGapModel::candidate_effects() const {
     for (const Effect& e : effect_catalogue()) {
         if (e.domain == EffectDomain::rigid) continue;
         if (e.name == "drag_nonlinear" && m_base.drag_normal_kg_per_m3 > 0.0) continue;  // already modelled
+        // The model's own terms: offered only where the preset holds them at
+        // their neutral value (a preset fitted without them).
+        if (e.name == "compression_softness" &&
+            (m_base.stretch_warp_compression_ratio != 1.0 || m_base.stretch_weft_compression_ratio != 1.0))
+            continue;
+        if (e.name == "hem_mass" && m_base.hem_line_density_kg_per_m != 0.0) continue;
+        if (e.name == "diagonal_fibres" && m_base.diagonal_tension_N_per_m != 0.0) continue;
+        if (e.name == "drag_linear" && m_base.drag_linear_normal_kg_per_m2_s != 0.0) continue;
         // Effects of motion need motion to show.
-        if (!waving && (e.name == "drag_nonlinear" || e.name == "hysteresis" || e.name == "pin_lag" ||
+        if (!waving && (e.name == "drag_nonlinear" || e.name == "drag_linear" || e.name == "hysteresis" || e.name == "pin_lag" ||
                         e.name == "rolling_shutter" || e.name == "motion_blur"))
             continue;
         names.push_back(e.name);
@@ -270,21 +290,25 @@ cloth::SwatchRun ClothGapModel::run_scenario(const ClothScenario& scenario, cons
     return cloth::simulate_swatch(scenario.experiment, scenario.material, options);
 }
 
-std::optional<DiscretisationControl> ClothGapModel::discretisation_control(const std::vector<BaseParameterChange>& base) const {
+std::optional<DiscretisationControl> ClothGapModel::discretisation_control(const std::vector<BaseParameterChange>& base,
+                                                                           const EffectValues& effects) const {
     if (m_settings.control_resolution_step <= 0) return std::nullopt;
     cloth::ClothMaterial material = m_base;
     for (const BaseParameterChange& change : base) cloth_fit::set_material_parameter(material, change.key, change.after);
     cloth_fit::ClothFitSettings finer = m_settings.fit;
-    finer.base = material;
     finer.swatch.rows += m_settings.control_resolution_step;
     finer.swatch.cols += m_settings.control_resolution_step;
     finer.swatch.simulation.threads = std::max(1, m_settings.threads);
-    // The finer mesh's own equilibrium (the model's warm starts are its mesh's).
+    // The finer mesh's own equilibrium (the model's warm starts are its mesh's),
+    // of the material as the effects (the model's own terms) change it.
     std::vector<Eigen::VectorXd> starts;
-    for (const cloth_fit::ClothTrial& trial : m_trials) starts.push_back(cloth_fit::matching_equilibrium(trial, material, finer));
+    for (const cloth_fit::ClothTrial& trial : m_trials) {
+        finer.base = apply_cloth_effects(trial, material, finer.swatch, effects).material;
+        starts.push_back(cloth_fit::matching_equilibrium(trial, finer.base, finer));
+    }
     DiscretisationControl control;
     control.description = "a " + std::to_string(finer.swatch.rows) + "x" + std::to_string(finer.swatch.cols) + " mesh";
-    control.residuals = evaluate_on(material, {}, finer.swatch, starts);
+    control.residuals = evaluate_on(material, effects, finer.swatch, starts);
     return control;
 }
 
@@ -303,7 +327,15 @@ Residuals ClothGapModel::evaluate_on(const cloth::ClothMaterial& material, const
     Residuals out;
     std::vector<std::vector<FrameResidual>> per_trial(m_trials.size());
     std::vector<std::string> failures(m_trials.size());
-    const int threads = std::max(1, m_settings.threads);
+    // The threads are shared among the evaluations running at once (the
+    // diagnosis runs up to concurrency() of them side by side).
+    struct Running {
+        std::atomic<int>& count;
+        int now;
+        explicit Running(std::atomic<int>& c) : count(c), now(++c) {}
+        ~Running() { --count; }
+    } running(m_running);
+    const int threads = std::max(1, m_settings.threads / std::max(1, running.now));
     const int workers = std::min<int>(threads, static_cast<int>(m_trials.size()));
     const int per_simulation = std::max(1, threads / std::max(1, workers));
     auto one = [&](std::size_t t) {

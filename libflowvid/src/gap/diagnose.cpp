@@ -1,10 +1,12 @@
 #include "flowvid/gap/diagnose.hpp"
 #include "flowvid/random.hpp"
+#include "flowvid/thread_pool.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <complex>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <numbers>
@@ -190,6 +192,144 @@ std::string join(const std::vector<std::string>& names, const std::string& separ
     return out;
 }
 
+std::string percent(double share) { return std::to_string(static_cast<int>(std::lround(100.0 * share))) + " %"; }
+std::string times(double ratio) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.1f", ratio);
+    return text;
+}
+
+// "soft compression (buckling) [compression_softness]": plain words first, the key beside them.
+std::string plain(const std::string& name) {
+    const Effect& effect = find_effect(name);
+    return (effect.plain_name.empty() ? name : effect.plain_name) + " [" + name + "]";
+}
+std::string plain_list(const std::vector<std::string>& names) {
+    std::vector<std::string> out;
+    for (const std::string& n : names) out.push_back(plain(n));
+    return join(out, " and ");
+}
+
+// The state a round of naming starts from: the effects named so far at their
+// fitted values and the model they make.
+struct Named {
+    std::vector<std::string> names;
+    EffectValues values;
+    RefitResult refit;  // the named effects refitted jointly with the base (the null refit when none)
+};
+
+// Greedy naming over `names`, from `start`: each round screens every
+// candidate not yet named, refits the most promising jointly with the base
+// parameters, and names the held-out best when it passes every test
+// (`terms_compete`: its bootstrap stability counts the resamples in which it
+// beats the other refitted candidates too, not only the model before it).
+// `round_zero` receives the first round's evidence.
+Named name_greedily(const GapModel& model, const DiagnoseSettings& settings, const std::vector<std::string>& names,
+                    Named start, int max_rounds, bool terms_compete, double base_held_out, double gap,
+                    const std::vector<std::vector<std::size_t>>& blocks, std::uint64_t seed, const Stages& stages, ThreadPool& pool,
+                    double progress_start, double progress_span, long long& evaluations,
+                    std::vector<CandidateEvidence>& round_zero) {
+    Named current = std::move(start);
+    std::uint64_t round_seed = seed;
+    for (int round = 0; round < max_rounds; ++round) {
+        const double round_start = progress_start + progress_span * round / max_rounds;
+        const double round_span = progress_span / max_rounds;
+        std::vector<CandidateEvidence> evidence;
+        // Screening steps away from the model an effect must beat: the null
+        // refit in the first round (the base parameters refitted alone absorb
+        // what they can, e.g. a different discretisation's damping, so that
+        // what is left shows the effect's own signature), the named effects
+        // at their fitted values after.
+        const Residuals& reference = current.refit.residuals;
+        const double current_score = training_score(reference);
+        for (const std::string& name : names) {
+            if (current.values.count(name)) continue;
+            CandidateEvidence c;
+            c.name = name;
+            const Effect& effect = find_effect(name);
+            c.domain = domain_name(effect.domain);
+            c.equivalence_class = effect.equivalence_class;
+            c.gap_closed = kNaN;
+            c.delta_bic = kNaN;
+            evidence.push_back(std::move(c));
+        }
+        // Candidates are screened, then refitted, side by side (each result
+        // depends only on its inputs: the verdict does not depend on threads).
+        std::vector<long long> spent(evidence.size(), 0);
+        stages.report("screening " + std::to_string(evidence.size()) + " candidates", round_start);
+        pool.run(evidence.size(), [&](std::size_t i, int) {
+            const Screened s = screen(model, evidence[i].name, current.values, current.refit.base, current_score, spent[i]);
+            evidence[i].screen_score = s.score;
+            evidence[i].screened = s.best;
+        });
+        std::stable_sort(evidence.begin(), evidence.end(),
+                         [](const CandidateEvidence& a, const CandidateEvidence& b) { return a.screen_score > b.screen_score; });
+        int refits = 0;  // the most promising, while there is something to gain
+        while (refits < std::min<int>(settings.refitted_candidates, static_cast<int>(evidence.size())) &&
+               evidence[static_cast<std::size_t>(refits)].screen_score > 0.0)
+            ++refits;
+        std::string refitting;
+        for (int i = 0; i < refits; ++i) refitting += (i ? ", " : "") + evidence[static_cast<std::size_t>(i)].name;
+        if (refits > 0) stages.report("refitting " + refitting, round_start + 0.3 * round_span);
+        pool.run(static_cast<std::size_t>(refits), [&](std::size_t i, int) {
+            CandidateEvidence& c = evidence[i];
+            // The named effects at their values, this one at its screened best,
+            // from the base as the previous model left it: the effect must
+            // earn its keep beyond it.
+            c.refit = model.refit(c.screened, settings.refit_evaluations, current.refit.base);
+            spent[i] += c.refit.evaluations;
+            c.refitted = true;
+            c.held_out_score = held_out_score(c.refit.residuals);
+            c.gap_closed = (base_held_out - c.held_out_score) / gap;
+            c.effect_share = (held_out_score(reference) - c.held_out_score) / gap;
+            c.delta_bic = delta_bic(c.refit.residuals, reference, parameter_count(find_effect(c.name)));
+        });
+        for (long long n : spent) evaluations += n;
+        std::vector<const Residuals*> refitted;
+        std::vector<std::size_t> which;
+        for (std::size_t i = 0; i < evidence.size(); ++i)
+            if (evidence[i].refitted) {
+                refitted.push_back(&evidence[i].refit.residuals);
+                which.push_back(i);
+            }
+        for (std::size_t r = 0; r < refitted.size(); ++r) {
+            CandidateEvidence& c = evidence[which[r]];
+            // The world's effects compete: footage usually hides one, and the
+            // one named must beat the others in most resamples. The model's
+            // own terms do not: a preset fitted without several may miss
+            // them all (soft compression and diagonal fibres both shape
+            // folds), so each need only beat the model before it; the
+            // greedy rounds then add the others on top.
+            c.bootstrap_stability =
+                terms_compete ? bootstrap_stability(refitted, r, reference, blocks, settings.bootstrap_resamples, round_seed + r)
+                              : bootstrap_stability({refitted[r]}, 0, reference, blocks, settings.bootstrap_resamples, round_seed + r);
+            c.passes = c.refit.residuals.ok && c.effect_share >= settings.min_effect_share &&
+                       c.delta_bic <= settings.max_delta_bic && c.bootstrap_stability >= settings.min_stability;
+        }
+        round_seed += 1000;
+        // Rank: refitted by held-out score, then the rest by screening.
+        std::stable_sort(evidence.begin(), evidence.end(), [](const CandidateEvidence& a, const CandidateEvidence& b) {
+            if (a.refitted != b.refitted) return a.refitted;
+            if (a.refitted) return a.held_out_score < b.held_out_score;
+            return a.screen_score > b.screen_score;
+        });
+        const auto winner = std::find_if(evidence.begin(), evidence.end(), [](const CandidateEvidence& c) { return c.passes; });
+        if (round == 0) round_zero = evidence;
+        // No candidate passes, or the held-out best does not (a passing
+        // runner-up is not evidence enough): stop.
+        if (winner == evidence.end() || winner != evidence.begin()) break;
+        current.names.push_back(winner->name);
+        current.values = winner->refit.effects;
+        current.refit = winner->refit;
+    }
+    return current;
+}
+
+double held_out_ratio(const Residuals& r) {
+    const int n = count_frames(r, true);
+    return n > 0 ? held_out_score(r) / n : kNaN;
+}
+
 }  // namespace
 
 Diagnosis diagnose(const GapModel& model, const DiagnoseSettings& settings) {
@@ -219,149 +359,147 @@ Diagnosis diagnose(const GapModel& model, const DiagnoseSettings& settings) {
     stages.report("localise", 0.05);
     d.maps = model.localise({});
 
+    const std::string how_far = "over the held-out frames the model misses the footage by " + times(d.ratio) +
+                                " times what repeated takes of the experiment differ by";
     if (!d.gap_detected) {
         d.status = "no_gap";
-        d.message = "no structural gap: the held-out residual is " + std::to_string(d.ratio).substr(0, 5) +
-                    " times its floor, within the threshold of " + std::to_string(settings.gap_threshold).substr(0, 4) +
-                    " (chaos, noise and discretisation explain it)";
+        d.message = "No structural gap: " + how_far + ", within the threshold of " + times(settings.gap_threshold) +
+                    " (chaos, noise and discretisation explain it).";
+        d.next_step = "nothing to fix: the preset reproduces this footage as well as the experiment repeats";
         d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
         return d;
     }
 
-    // 3. Which: screen every candidate, refit the most promising.
+    // 3. Which: the model's own terms first, then the world's effects.
     std::vector<std::string> names = settings.effects.empty() ? model.candidate_effects() : settings.effects;
     const std::vector<std::string> offered = model.candidate_effects();
     names.erase(std::remove_if(names.begin(), names.end(),
                                [&](const std::string& n) { return std::find(offered.begin(), offered.end(), n) == offered.end(); }),
                 names.end());
+    std::vector<std::string> model_names, effect_names;
+    for (const std::string& n : names) (find_effect(n).domain == EffectDomain::model ? model_names : effect_names).push_back(n);
     const std::vector<std::vector<std::size_t>> blocks = held_out_blocks(d.base);
     const double base_held_out = held_out_score(d.base);
     const double floor_level = static_cast<double>(count_frames(d.base, true));  // error = floor in every held-out frame
     const double gap = std::max(base_held_out - floor_level, 1e-12);
+    const auto closed = [&](const Residuals& r) { return (base_held_out - held_out_score(r)) / gap; };
 
+    ThreadPool pool(settings.concurrent_evaluations > 0 ? std::min(settings.concurrent_evaluations, model.concurrency())
+                                                        : model.concurrency());
     stages.report("null refit", 0.1);
     d.null_refit = model.refit({}, settings.refit_evaluations);
     d.evaluations += d.null_refit.evaluations;
 
-    EffectValues named_values;          // effects named so far, at their fitted values
-    Residuals current = d.null_refit.residuals;  // the model the next effect must beat
-    RefitResult current_refit = d.null_refit;
-    std::uint64_t round_seed = settings.seed;
-    for (int round = 0; round < settings.max_effects; ++round) {
-        const double round_start = 0.15 + 0.8 * round / settings.max_effects;
-        const double round_span = 0.8 / settings.max_effects;
-        std::vector<CandidateEvidence> evidence;
-        // Screening steps away from the model an effect must beat: the null
-        // refit in the first round (the base parameters refitted alone absorb
-        // what they can, e.g. a different discretisation's damping, so that
-        // what is left shows the effect's own signature), the named effects
-        // at their fitted values after.
-        const double current_score = training_score(current);
-        int index = 0;
-        for (const std::string& name : names) {
-            if (named_values.count(name)) continue;
-            stages.report("screening " + name, round_start + 0.3 * round_span * index++ / std::max<std::size_t>(1, names.size()));
-            CandidateEvidence c;
-            c.name = name;
-            const Effect& effect = find_effect(name);
-            c.domain = domain_name(effect.domain);
-            c.equivalence_class = effect.equivalence_class;
-            const Screened s = screen(model, name, named_values, current_refit.base, current_score, d.evaluations);
-            c.screen_score = s.score;
-            c.screened = s.best;
-            c.gap_closed = kNaN;
-            c.delta_bic = kNaN;
-            evidence.push_back(std::move(c));
-        }
-        std::stable_sort(evidence.begin(), evidence.end(),
-                         [](const CandidateEvidence& a, const CandidateEvidence& b) { return a.screen_score > b.screen_score; });
-        const int refits = std::min<int>(settings.refitted_candidates, static_cast<int>(evidence.size()));
-        for (int i = 0; i < refits; ++i) {
-            CandidateEvidence& c = evidence[static_cast<std::size_t>(i)];
-            if (!(c.screen_score > 0.0)) break;  // nothing to gain: not worth a refit
-            stages.report("refitting " + c.name, round_start + round_span * (0.3 + 0.6 * i / std::max(1, refits)));
-            EffectValues start = c.screened;  // the named effects at their values, this one at its screened best
-            // From the base as the previous model left it (the null refit, or
-            // the named effects' refit): the effect must earn its keep beyond it.
-            c.refit = model.refit(start, settings.refit_evaluations, current_refit.base);
-            d.evaluations += c.refit.evaluations;
-            c.refitted = true;
-            c.held_out_score = held_out_score(c.refit.residuals);
-            c.gap_closed = (base_held_out - c.held_out_score) / gap;
-            c.effect_share = (held_out_score(current) - c.held_out_score) / gap;
-            c.delta_bic = delta_bic(c.refit.residuals, current, parameter_count(find_effect(c.name)));
-        }
-        std::vector<const Residuals*> refitted;
-        std::vector<std::size_t> which;
-        for (std::size_t i = 0; i < evidence.size(); ++i)
-            if (evidence[i].refitted) {
-                refitted.push_back(&evidence[i].refit.residuals);
-                which.push_back(i);
-            }
-        for (std::size_t r = 0; r < refitted.size(); ++r) {
-            CandidateEvidence& c = evidence[which[r]];
-            c.bootstrap_stability =
-                bootstrap_stability(refitted, r, current, blocks, settings.bootstrap_resamples, round_seed + r);
-            c.passes = c.refit.residuals.ok && c.effect_share >= settings.min_effect_share &&
-                       c.delta_bic <= settings.max_delta_bic && c.bootstrap_stability >= settings.min_stability;
-        }
-        round_seed += 1000;
-        // Rank: refitted by held-out score, then the rest by screening.
-        std::stable_sort(evidence.begin(), evidence.end(), [](const CandidateEvidence& a, const CandidateEvidence& b) {
-            if (a.refitted != b.refitted) return a.refitted;
-            if (a.refitted) return a.held_out_score < b.held_out_score;
-            return a.screen_score > b.screen_score;
-        });
-        const auto winner = std::find_if(evidence.begin(), evidence.end(), [](const CandidateEvidence& c) { return c.passes; });
-        if (round == 0) d.candidates = evidence;
-        // No candidate passes, or the held-out best does not (a passing
-        // runner-up is not evidence enough): stop.
-        if (winner == evidence.end() || winner != evidence.begin()) break;
-        d.named.push_back(winner->name);
-        named_values = winner->refit.effects;
-        current = winner->refit.residuals;
-        current_refit = winner->refit;
-        if (round == 0) d.named_class = winner->equivalence_class;
-    }
-
-    // 5. The discretisation control: the base (as the null refit left it) on a
-    // finer discretisation. What it closes, the model's own discretisation
-    // accounts for; named effects have to close clearly more.
-    if (settings.discretisation_control) {
-        stages.report("discretisation control", 0.95);
-        if (const std::optional<DiscretisationControl> control = model.discretisation_control(d.null_refit.base)) {
+    // The discretisation control: the base (as the null refit left it, with
+    // the model terms named so far) on a finer discretisation. What it
+    // closes, the model's own discretisation accounts for; named terms and
+    // effects have to close clearly more.
+    std::map<std::string, std::optional<double>> controls;  // by the model terms it holds
+    const auto control_closes = [&](const EffectValues& terms) -> std::optional<double> {
+        if (!settings.discretisation_control) return std::nullopt;
+        std::string key;
+        for (const auto& [name, values] : terms) key += name + ";";
+        if (const auto it = controls.find(key); it != controls.end()) return it->second;
+        stages.report("discretisation control", 0.93);
+        std::optional<double> share;
+        if (const std::optional<DiscretisationControl> control = model.discretisation_control(d.null_refit.base, terms)) {
             ++d.evaluations;
             d.control_description = control->description;
-            if (control->residuals.ok) d.control_gap_closed = (base_held_out - held_out_score(control->residuals)) / gap;
+            if (control->residuals.ok) share = closed(control->residuals);
             else d.control_failure = control->residuals.reason.empty() ? "the simulation failed" : control->residuals.reason;
         }
+        controls[key] = share;
+        return share;
+    };
+
+    // 3a. The model's own physics: a term the preset holds at its neutral
+    // value (fitted without it) that closes the gap is the first thing to fix.
+    Named after_model{{}, {}, d.null_refit};
+    double discounted_closed = 0.0;  // what the discounted terms or effects closed
+    if (!model_names.empty()) {
+        after_model = name_greedily(model, settings, model_names, after_model, settings.max_model_terms, false, base_held_out, gap,
+                                    blocks, settings.seed + 7919, stages, pool, 0.15, 0.3, d.evaluations, d.model_candidates);
+        if (!after_model.names.empty()) {
+            const double share = closed(after_model.refit.residuals);
+            const std::optional<double> control = control_closes({});
+            if (control && !(share >= *control + settings.min_share_beyond_discretisation)) {
+                d.discounted = after_model.names;
+                discounted_closed = share;
+                after_model = Named{{}, {}, d.null_refit};
+            } else {
+                d.model_terms = after_model.names;
+                d.model_gap_closed = share;
+                d.model_refit = after_model.refit;
+            }
+        }
     }
-    const double named_closed = (base_held_out - held_out_score(current)) / gap;
-    if (!d.named.empty() && d.control_gap_closed &&
-        !(named_closed >= *d.control_gap_closed + settings.min_share_beyond_discretisation)) {
-        d.status = "unexplained";
-        d.message = "a structural gap (held-out residual " + std::to_string(d.ratio).substr(0, 5) +
-                    " times its floor) that the model's own discretisation may account for: the base on " + d.control_description +
-                    " closes " + std::to_string(static_cast<int>(std::lround(100.0 * *d.control_gap_closed))) + " % of it, " +
-                    join(d.named, " + ") + " " + std::to_string(static_cast<int>(std::lround(100.0 * named_closed))) +
-                    " %; diagnose on a finer mesh (--resolution) to tell them apart";
-        d.discounted = d.named;
-        d.named.clear();
-        d.named_class.clear();
-    } else if (d.named.empty()) {
-        d.status = "unexplained";
-        std::vector<std::string> best;
-        for (std::size_t i = 0; i < d.candidates.size() && i < 3; ++i) best.push_back(d.candidates[i].name);
-        d.message = "a structural gap (held-out residual " + std::to_string(d.ratio).substr(0, 5) +
-                    " times its floor) that no catalogue effect explains with enough evidence; closest: " + join(best, ", ");
-    } else {
+    const bool model_named = !d.model_terms.empty();
+    d.ratio_with_model_terms = held_out_ratio(after_model.refit.residuals);
+
+    // 3b. The world's effects, on top of the model terms named.
+    EffectValues model_values = after_model.values;
+    Named after_effects = after_model;
+    const bool gap_left = !model_named || d.ratio_with_model_terms > settings.gap_threshold;
+    if (gap_left && !effect_names.empty()) {
+        after_effects = name_greedily(model, settings, effect_names, after_model, settings.max_effects, true, base_held_out, gap,
+                                      blocks, settings.seed, stages, pool, model_names.empty() ? 0.15 : 0.45,
+                                      model_names.empty() ? 0.78 : 0.48, d.evaluations, d.candidates);
+    }
+    std::vector<std::string> effects_named(after_effects.names.begin() + static_cast<std::ptrdiff_t>(after_model.names.size()),
+                                           after_effects.names.end());
+    const double effects_closed = closed(after_effects.refit.residuals) - closed(after_model.refit.residuals);
+    if (!effects_named.empty()) {
+        const std::optional<double> control = control_closes(model_values);
+        if (control && !(closed(after_effects.refit.residuals) >= *control + settings.min_share_beyond_discretisation)) {
+            d.control_gap_closed = control;
+            d.discounted.insert(d.discounted.end(), effects_named.begin(), effects_named.end());
+            discounted_closed = closed(after_effects.refit.residuals);
+            effects_named.clear();
+        }
+    }
+    if (!d.control_gap_closed && settings.discretisation_control && (model_named || !effects_named.empty() || !d.discounted.empty()))
+        d.control_gap_closed = control_closes(model_values);
+
+    // 4. The verdict, in words an artist can act on.
+    const std::string model_sentence =
+        model_named ? "The fabric model itself lacks " + plain_list(d.model_terms) + ": adding it closes " +
+                          percent(*d.model_gap_closed) + " of the gap (" + times(d.ratio) + " -> " +
+                          times(d.ratio_with_model_terms) + " times the floor)."
+                    : "";
+    if (!effects_named.empty()) {
         d.status = "named";
-        d.named_refit = current_refit;
-        d.gap_closed = named_closed;
-        const std::string what = d.named_class.empty() ? join(d.named, " + ")
-                                                        : "the class " + d.named_class + " (one camera cannot tell its members apart)";
-        d.message = "the gap is explained by " + what + ": it closes " +
-                    std::to_string(static_cast<int>(std::lround(100.0 * *d.gap_closed))) + " % of the held-out gap";
+        d.named = effects_named;
+        d.named_class = find_effect(effects_named.front()).equivalence_class;
+        d.named_refit = after_effects.refit;
+        d.gap_closed = effects_closed;
+        const std::string what = d.named_class.empty()
+                                     ? plain_list(d.named)
+                                     : plain_list(d.named) + ", reported as the class " + d.named_class + " (one camera cannot tell its members apart)";
+        d.message = "Gap explained: " + how_far + "; " + what + " accounts for it, closing " + percent(*d.gap_closed) +
+                    " of that gap." + (model_sentence.empty() ? "" : " " + model_sentence);
+        d.next_step = find_effect(d.named.front()).next_step;
+        if (model_named) d.next_step += "; and " + find_effect(d.model_terms.front()).next_step;
+    } else if (model_named && !gap_left) {
+        d.status = "no_gap";
+        d.message = model_sentence + " With it, no structural gap is left: no effect of the world (wind, pins, camera) "
+                                     "is needed to explain the footage.";
+        d.next_step = find_effect(d.model_terms.front()).next_step;
+    } else if (!d.discounted.empty() && d.control_gap_closed) {
+        d.status = "unexplained";
+        d.message = "Unexplained gap: " + how_far + ". The model's own discretisation may account for it: the base on " +
+                    d.control_description + " closes " + percent(*d.control_gap_closed) + " of it, " + join(d.discounted, " + ") +
+                    " " + percent(discounted_closed) + "." + (model_sentence.empty() ? "" : " " + model_sentence);
+        d.next_step = "diagnose on a finer mesh (--resolution) to tell them apart";
+    } else {
+        d.status = "unexplained";
+        const std::vector<CandidateEvidence>& ranked = d.candidates.empty() ? d.model_candidates : d.candidates;
+        std::vector<std::string> best;
+        for (std::size_t i = 0; i < ranked.size() && i < 3; ++i) best.push_back(plain(ranked[i].name));
+        d.message = "Unexplained gap: " + how_far + ", and no effect explains it with enough evidence" +
+                    (best.empty() ? std::string(".") : "; closest: " + join(best, ", ") + ".") +
+                    (model_sentence.empty() ? "" : " " + model_sentence);
+        d.next_step = model_named ? find_effect(d.model_terms.front()).next_step
+                                  : "look at where the residual lies (the heat maps) and check the capture's calibration and pin record";
     }
     stages.report("done", 1.0);
     d.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();

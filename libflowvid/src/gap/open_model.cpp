@@ -114,37 +114,9 @@ nlohmann::json base_changes_json(const std::vector<BaseParameterChange>& changes
     return out;
 }
 
-}  // namespace
-
-nlohmann::json diagnosis_document(const Diagnosis& d, const nlohmann::json& model) {
-    nlohmann::json out;
-    out["format"] = formats::kDiagnosisFormatName;
-    out["version"] = formats::kDiagnosisFormatVersion;
-    out["kind"] = d.kind;
-    out["trials"] = d.trials;
-    out["model"] = model;
-    out["gap"] = {{"detected", d.gap_detected},
-                  {"held_out_error", d.held_out_error},
-                  {"held_out_floor", d.held_out_floor},
-                  {"ratio", number(d.ratio)},
-                  {"threshold", d.threshold},
-                  {"held_out_frames", d.held_out_frames}};
-    out["verdict"] = {{"status", d.status},
-                      {"effects", d.named},
-                      {"class", d.named_class},
-                      {"message", d.message},
-                      {"gap_closed", d.gap_closed ? number(*d.gap_closed) : nlohmann::json()}};
-    if (!d.control_description.empty())
-        out["discretisation_control"] = {{"refinement", d.control_description},
-                                         {"gap_closed", d.control_gap_closed ? number(*d.control_gap_closed) : nlohmann::json()},
-                                         {"discounted_effects", d.discounted},
-                                         {"failure", d.control_failure.empty() ? nlohmann::json() : nlohmann::json(d.control_failure)}};
-    if (d.named_refit) {
-        out["verdict"]["parameters"] = effect_values_json(d.named_refit->effects);
-        out["verdict"]["base_changes"] = base_changes_json(d.named_refit->base);
-    }
+nlohmann::json candidates_json(const std::vector<CandidateEvidence>& evidence) {
     nlohmann::json candidates = nlohmann::json::array();
-    for (const CandidateEvidence& c : d.candidates) {
+    for (const CandidateEvidence& c : evidence) {
         nlohmann::json j = {{"name", c.name},
                             {"domain", c.domain},
                             {"screen_score", c.screen_score},
@@ -168,7 +140,48 @@ nlohmann::json diagnosis_document(const Diagnosis& d, const nlohmann::json& mode
         }
         candidates.push_back(j);
     }
-    out["candidates"] = candidates;
+    return candidates;
+}
+
+}  // namespace
+
+nlohmann::json diagnosis_document(const Diagnosis& d, const nlohmann::json& model) {
+    nlohmann::json out;
+    out["format"] = formats::kDiagnosisFormatName;
+    out["version"] = formats::kDiagnosisFormatVersion;
+    out["kind"] = d.kind;
+    out["trials"] = d.trials;
+    out["model"] = model;
+    out["gap"] = {{"detected", d.gap_detected},
+                  {"held_out_error", d.held_out_error},
+                  {"held_out_floor", d.held_out_floor},
+                  {"ratio", number(d.ratio)},
+                  {"threshold", d.threshold},
+                  {"held_out_frames", d.held_out_frames}};
+    out["verdict"] = {{"status", d.status},
+                      {"effects", d.named},
+                      {"class", d.named_class},
+                      {"message", d.message},
+                      {"next_step", d.next_step},
+                      {"gap_closed", d.gap_closed ? number(*d.gap_closed) : nlohmann::json()},
+                      {"model_terms", d.model_terms},
+                      {"model_gap_closed", d.model_gap_closed ? number(*d.model_gap_closed) : nlohmann::json()},
+                      {"ratio_with_model_terms", d.model_terms.empty() ? nlohmann::json() : number(d.ratio_with_model_terms)}};
+    if (d.model_refit) {
+        out["verdict"]["model_parameters"] = effect_values_json(d.model_refit->effects);
+        out["verdict"]["model_base_changes"] = base_changes_json(d.model_refit->base);
+    }
+    if (!d.control_description.empty())
+        out["discretisation_control"] = {{"refinement", d.control_description},
+                                         {"gap_closed", d.control_gap_closed ? number(*d.control_gap_closed) : nlohmann::json()},
+                                         {"discounted_effects", d.discounted},  // model terms too
+                                         {"failure", d.control_failure.empty() ? nlohmann::json() : nlohmann::json(d.control_failure)}};
+    if (d.named_refit) {
+        out["verdict"]["parameters"] = effect_values_json(d.named_refit->effects);
+        out["verdict"]["base_changes"] = base_changes_json(d.named_refit->base);
+    }
+    out["candidates"] = candidates_json(d.candidates);
+    out["model_candidates"] = candidates_json(d.model_candidates);
     out["null_refit"] = {{"base_changes", base_changes_json(d.null_refit.base)},
                          {"held_out_score", held_out_score(d.null_refit.residuals)}};
     nlohmann::json frames = nlohmann::json::array();

@@ -87,6 +87,42 @@ TEST(ClothGap, NeutralEffectsReproduceTheBaseModelExactly) {
     }
 }
 
+// The model's own terms are candidates exactly where the preset holds them
+// at their neutral value (fitted without them), and each sets its material
+// field as documented.
+TEST(ClothGap, OffersTheModelsOwnTermsOnlyWhereThePresetHoldsThemNeutral) {
+    if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
+    const ClothGapSettings settings = small_settings();
+    const cloth_fit::ClothTrial trial = synthetic_trial({}, settings);
+    const std::vector<std::string> terms = {"compression_softness", "hem_mass", "diagonal_fibres", "drag_linear"};
+    const auto offered = [&](const cloth::ClothMaterial& base) {
+        std::vector<std::string> out;
+        for (const std::string& name : ClothGapModel({trial}, base, settings).candidate_effects())
+            if (find_effect(name).domain == EffectDomain::model) out.push_back(name);
+        return out;
+    };
+    EXPECT_EQ(offered(cotton()), terms);
+    cloth::ClothMaterial fitted = cotton();
+    fitted.stretch_weft_compression_ratio = 0.3;
+    fitted.hem_line_density_kg_per_m = 5e-4;
+    fitted.diagonal_tension_N_per_m = 20.0;
+    fitted.drag_linear_normal_kg_per_m2_s = 0.1;
+    EXPECT_TRUE(offered(fitted).empty());
+
+    const cloth::ClothMaterial base = cotton();
+    const ClothScenario s = apply_cloth_effects(trial, base, settings.fit.swatch,
+                                                {{"compression_softness", Eigen::VectorXd::Constant(1, 2.0)},
+                                                 {"hem_mass", Eigen::VectorXd::Constant(1, 1e-3)},
+                                                 {"diagonal_fibres", Eigen::VectorXd::Constant(1, 0.5)},
+                                                 {"drag_linear", Eigen::VectorXd::Constant(1, 0.3)}});
+    EXPECT_DOUBLE_EQ(s.material.stretch_warp_compression_ratio, std::exp(-2.0));
+    EXPECT_DOUBLE_EQ(s.material.stretch_weft_compression_ratio, std::exp(-2.0));
+    EXPECT_DOUBLE_EQ(s.material.hem_line_density_kg_per_m, 1e-3);
+    EXPECT_DOUBLE_EQ(s.material.diagonal_tension_N_per_m,
+                     0.5 * std::sqrt(base.stretch_warp_N_per_m * base.stretch_weft_N_per_m));
+    EXPECT_DOUBLE_EQ(s.material.drag_linear_normal_kg_per_m2_s, 0.3);
+}
+
 TEST(ClothGap, PinLagShiftsThePinsByTheLag) {
     if (!have_shared()) GTEST_SKIP() << "needs ../shared/captures";
     const formats::Capture capture = formats::read_capture(shared_path("captures/cloth-cotton-waving-1"));
@@ -174,6 +210,8 @@ TEST(ClothGap, DiagnosisNamesAHiddenPinLagAndFindsNoGapWithoutIt) {
     ASSERT_TRUE(d.gap_detected) << d.message;
     ASSERT_EQ(d.status, "named") << d.message;
     EXPECT_EQ(d.named.front(), "pin_lag");
+    // Footage from this very model: none of its own terms is missing.
+    EXPECT_TRUE(d.model_terms.empty()) << d.message;
     ASSERT_TRUE(d.named_refit);
     EXPECT_NEAR(d.named_refit->effects.at("pin_lag")(0), lag_s, 0.3 * lag_s);
     ASSERT_TRUE(d.gap_closed);
@@ -224,7 +262,7 @@ TEST(ClothGap, TheDiscretisationControlClosesAFinerMeshsGapButNotAnEffects) {
     settings.control_resolution_step = 5;
     auto control_closes = [&](const cloth_fit::ClothTrial& footage) {
         const ClothGapModel model({footage}, cotton(), settings);
-        const std::optional<DiscretisationControl> control = model.discretisation_control({});
+        const std::optional<DiscretisationControl> control = model.discretisation_control({}, {});
         EXPECT_TRUE(control);
         EXPECT_EQ(control->description, "a 15x15 mesh");
         return held_out_gap_closed(model.evaluate({}), control->residuals);
@@ -236,7 +274,7 @@ TEST(ClothGap, TheDiscretisationControlClosesAFinerMeshsGapButNotAnEffects) {
     EXPECT_LT(lag_gap, 0.1);   // measured 0.00
 
     settings.control_resolution_step = 0;
-    EXPECT_FALSE(ClothGapModel({synthetic_trial({}, settings)}, cotton(), settings).discretisation_control({}));
+    EXPECT_FALSE(ClothGapModel({synthetic_trial({}, settings)}, cotton(), settings).discretisation_control({}, {}));
 }
 
 }  // namespace

@@ -1,4 +1,5 @@
-// The diagnosis's discretisation control, on a model whose residual is known
+// The diagnosis's discretisation control, and the model's own terms named
+// before the world's effects, on models whose residual is known
 // in closed form: a gap made of an effect's part and a discretisation part
 // that only a finer mesh removes. The effect is named when it closes clearly
 // more of the gap than the finer mesh; when the finer mesh closes about as
@@ -6,6 +7,8 @@
 
 #include "flowvid/gap/diagnose.hpp"
 #include "flowvid/gap/effects.hpp"
+#include "flowvid/gap/open_model.hpp"
+#include "flowvid/formats/diagnosis.hpp"
 
 #include <gtest/gtest.h>
 
@@ -40,7 +43,7 @@ public:
         return r;
     }
     std::vector<RegionMap> localise(const EffectValues&) const override { return {}; }
-    std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>&) const override {
+    std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>&, const EffectValues&) const override {
         DiscretisationControl control{"a finer mesh", residuals(0.0, true)};
         if (m_control_fails) {
             control.residuals.ok = false;
@@ -125,6 +128,134 @@ TEST(DiagnoseControl, AFailedControlLeavesTheVerdictAndSaysWhy) {
     EXPECT_FALSE(d.control_gap_closed);
     EXPECT_EQ(d.control_failure, "the finer mesh went unstable");
     EXPECT_TRUE(d.discounted.empty());
+}
+
+// A gap with three known parts: the model's own term (soft compression, a
+// preset fitted without it), an effect of the world (pin lag) and the
+// discretisation (gone on the finer mesh). error_k = floor_k (1 + m u_k (1 -
+// s / s0)^2 + e w_k (1 - lag / lag0)^2 + c v_k).
+constexpr double kTrueSoftness = 2.0;
+
+class ModelAndEffectGap : public GapModel {
+public:
+    ModelAndEffectGap(double model_weight, double effect_weight, double discretisation_weight)
+        : m_model(model_weight), m_effect(effect_weight), m_discretisation(discretisation_weight) {}
+
+    std::string kind() const override { return "cloth"; }
+    std::vector<std::string> trial_names() const override { return {"known"}; }
+    std::vector<std::string> candidate_effects() const override { return {"compression_softness", "pin_lag"}; }
+    std::vector<std::string> base_parameter_keys() const override { return {}; }
+    Residuals evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>&) const override {
+        return residuals(effects, false);
+    }
+    RefitResult refit(const EffectValues& start, int, const std::vector<BaseParameterChange>&) const override {
+        RefitResult r;
+        r.effects = start;
+        if (start.count("pin_lag")) r.effects["pin_lag"] = Eigen::VectorXd::Constant(1, kTrueLag_s);
+        if (start.count("compression_softness")) r.effects["compression_softness"] = Eigen::VectorXd::Constant(1, kTrueSoftness);
+        r.residuals = evaluate(r.effects, {});
+        r.evaluations = 1;
+        return r;
+    }
+    std::vector<RegionMap> localise(const EffectValues&) const override { return {}; }
+    std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>&,
+                                                                const EffectValues& effects) const override {
+        return DiscretisationControl{"a finer mesh", residuals(effects, true)};
+    }
+
+    // Each part's share of the held-out gap, from the formula.
+    double share(int part) const {
+        double sum = 0.0, total = 0.0;
+        for (int frame = 1; frame <= 60; ++frame) {
+            if (!is_held_out(frame)) continue;
+            const double parts[3] = {m_model * u(frame), m_effect * w(frame), m_discretisation * v(frame)};
+            sum += parts[part];
+            total += parts[0] + parts[1] + parts[2];
+        }
+        return sum / total;
+    }
+
+private:
+    static double u(int frame) { return 1.0 + 0.4 * std::cos(0.2 * frame); }
+    static double w(int frame) { return 1.0 + 0.5 * std::sin(0.3 * frame); }
+    static double v(int frame) { return 1.0 + 0.5 * std::cos(0.45 * frame); }
+    Residuals residuals(const EffectValues& effects, bool finer) const {
+        const auto value = [&](const char* name) {
+            const auto it = effects.find(name);
+            return it == effects.end() ? 0.0 : it->second(0);
+        };
+        const double soft_miss = 1.0 - value("compression_softness") / kTrueSoftness;
+        const double lag_miss = 1.0 - value("pin_lag") / kTrueLag_s;
+        Residuals out;
+        for (int frame = 1; frame <= 60; ++frame) {
+            FrameResidual f;
+            f.frame = frame;
+            f.time_s = (frame - 1) / 30.0;
+            f.held_out = is_held_out(frame);
+            f.floor = 2.0 + std::sin(0.7 * frame);
+            f.observations = 50.0;
+            f.error = f.floor * (1.0 + m_model * u(frame) * soft_miss * soft_miss + m_effect * w(frame) * lag_miss * lag_miss +
+                                 (finer ? 0.0 : m_discretisation * v(frame)));
+            out.frames.push_back(f);
+        }
+        return out;
+    }
+    double m_model, m_effect, m_discretisation;
+};
+
+TEST(DiagnoseModelTerms, NamesThePresetsMissingTermFirstThenTheEffectOnTopOfIt) {
+    const ModelAndEffectGap model(6.0, 4.0, 0.5);
+    const Diagnosis d = diagnose(model, quick());
+    ASSERT_TRUE(d.gap_detected);
+    EXPECT_EQ(d.model_terms, std::vector<std::string>{"compression_softness"});
+    ASSERT_TRUE(d.model_gap_closed);
+    EXPECT_NEAR(*d.model_gap_closed, model.share(0), 1e-9);
+    ASSERT_EQ(d.status, "named") << d.message;
+    EXPECT_EQ(d.named, std::vector<std::string>{"pin_lag"});
+    ASSERT_TRUE(d.gap_closed);
+    EXPECT_NEAR(*d.gap_closed, model.share(1), 1e-9);  // beyond the model term
+    ASSERT_FALSE(d.model_candidates.empty());
+    EXPECT_EQ(d.model_candidates.front().domain, "model");
+    for (const CandidateEvidence& c : d.candidates) EXPECT_NE(c.domain, "model") << c.name;
+    // Plain names beside the keys, each share once, and what to do next.
+    EXPECT_NE(d.message.find("pins out of step with the footage [pin_lag]"), std::string::npos) << d.message;
+    EXPECT_NE(d.message.find("soft compression (buckling) [compression_softness]"), std::string::npos) << d.message;
+    EXPECT_NE(d.next_step.find("sync"), std::string::npos) << d.next_step;
+    EXPECT_NE(d.next_step.find("capacity terms"), std::string::npos) << d.next_step;
+    // The document states both and validates.
+    const nlohmann::json document = diagnosis_document(d, nlohmann::json::object());
+    Diagnostics diagnostics("diagnosis.json");
+    const std::optional<formats::Diagnosis> parsed = formats::parse_diagnosis(document, diagnostics, formats::Strictness::strict);
+    ASSERT_TRUE(parsed) << diagnostics.problems().front().to_string();
+    EXPECT_EQ(parsed->verdict.model_terms, std::vector<std::string>{"compression_softness"});
+    EXPECT_EQ(parsed->verdict.effects, std::vector<std::string>{"pin_lag"});
+}
+
+TEST(DiagnoseModelTerms, AGapTheMissingTermClosesEndsWithNoEffectNamed) {
+    const ModelAndEffectGap model(8.0, 0.0, 0.2);
+    const Diagnosis d = diagnose(model, quick());
+    ASSERT_TRUE(d.gap_detected);
+    EXPECT_EQ(d.model_terms, std::vector<std::string>{"compression_softness"});
+    EXPECT_LT(d.ratio_with_model_terms, d.threshold);
+    EXPECT_EQ(d.status, "no_gap") << d.message;
+    EXPECT_TRUE(d.named.empty());
+    EXPECT_TRUE(d.candidates.empty());  // no effect was needed
+    const nlohmann::json document = diagnosis_document(d, nlohmann::json::object());
+    Diagnostics diagnostics("diagnosis.json");
+    EXPECT_TRUE(formats::parse_diagnosis(document, diagnostics, formats::Strictness::strict));
+    // Without the model term the same file would contradict itself.
+    nlohmann::json broken = document;
+    broken["verdict"]["model_terms"] = nlohmann::json::array();
+    Diagnostics refused("diagnosis.json");
+    EXPECT_FALSE(formats::parse_diagnosis(broken, refused, formats::Strictness::strict));
+}
+
+TEST(DiagnoseModelTerms, AModelTermAFinerMeshMatchesIsDiscounted) {
+    const ModelAndEffectGap model(3.0, 0.0, 5.0);
+    const Diagnosis d = diagnose(model, quick());
+    EXPECT_TRUE(d.model_terms.empty());
+    EXPECT_EQ(d.discounted, std::vector<std::string>{"compression_softness"});
+    EXPECT_EQ(d.status, "unexplained") << d.message;
 }
 
 }  // namespace

@@ -40,6 +40,9 @@ struct DiagnosisVerdict {
     std::string effect_class;           // "class": equivalence class of the first named effect, or ""
     std::string message;                // one sentence for people
     std::optional<double> gap_closed;   // share of the held-out gap the named effects close (null unless named)
+    // "model_terms": the cloth model's own terms named before any effect
+    // (the preset was fitted without them); optional, empty in older files.
+    std::vector<std::string> model_terms;
 };
 
 struct Diagnosis {

@@ -2,6 +2,8 @@
 // The cloth side of the gap diagnosis: a fitted fabric in one or more swatch
 // trials (static drapes, waving tests), with the catalogue's cloth and camera
 // effects as optional terms (gap/effects.hpp):
+//   compression_softness, hem_mass,
+//   diagonal_fibres, drag_linear           -> the material (the model's own terms);
 //   drag_nonlinear, anisotropy, hysteresis -> the material;
 //   wind                                   -> the air around the swatch;
 //   pin_lag, pin_slip                      -> the pins' trajectories;
@@ -16,6 +18,8 @@
 #include "flowvid/cloth_fit/cloth_fit.hpp"
 #include "flowvid/video/stripe_render.hpp"
 
+#include <algorithm>
+#include <atomic>
 #include <memory>
 
 namespace flowvid::gap {
@@ -87,7 +91,12 @@ public:
     RefitResult refit(const EffectValues& start, int max_evaluations,
                       const std::vector<BaseParameterChange>& base_start = {}) const override;
     std::vector<RegionMap> localise(const EffectValues& effects) const override;
-    std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>& base) const override;
+    std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>& base,
+                                                                const EffectValues& effects) const override;
+
+    // Evaluations may run at once from `threads` threads; each simulation
+    // then gets its share of the threads.
+    int concurrency() const override { return std::max(1, m_settings.threads); }
 
     const cloth::ClothMaterial& base() const { return m_base; }
 
@@ -105,6 +114,7 @@ private:
     std::vector<Eigen::VectorXd> m_warm_starts;        // per trial
     std::vector<std::vector<double>> m_floors;         // per trial, per compared frame
     std::vector<std::vector<double>> m_pin_speeds;     // per trial, per compared frame (m/s)
+    mutable std::atomic<int> m_running{0};             // evaluations running now: they share the threads
 };
 
 }  // namespace flowvid::gap

@@ -7,7 +7,9 @@
 //     structural gap", and no effect is named (this keeps false alarms down).
 //  2. Where: the residual per frame (beside what drives the motion), per
 //     region (GapModel::localise) and per frequency.
-//  3. Which: the base parameters are refitted alone (the null refit); from
+//  3. Which (first among the model's own terms a preset may have been fitted
+//     without, then among the world's effects on top of any named):
+//     the base parameters are refitted alone (the null refit); from
 //     there every candidate effect is screened cheaply (a quadratic through
 //     the training score at the neutral value and two steps, per parameter:
 //     the reduction it predicts); the most promising are refitted jointly with
@@ -42,6 +44,7 @@ struct DiagnoseSettings {
     int refitted_candidates = 3;      // best screened candidates that are refitted
     int refit_evaluations = 40;       // per refit (the null refit too)
     int max_effects = 2;              // greedy rounds
+    int max_model_terms = 2;          // greedy rounds over the model's own terms (before the effects)
     // Evidence needed to name an effect:
     double min_effect_share = 0.25;   // of the held-out gap, beyond the null refit
     double max_delta_bic = -6.0;      // training-frame BIC against the previous model (< -6: strong evidence)
@@ -54,6 +57,11 @@ struct DiagnoseSettings {
     double min_share_beyond_discretisation = 0.1;
     std::uint64_t seed = 1;
     std::vector<std::string> effects;  // candidates to consider (empty: all the model offers)
+    // Evaluations run side by side (candidates screened and refitted at
+    // once): at most this many, 0 = as many as the model allows
+    // (GapModel::concurrency). 1 is the serial pipeline before 2026-11-28.
+    // The verdict does not depend on it.
+    int concurrent_evaluations = 0;
     // Stages and their fraction done; returning false cancels (diagnose then
     // throws flowvid::Cancelled).
     Progress progress;
@@ -93,17 +101,26 @@ struct Diagnosis {
     double threshold = 0.0;
     bool gap_detected = false;
     std::string status;               // "no_gap", "named", "unexplained"
-    std::vector<std::string> named;   // effects, greedy order
+    std::vector<std::string> named;   // effects of the world (cloth, camera, rigid domains), greedy order
     std::string named_class;          // equivalence class of the first named effect, if any
-    std::string message;              // one sentence for people
-    std::optional<double> gap_closed; // by the named effects together
+    std::string message;              // the verdict for people: figures with units, plain names beside the keys
+    std::string next_step;            // what to do about it ("refit with ...", "check the camera calibration")
+    // The model's own terms (EffectDomain::model) the diagnosis named before
+    // any effect: the preset was fitted without them, and adding them closes
+    // this share of the held-out gap. The effects are named on top of them.
+    std::vector<std::string> model_terms;
+    std::optional<double> model_gap_closed;
+    std::optional<RefitResult> model_refit;         // the model terms refitted with the base
+    double ratio_with_model_terms = 0.0;            // mean held-out error/floor with them (= ratio's null refit when none)
+    std::vector<CandidateEvidence> model_candidates;  // the model terms' evidence, ranked as `candidates`
+    std::optional<double> gap_closed; // by the named effects together, beyond the model terms
     std::optional<RefitResult> named_refit;   // the named effects refitted together
     RefitResult null_refit;           // base parameters alone
     std::string control_description;  // the discretisation control's refinement ("a 28x28 mesh"), when run
     std::optional<double> control_gap_closed;   // the share of the held-out gap it closes
     std::string control_failure;      // why the control could not be measured (its simulation failed): no verdict change
-    std::vector<std::string> discounted;        // effects that passed but did not beat the control
-    std::vector<CandidateEvidence> candidates;  // ranked: refitted by held-out score, then by screening
+    std::vector<std::string> discounted;        // model terms or effects that passed but did not beat the control
+    std::vector<CandidateEvidence> candidates;  // the effects' first round, ranked: refitted by held-out score, then by screening
     std::vector<RegionMap> maps;      // of the base model's residual
     Spectrum spectrum;
     long long evaluations = 0;

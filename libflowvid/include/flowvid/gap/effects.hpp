@@ -3,6 +3,10 @@
 // model (names are part of the interface: diagnosis.json, bench labels,
 // `flowvid diagnose --effects`). Every effect is an optional term with its
 // own parameters and a neutral value that reproduces the base model exactly.
+// The `model` domain holds the cloth model's own optional physics (the terms
+// the capacity study added: softer compression, a hem, diagonal fibres,
+// linear drag): a preset that holds one at its neutral value was fitted
+// without it, and the diagnosis asks first whether that is the gap.
 
 #include <Eigen/Core>
 
@@ -12,7 +16,7 @@
 
 namespace flowvid::gap {
 
-enum class EffectDomain { cloth, camera, rigid };
+enum class EffectDomain { model, cloth, camera, rigid };
 const char* domain_name(EffectDomain domain);
 
 struct EffectParameter {
@@ -31,9 +35,13 @@ struct Effect {
     // Effects the footage of one camera cannot tell apart from this one
     // (e.g. camera_roll and a gravity tilt): reported as one class.
     std::string equivalence_class;  // empty: identifiable on its own
+    // For people: a plain name ("soft compression", "wind") and the next step
+    // once it is named ("refit the fabric with the capacity terms").
+    std::string plain_name;
+    std::string next_step;
 };
 
-// Every effect, in a fixed order (cloth, camera, rigid).
+// Every effect, in a fixed order (model, cloth, camera, rigid).
 const std::vector<Effect>& effect_catalogue();
 // Throws std::invalid_argument listing the known names.
 const Effect& find_effect(const std::string& name);

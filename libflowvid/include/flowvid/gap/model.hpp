@@ -107,10 +107,16 @@ public:
     // Where the residual of `effects` lies (over the object's own surface
     // coordinates and over the image), summed over every frame.
     virtual std::vector<RegionMap> localise(const EffectValues& effects) const = 0;
-    // The base model with `base`'s changes, no effect, on a finer
-    // discretisation; nullopt when the model has none to offer.
-    virtual std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>& base) const {
+    // How many evaluate() or refit() calls the diagnosis may run at once
+    // (from as many threads); a model shares its threads among them.
+    virtual int concurrency() const { return 1; }
+    // The base model with `base`'s changes and `effects` (the model's own
+    // terms the diagnosis named, or none), on a finer discretisation; nullopt
+    // when the model has none to offer.
+    virtual std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>& base,
+                                                                        const EffectValues& effects) const {
         (void)base;
+        (void)effects;
         return std::nullopt;
     }
 };
