@@ -305,6 +305,7 @@ int run_diagnosis_stage(const DemoOptions& options, const GlobalOptions& global)
     const nlohmann::json d = read_json_file(out / "diagnose.json");
     if (d.is_discarded()) return kExitFailure;
     std::cout << "  verdict: " << d["verdict"].get<std::string>() << " -- " << d["message"].get<std::string>() << '\n'
+              << "  next step: " << d.value("next_step", "") << '\n'
               << "  report: " << (out / "report" / "report.html").string() << '\n';
     return kExitOk;
 }
@@ -563,9 +564,9 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
         body << html::element("h2", "Diagnosis")
              << verdict(sentence, verdict_name == "named" || verdict_name == "no_gap" ? "good" : "warn")
              << html::element("p", "verdict: " + verdict_name) << html::element("p", diagnosis.value("message", ""))
-             << "<p>held-out error / floor "
-             << html::format_number(over_floor) << ", gap closed " << html::format_percent(closed)
-             << ", " << html::format_number(diagnosis.value("seconds", NAN)) << " s. "
+             << (diagnosis.value("next_step", "").empty() ? std::string()
+                                                          : html::element("p", "Next step: " + diagnosis.value("next_step", "") + "."))
+             << "<p>" << html::format_number(diagnosis.value("seconds", NAN)) << " s. "
              << link(out / "diagnosis" / "report" / "report.html", out, "full report (heat maps, ablation table)") << "</p>\n";
     }
     formats::write_file_atomically((out / "index.html").string(),

@@ -57,6 +57,7 @@ struct FitClothOptions {
     double half_life_frames = 10.0;
     double static_weight = 1.0;  // each static drape against one full-weight waving frame
     double min_bending_N_m = 0.0;  // a floor on the fitted bending (0: its range)
+    std::vector<std::string> hold;  // parameters left out of the fit
     std::string start;             // a preset to refine (empty: the middle of the ranges)
     int refine_rounds = 0;         // searches again after the first, from its fabric
     ClothRunOptions run;
@@ -93,6 +94,7 @@ cloth_fit::ClothFitRequest make_request(const FitClothOptions& options, const cl
     request.load.half_life_frames = options.half_life_frames;
     request.load.static_weight = options.static_weight;
     request.min_bending_N_m = options.min_bending_N_m;
+    request.held_parameters = options.hold;
     request.problem.swatch = swatch;
     request.problem.metric.silhouette_term =
         options.metric == "edge" ? video::SilhouetteTerm::edge_distance : video::SilhouetteTerm::pixel_xor;
@@ -182,6 +184,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
                               {"half_life_frames", request.load.half_life_frames},
                               {"static_weight", request.load.static_weight},
                               {"min_bending_N_m", request.min_bending_N_m},
+                              {"held_parameters", request.held_parameters},
                               {"start", options.start.empty() ? nlohmann::json("middle of the ranges") : nlohmann::json(options.start)},
                               {"search", optim::search_method_name(request.search)},
                               {"drag", cloth_fit::drag_model_name(request.drag)},
@@ -440,6 +443,11 @@ const RegisterFitKind registration{FitKind{
                        "preset drapes alike on 12x12 to 48x48 meshes, at a cost in accuracy (docs/cloth_model.md)")
             ->check(CLI::Range(0.0, 1e-3))
             ->capture_default_str();
+        app.add_option("--hold", options->hold,
+                       "leave this parameter out of the fit (repeat for several): it keeps its start value, for a "
+                       "capacity term its neutral one -- an ablation, e.g. --hold stretch_warp_compression_ratio "
+                       "--hold stretch_weft_compression_ratio fits without soft compression, and `flowvid diagnose` "
+                       "then names compression_softness if the footage needs it");
         app.add_option("--static-weight", options->static_weight,
                        "weight of each static drape against one full-weight waving frame")
             ->check(CLI::NonNegativeNumber)

@@ -103,8 +103,18 @@ struct FitControl {
 std::vector<ClothTrial> load_fit_trials(const ClothFitRequest& request, ClothFitOutcome& outcome) {
     std::vector<ClothTrial> trials = load_trials(request.captures, request.load);
     for (const ClothTrial& t : trials) outcome.trial_names.push_back(t.name);
-    outcome.parameters = with_bending_floor(request.parameters.empty() ? parameters_for(trials, request.drag) : request.parameters,
-                                            request.min_bending_N_m);
+    std::vector<FittedParameter> parameters = request.parameters.empty() ? parameters_for(trials, request.drag) : request.parameters;
+    for (const std::string& held : request.held_parameters) {
+        const auto it = std::find_if(parameters.begin(), parameters.end(), [&](const FittedParameter& p) { return p.key == held; });
+        if (it == parameters.end()) {
+            std::string fitted;
+            for (const FittedParameter& p : parameters) fitted += (fitted.empty() ? "" : ", ") + p.key;
+            throw UsageError("", "--hold", "cannot hold '" + held + "': this fit does not fit it",
+                             "hold one of the fitted parameters: " + fitted);
+        }
+        parameters.erase(it);
+    }
+    outcome.parameters = with_bending_floor(parameters, request.min_bending_N_m);
     return trials;
 }
 

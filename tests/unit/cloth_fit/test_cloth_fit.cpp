@@ -342,6 +342,30 @@ TEST(ClothFit, AGivenStartIsWhereTheFitBeginsClampedIntoTheRanges) {
     EXPECT_NEAR(middle.start.stretch_warp_N_per_m, std::sqrt(10.0 * 1e4), 1e-9);
 }
 
+TEST(ClothFit, AHeldParameterIsLeftOutAndKeepsItsStartValue) {
+    // ClothFitRequest::held_parameters (`fit cloth --hold`): an ablation, e.g.
+    // a fabric fitted without soft compression for the gap diagnosis.
+    ClothFitRequest request = small_drape_fit(8);
+    request.polish_evaluations = 0;
+    request.parameters.push_back({"stretch_warp_compression_ratio", 1e-3, 1.0, true});
+    request.held_parameters = {"stretch_warp_compression_ratio", "bend_stiffness_N_m"};
+    const ClothFitOutcome held = fit_cloth(request);
+    ASSERT_EQ(held.parameters.size(), 1u);
+    EXPECT_EQ(held.parameters.front().key, "stretch_stiffness_N_per_m");
+    EXPECT_DOUBLE_EQ(held.fitted.stretch_warp_compression_ratio, 1.0);  // the neutral value it started from
+    EXPECT_DOUBLE_EQ(held.fitted.bend_N_m, cloth::ClothMaterial{}.bend_N_m);
+    EXPECT_NE(held.fitted.stretch_warp_N_per_m, cloth::ClothMaterial{}.stretch_warp_N_per_m);  // the fitted one moved
+
+    request.held_parameters = {"shear_stiffness_N_per_m"};  // not fitted here
+    try {
+        fit_cloth(request);
+        ADD_FAILURE() << "holding a parameter the fit does not fit must be refused";
+    } catch (const UsageError& e) {
+        EXPECT_EQ(e.field(), "--hold");
+        EXPECT_NE(e.fix().find("stretch_stiffness_N_per_m"), std::string::npos) << e.fix();
+    }
+}
+
 TEST(ClothFit, ARefinementRoundStartsFromTheFirstRoundsFabricWithItsFoldStates) {
     // With a refinement round, a footage fit searches a second time from its
     // first round's best fabric, whose equilibrium picks the fold states

@@ -74,6 +74,11 @@ struct ClothFitRequest {
     // mesh; a floor buys a preset that drapes alike on 12x12 to 48x48 meshes
     // at the cost of reach (docs/cloth_model.md, "Resolution").
     double min_bending_N_m = 0.0;
+    // Parameters left out of the fit (keys of `parameters`): they keep the
+    // start's value (the base material's, e.g. a capacity term's neutral
+    // value). An ablation: a fabric fitted without soft compression, say,
+    // for the gap diagnosis to find it missing. Unknown keys: UsageError.
+    std::vector<std::string> held_parameters;
     // The fit's start instead of the middle of the parameters' ranges (its
     // fitted values clamped into them): where the search begins, and the
     // fabric whose equilibrium picks each trial's fold state (an earlier
