@@ -19,6 +19,17 @@ namespace {
 
 constexpr double kTrueLag_s = 0.1;
 
+// Frame `frame` of the known models' 60: 30 fps, a floor that varies, its error still to set.
+FrameResidual known_frame(int frame) {
+    FrameResidual f;
+    f.frame = frame;
+    f.time_s = (frame - 1) / 30.0;
+    f.held_out = is_held_out(frame);
+    f.floor = 2.0 + std::sin(0.7 * frame);
+    f.observations = 50.0;
+    return f;
+}
+
 // error_k = floor_k (1 + effect_weight * w_k * (1 - lag / true lag)^2 + discretisation_weight * v_k):
 // the effect's part vanishes at the true lag, the discretisation part on the finer mesh.
 class KnownGapModel : public GapModel {
@@ -56,12 +67,7 @@ private:
     Residuals residuals(double lag_s, bool finer) const {
         Residuals out;
         for (int frame = 1; frame <= 60; ++frame) {
-            FrameResidual f;
-            f.frame = frame;
-            f.time_s = (frame - 1) / 30.0;
-            f.held_out = is_held_out(frame);
-            f.floor = 2.0 + std::sin(0.7 * frame);
-            f.observations = 50.0;
+            FrameResidual f = known_frame(frame);
             const double w = 1.0 + 0.5 * std::sin(0.3 * frame), v = 1.0 + 0.5 * std::cos(0.45 * frame);
             const double miss = 1.0 - lag_s / kTrueLag_s;
             f.error = f.floor * (1.0 + m_effect * w * miss * miss + (finer ? 0.0 : m_discretisation * v));
@@ -188,12 +194,7 @@ private:
         const double lag_miss = 1.0 - value("pin_lag") / kTrueLag_s;
         Residuals out;
         for (int frame = 1; frame <= 60; ++frame) {
-            FrameResidual f;
-            f.frame = frame;
-            f.time_s = (frame - 1) / 30.0;
-            f.held_out = is_held_out(frame);
-            f.floor = 2.0 + std::sin(0.7 * frame);
-            f.observations = 50.0;
+            FrameResidual f = known_frame(frame);
             f.error = f.floor * (1.0 + m_model * u(frame) * soft_miss * soft_miss + m_effect * w(frame) * lag_miss * lag_miss +
                                  (finer ? 0.0 : m_discretisation * v(frame)));
             out.frames.push_back(f);
