@@ -462,7 +462,8 @@ Diagnosis diagnose(const GapModel& model, const DiagnoseSettings& settings) {
 
     // 4. The verdict, in words an artist can act on.
     const std::string model_sentence =
-        model_named ? "The fabric model itself lacks " + plain_list(d.model_terms) + ": adding it closes " +
+        model_named ? "The fabric model itself lacks " + plain_list(d.model_terms) + ": adding " +
+                          (d.model_terms.size() > 1 ? "them" : "it") + " closes " +
                           percent(*d.model_gap_closed) + " of the gap (" + times(d.ratio) + " -> " +
                           times(d.ratio_with_model_terms) + " times the floor)."
                     : "";
