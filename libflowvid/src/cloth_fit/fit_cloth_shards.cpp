@@ -5,6 +5,7 @@
 #include "flowvid/threads.hpp"
 #include "flowvid/version.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <initializer_list>
 #include <limits>
@@ -52,10 +53,22 @@ ClothFitRequest cloth_fit_request_from_shard(const formats::FitShardFile& file) 
         view.has("static-weight") ? view.number("static-weight", formats::NumberRange::non_negative("")).value_or(1.0) : 1.0;
     if (view.has("min-bending"))  // written only when set
         request.min_bending_N_m = view.number("min-bending", formats::NumberRange::non_negative("N m")).value_or(0.0);
+    // Written only when parameters were held out of the fit: their keys, comma-separated (options are flat).
+    if (const std::optional<std::string> held = view.has("hold") ? view.string("hold") : std::nullopt) {
+        std::size_t from = 0;
+        while (from <= held->size()) {
+            const std::size_t comma = std::min(held->find(',', from), held->size());
+            const std::string key = held->substr(from, comma - from);
+            if (key.empty()) diagnostics.error("/request/options/hold", "an empty parameter name", "run the shard again");
+            else request.held_parameters.push_back(key);
+            from = comma + 1;
+        }
+    }
     const std::string resolution = view.string("resolution").value_or("24x24");
     const double initial_bow = view.number("initial-bow", formats::NumberRange::closed(-2.0, 2.0)).value_or(1.0);
     view.check_known_keys({"drag", "metric", "fit-to", "seed", "evaluations", "budget-seconds", "frames", "full-weight-frames",
-                           "half-life-frames", "static-weight", "min-bending", "search", "resolution", "integrator", "initial-bow"});
+                           "half-life-frames", "static-weight", "min-bending", "hold", "search", "resolution", "integrator",
+                           "initial-bow"});
     int rows = 0, cols = 0;
     char x = 0, extra = 0;
     if (std::sscanf(resolution.c_str(), "%d%c%d%c", &rows, &x, &cols, &extra) != 3 || (x != 'x' && x != 'X') || rows < 2 ||
@@ -84,6 +97,11 @@ nlohmann::json cloth_fit_result_options(const ClothFitRequest& request) {
     if (request.load.target != FitTarget::footage) options["fit-to"] = fit_target_name(request.load.target);
     if (request.load.static_weight != 1.0) options["static-weight"] = request.load.static_weight;
     if (request.min_bending_N_m > 0.0) options["min-bending"] = request.min_bending_N_m;
+    if (!request.held_parameters.empty()) {
+        std::string held;
+        for (const std::string& key : request.held_parameters) held += (held.empty() ? "" : ",") + key;
+        options["hold"] = held;
+    }
     // Written only when not the thesis's annealing, which shards written
     // before the search could be chosen used (and have no "search").
     if (request.search != optim::SearchMethod::annealing) options["search"] = optim::search_method_name(request.search);
