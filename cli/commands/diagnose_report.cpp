@@ -107,16 +107,9 @@ Units units_of(const std::string& kind) {
 
 // ---------------------------------------------------------------- verdict
 
-// "pins out of step with the footage [pin_lag]": the catalogue's plain name
-// beside the key (a name this flowvid does not know stays as it is).
-std::vector<std::string> plain_names(const std::vector<std::string>& keys) {
+std::vector<std::string> labelled_names(const std::vector<std::string>& keys) {
     std::vector<std::string> out;
-    for (const std::string& key : keys) {
-        std::string plain;
-        for (const gap::Effect& effect : gap::effect_catalogue())
-            if (effect.name == key) plain = effect.plain_name;
-        out.push_back(plain.empty() ? key : plain + " [" + key + "]");
-    }
+    for (const std::string& key : keys) out.push_back(gap::labelled_name(key));
     return out;
 }
 
@@ -136,10 +129,10 @@ std::string verdict_box(const json& d) {
         if (e.is_string()) model_terms.push_back(e.get<std::string>());
     if (!member(d, "gap") && !member(d, "verdict")) headline = "No verdict: this diagnosis has neither a gap nor a verdict";
     else if (status == "no_gap" && !model_terms.empty())
-        headline = "No gap left once the fabric model has " + join(plain_names(model_terms), " + ");
+        headline = "No gap left once the fabric model has " + join(labelled_names(model_terms), " + ");
     else if (status == "no_gap") css = "verdict good", headline = "No gap: the model explains the footage down to its floor";
     else if (status == "named")
-        headline = "Gap detected \xE2\x80\x94 named effect: " + (effects.empty() ? std::string("\xE2\x80\x94") : join(plain_names(effects), " + "));
+        headline = "Gap detected \xE2\x80\x94 named effect: " + (effects.empty() ? std::string("\xE2\x80\x94") : join(labelled_names(effects), " + "));
     else if (status == "unexplained") css = "verdict bad", headline = "Gap detected \xE2\x80\x94 unexplained";
     else headline = detected ? "Gap detected" : "No gap";
 

@@ -155,8 +155,9 @@ std::vector<BenchCase> draw_bench_cases(int count, std::uint64_t seed, int scene
     const std::vector<std::string> effects = settings.effects.empty() ? default_effects(rigid_scenes > 0) : settings.effects;
     int rigid_effects = 0;
     for (const std::string& e : effects) {
-        const bool rigid = find_effect(e).domain == EffectDomain::rigid;
-        if (find_effect(e).domain == EffectDomain::model)
+        const EffectDomain domain = find_effect(e).domain;
+        const bool rigid = domain == EffectDomain::rigid;
+        if (domain == EffectDomain::model)
             throw std::invalid_argument("flowvid bench gap: '" + e + "' is a term of the cloth model, not an effect footage can hide; "
                                         "diagnose a preset fitted without it instead");
         if (rigid && rigid_scenes < 1) throw std::invalid_argument("flowvid bench gap: '" + e + "' needs a rigid scene (--rigid-scene)");

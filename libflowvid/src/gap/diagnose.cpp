@@ -199,14 +199,9 @@ std::string times(double ratio) {
     return text;
 }
 
-// "soft compression (buckling) [compression_softness]": plain words first, the key beside them.
-std::string plain(const std::string& name) {
-    const Effect& effect = find_effect(name);
-    return (effect.plain_name.empty() ? name : effect.plain_name) + " [" + name + "]";
-}
 std::string plain_list(const std::vector<std::string>& names) {
     std::vector<std::string> out;
-    for (const std::string& n : names) out.push_back(plain(n));
+    for (const std::string& n : names) out.push_back(labelled_name(n));
     return join(out, " and ");
 }
 
@@ -495,7 +490,7 @@ Diagnosis diagnose(const GapModel& model, const DiagnoseSettings& settings) {
         d.status = "unexplained";
         const std::vector<CandidateEvidence>& ranked = d.candidates.empty() ? d.model_candidates : d.candidates;
         std::vector<std::string> best;
-        for (std::size_t i = 0; i < ranked.size() && i < 3; ++i) best.push_back(plain(ranked[i].name));
+        for (std::size_t i = 0; i < ranked.size() && i < 3; ++i) best.push_back(labelled_name(ranked[i].name));
         d.message = "Unexplained gap: " + how_far + ", and no effect explains it with enough evidence" +
                     (best.empty() ? std::string(".") : "; closest: " + join(best, ", ") + ".") +
                     (model_sentence.empty() ? "" : " " + model_sentence);

@@ -104,6 +104,12 @@ const Effect& find_effect(const std::string& name) {
     throw std::invalid_argument("unknown effect '" + name + "' (known: " + known + ")");
 }
 
+std::string labelled_name(const std::string& name) {
+    for (const Effect& effect : effect_catalogue())
+        if (effect.name == name && !effect.plain_name.empty()) return effect.plain_name + " [" + name + "]";
+    return name;
+}
+
 const std::vector<EquivalenceClass>& equivalence_classes() {
     static const std::vector<EquivalenceClass> classes = {
         {"camera_roll|gravity_tilt",

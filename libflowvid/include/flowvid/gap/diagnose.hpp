@@ -111,7 +111,7 @@ struct Diagnosis {
     std::vector<std::string> model_terms;
     std::optional<double> model_gap_closed;
     std::optional<RefitResult> model_refit;         // the model terms refitted with the base
-    double ratio_with_model_terms = 0.0;            // mean held-out error/floor with them (= ratio's null refit when none)
+    double ratio_with_model_terms = 0.0;            // mean held-out error/floor with them (the null refit's when none)
     std::vector<CandidateEvidence> model_candidates;  // the model terms' evidence, ranked as `candidates`
     std::optional<double> gap_closed; // by the named effects together, beyond the model terms
     std::optional<RefitResult> named_refit;   // the named effects refitted together

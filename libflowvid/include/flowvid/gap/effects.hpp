@@ -45,6 +45,9 @@ struct Effect {
 const std::vector<Effect>& effect_catalogue();
 // Throws std::invalid_argument listing the known names.
 const Effect& find_effect(const std::string& name);
+// For people: the plain name beside the key, "pins out of step with the
+// footage [pin_lag]"; a name the catalogue does not know stays as it is.
+std::string labelled_name(const std::string& name);
 
 // Classes of effects (and base-model changes) that one camera's footage
 // cannot separate: their members are reported together, never guessed.
