@@ -5,6 +5,15 @@
 
 namespace flowvid::formats::detail {
 
+bool check_header_first_files_lacked(const JsonView& root, const std::string& format_name, const FormatVersion& supported) {
+    if (root.json().is_object() && !root.json().contains("format")) {
+        root.diagnostics().error("/format", "missing: the file does not say which format it is",
+                                 "add \"format\": \"" + format_name + "\", \"version\": \"" + supported.to_string() + "\"");
+        return false;
+    }
+    return check_format_header(root, format_name, supported).has_value();
+}
+
 bool check_integer_format_header(const JsonView& root, const std::string& format_name, int supported_version) {
     Diagnostics& diag = root.diagnostics();
     const std::string supported = std::to_string(supported_version);

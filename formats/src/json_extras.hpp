@@ -20,6 +20,11 @@ namespace flowvid::formats::detail {
 // is an error naming /format or /version. Returns whether both are usable.
 bool check_integer_format_header(const JsonView& root, const std::string& format_name, int supported_version);
 
+// The header of a format whose first files had none (flowvid swatch's first
+// release): a document without "format" is refused with a fix naming the
+// header to add; otherwise check_format_header. Returns whether it is usable.
+bool check_header_first_files_lacked(const JsonView& root, const std::string& format_name, const FormatVersion& supported);
+
 // A number that may be null: JSON cannot hold NaN or infinity, so a writer
 // stores them (and "not measured") as null. `present` tells whether a
 // usable number came back; a null sets it false without a problem. A value

@@ -40,14 +40,8 @@ std::optional<SwatchPinTrajectory> parse_pin(const JsonView& pin, int frame_coun
 std::optional<SwatchExperimentFile> parse_swatch_experiment(const nlohmann::json& document, Diagnostics& diagnostics,
                                                             Strictness strictness) {
     const JsonView root(document, "", diagnostics, strictness);
-    if (document.is_object() && !document.contains("format")) {
-        // Files of flowvid swatch's first release had no header: say which one to add.
-        diagnostics.error("/format", "missing: the file does not say which format it is",
-                          std::string("add \"format\": \"") + kSwatchExperimentFormatName + "\", \"version\": \"" +
-                              kSwatchExperimentFormatVersion.to_string() + "\"");
-        return std::nullopt;
-    }
-    if (!check_format_header(root, kSwatchExperimentFormatName, kSwatchExperimentFormatVersion)) return std::nullopt;
+    // Files of flowvid swatch's first release had no header: the fix names the one to add.
+    if (!detail::check_header_first_files_lacked(root, kSwatchExperimentFormatName, kSwatchExperimentFormatVersion)) return std::nullopt;
     root.check_known_keys({"format", "version", "name", "width_m", "height_m", "fps", "frame_count", "mass_kg", "pins"});
     SwatchExperimentFile out;
     out.name = root.string("name", false).value_or("");

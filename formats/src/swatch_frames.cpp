@@ -21,14 +21,8 @@ bool known_status(const std::string& status) {
 std::optional<SwatchFramesFile> parse_swatch_frames(const nlohmann::json& document, Diagnostics& diagnostics,
                                                     Strictness strictness) {
     const JsonView root(document, "", diagnostics, strictness);
-    if (document.is_object() && !document.contains("format")) {
-        // Files of flowvid swatch's first release had no header: say which one to add.
-        diagnostics.error("/format", "missing: the file does not say which format it is",
-                          std::string("add \"format\": \"") + kSwatchFramesFormatName + "\", \"version\": \"" +
-                              kSwatchFramesFormatVersion.to_string() + "\"");
-        return std::nullopt;
-    }
-    if (!check_format_header(root, kSwatchFramesFormatName, kSwatchFramesFormatVersion)) return std::nullopt;
+    // Files of flowvid swatch's first release had no header: the fix names the one to add.
+    if (!detail::check_header_first_files_lacked(root, kSwatchFramesFormatName, kSwatchFramesFormatVersion)) return std::nullopt;
     root.check_known_keys({"format", "version", "status", "reason", "equilibrium_converged", "grid", "pinned_vertices",
                            "wall_time_s", "frames"});
     SwatchFramesFile out;
