@@ -566,7 +566,7 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
              << html::element("p", "verdict: " + verdict_name) << html::element("p", diagnosis.value("message", ""))
              << (diagnosis.value("next_step", "").empty() ? std::string()
                                                           : html::element("p", "Next step: " + diagnosis.value("next_step", "") + "."))
-             << "<p>" << html::format_number(diagnosis.value("seconds", NAN)) << " s. "
+             << "<p>Diagnosed in " << html::format_number(diagnosis.value("seconds", NAN)) << " s. "
              << link(out / "diagnosis" / "report" / "report.html", out, "full report (heat maps, ablation table)") << "</p>\n";
     }
     formats::write_file_atomically((out / "index.html").string(),
