@@ -22,6 +22,7 @@ void ClothModel::add_drag(const Eigen::VectorXd& x, const Eigen::VectorXd& v, do
     const double kN = m_material.drag_normal_kg_per_m3, kf = m_material.drag_degradation_s2_per_m2;
     const double kT = m_material.drag_tangential_kg_per_m2_s;
     const double kL = m_material.drag_linear_normal_kg_per_m2_s;
+    const double c_plate = m_environment.wind_pressure_kg_per_m3;
     const bool field = static_cast<bool>(m_environment.wind_field);
     const Matrix3d I = Matrix3d::Identity();
     for (size_t ti = begin; ti < end; ++ti) {
@@ -39,7 +40,9 @@ void ClothModel::add_drag(const Eigen::VectorXd& x, const Eigen::VectorXd& v, do
         const double q = 1.0 + kf * s * s;
         const double h = kN * s * std::abs(s) / q + kL * s;       // signed normal drag magnitude
         const double hp = 2.0 * kN * std::abs(s) / (q * q) + kL;  // dh/ds
-        const Vector3d ftri = -a * ((h - kT * s) * n + kT * vrel);
+        // The wind's plate push (Environment::wind_pressure_kg_per_m3).
+        const double sw = wind.dot(n);
+        const Vector3d ftri = -a * ((h - kT * s) * n + kT * vrel) + a * c_plate * sw * std::abs(sw) * n;
         for (int k = 0; k < 3; ++k) f.segment<3>(3 * t.v[static_cast<size_t>(k)]) += ftri / 3.0;
         if (lin) {
             lin->drag_block[ti] = (-lin->sv * a / 9.0) * ((hp - kT) * n * n.transpose() + kT * I);
@@ -51,7 +54,9 @@ void ClothModel::add_drag(const Eigen::VectorXd& x, const Eigen::VectorXd& v, do
         }
         if (dfdx && mode == JacobianMode::exact) {
             const Vector3d vT = vrel - s * n;
-            const Matrix3d dF_dN = -0.5 * ((hp - kT) * n * vT.transpose() + (h - kT * s) * I + kT * vrel * n.transpose());
+            // a n = N / 2 and s = vrel.N/|N|; the plate push is (c/2) q(w.N/|N|) N, q(s) = s|s|.
+            const Matrix3d dF_dN = -0.5 * ((hp - kT) * n * vT.transpose() + (h - kT * s) * I + kT * vrel * n.transpose()) +
+                                   0.5 * c_plate * (sw * std::abs(sw) * I + 2.0 * std::abs(sw) * n * (wind - sw * n).transpose());
             const Matrix3d dN[3] = {cross_matrix(x2 - x1), -cross_matrix(x2 - x0), cross_matrix(x1 - x0)};
             for (int b = 0; b < 3; ++b) {
                 const Matrix3d K = dF_dN * dN[b] / 3.0;

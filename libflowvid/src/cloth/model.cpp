@@ -230,7 +230,7 @@ void ClothModel::evaluate_terms(const Eigen::VectorXd& x, const Eigen::VectorXd&
     const bool bending = terms & (ForceTerm::bending | ForceTerm::bending_damping);
     const bool drag = (terms & ForceTerm::drag) &&
                       (m_material.drag_normal_kg_per_m3 != 0.0 || m_material.drag_tangential_kg_per_m2_s != 0.0 ||
-                       m_material.drag_linear_normal_kg_per_m2_s != 0.0);
+                       m_material.drag_linear_normal_kg_per_m2_s != 0.0 || m_environment.wind_pressure_kg_per_m3 != 0.0);
     if (lin) {
         lin->has_membrane = membrane;
         lin->has_bending = bending && (m_material.bend_N_m != 0.0 || m_material.bend_damping_N_m_s != 0.0);

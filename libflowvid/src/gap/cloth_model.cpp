@@ -74,6 +74,9 @@ std::vector<Eigen::Vector3d> rolling_vertices(const ClothScenario& scenario, con
 
 }  // namespace
 
+// rho_air C_d / 2 for a flat plate across the flow: 1.2 kg/m^3 x 1.2 / 2.
+constexpr double kWindPlatePressure_kg_per_m3 = 0.72;
+
 ClothScenario apply_cloth_effects(const cloth_fit::ClothTrial& trial, const cloth::ClothMaterial& material,
                                   const cloth::SwatchOptions& options, const EffectValues& effects) {
     ClothScenario s{trial.experiment, material, options, trial.camera, 0.0, 0.0};
@@ -102,6 +105,10 @@ ClothScenario apply_cloth_effects(const cloth_fit::ClothTrial& trial, const clot
             const Eigen::Vector3d steady = values.head<3>();
             const double amplitude = values(3), frequency = values(4);
             s.options.environment.wind_m_per_s = steady;
+            // A draught pushes the swatch as air pushes a flat plate
+            // (cloth::Environment::wind_pressure_kg_per_m3), whatever drag
+            // the preset was fitted with.
+            s.options.environment.wind_pressure_kg_per_m3 = kWindPlatePressure_kg_per_m3;
             if (amplitude != 0.0) {
                 const Eigen::Vector3d along = steady.norm() > 0.0 ? Eigen::Vector3d(steady.normalized()) : Eigen::Vector3d::UnitX();
                 s.options.environment.wind_field = [steady, amplitude, frequency, along](const Eigen::Vector3d&, double t) {

@@ -142,7 +142,10 @@ Screened screen(const GapModel& model, const std::string& name, const EffectValu
             const double a = ((y1 - y0) * x2 - (y2 - y0) * x1) / det;
             const double b = ((y2 - y0) * x1 * x1 - (y1 - y0) * x2 * x2) / det;
             if (a > 0.0) {
-                const double x = std::clamp(-b / (2.0 * a), p.lower - p.neutral, p.upper - p.neutral);
+                // Trusted no further than twice the farthest step: beyond
+                // the points it passes through, a parabola is a guess.
+                const double reach = 2.0 * std::max(std::abs(x1), std::abs(x2));
+                const double x = std::clamp(-b / (2.0 * a), std::max(p.lower - p.neutral, -reach), std::min(p.upper - p.neutral, reach));
                 const double y = a * x * x + b * x + y0;
                 if (y < best_y) best_x = x, best_y = std::max(y, 0.0);
             }

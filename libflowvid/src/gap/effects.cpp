@@ -47,7 +47,8 @@ std::vector<Effect> make_catalogue() {
         {"drag_nonlinear", D::cloth, "the thesis's nonlinear normal air drag on top of a linear-drag model",
          {{"normal_kg_per_m3", 0.0, 0.0, 8.0, 1.0}, {"degradation_s2_per_m2", 0.0, 0.0, 4.0, 0.5}}, "",
          "nonlinear air drag", "refit the fabric with the nonlinear drag (flowvid fit cloth --drag nonlinear)"},
-        {"wind", D::cloth, "air moving past the swatch: a steady velocity (world axes) plus a sinusoidal gust along it",
+        {"wind", D::cloth, "air moving past the swatch: a steady velocity (world axes) plus a sinusoidal gust along it; "
+                           "it pushes as on a flat plate (rho C_d / 2 = 0.72 kg/m^3), beside the fabric's drag on the motion relative to it",
          {{"x_m_per_s", 0.0, -4.0, 4.0, 1.0},
           {"y_m_per_s", 0.0, -4.0, 4.0, 1.0},
           {"z_m_per_s", 0.0, -4.0, 4.0, 1.0},

@@ -167,6 +167,47 @@ TEST(ClothForces, MembraneBendingDampingDragGravity) {
     }
 }
 
+TEST(ClothForces, WindPushesAsOnAFlatPlate) {
+    const fc::ClothMesh mesh = fc::make_swatch_mesh(0.08, 0.06, 4, 5);
+    fc::Environment env;
+    env.wind_m_per_s = Eigen::Vector3d(0.6, -1.1, 0.4);
+    env.wind_pressure_kg_per_m3 = 0.72;
+    // The Jacobians with the drag law and the plate push together.
+    {
+        fc::ClothModel model(mesh, test_material(), env);
+        for (unsigned seed : {4u, 5u}) {
+            SCOPED_TRACE(seed);
+            check_terms(model, random_config(mesh, seed), {"drag+plate", fc::ForceTerm::drag, false, true});
+        }
+    }
+    // The push alone (no drag law) on a flat swatch at rest: its area times
+    // c (w.n)^2 along the normal, the force of wind on a plate.
+    fc::ClothMaterial still = test_material();
+    still.drag_normal_kg_per_m3 = 0.0;
+    still.drag_tangential_kg_per_m2_s = 0.0;
+    still.drag_linear_normal_kg_per_m2_s = 0.0;
+    fc::ClothModel model(mesh, still, env);
+    const Eigen::Vector3d normal = Eigen::Vector3d(0.2, -1.0, 0.3).normalized();
+    const Eigen::Vector3d across = normal.cross(Eigen::Vector3d::UnitZ()).normalized(), up = normal.cross(across);
+    Eigen::VectorXd x(3 * mesh.vertex_count()), v = Eigen::VectorXd::Zero(3 * mesh.vertex_count());
+    for (int i = 0; i < mesh.vertex_count(); ++i) {
+        const Eigen::Vector2d& uv = mesh.material_uv_m[static_cast<size_t>(i)];
+        x.segment<3>(3 * i) = uv.x() * across + uv.y() * up;
+    }
+    const Eigen::VectorXd f = force_of(model, x, v, fc::ForceTerm::drag);
+    Eigen::Vector3d total = Eigen::Vector3d::Zero();
+    for (int i = 0; i < mesh.vertex_count(); ++i) total += f.segment<3>(3 * i);
+    const double w_n = env.wind_m_per_s.dot(across.cross(up));
+    const Eigen::Vector3d expected = 0.08 * 0.06 * 0.72 * w_n * std::abs(w_n) * across.cross(up);
+    std::printf("[ measured ] plate push %.6g N, expected %.6g N\n", total.norm(), expected.norm());
+    EXPECT_LT((total - expected).norm(), 1e-12 * expected.norm());
+    // No push without the coefficient: the drag law alone (here none).
+    fc::Environment plain = env;
+    plain.wind_pressure_kg_per_m3 = 0.0;
+    fc::ClothModel without(mesh, still, plain);
+    EXPECT_EQ(force_of(without, x, v, fc::ForceTerm::drag).norm(), 0.0);
+}
+
 TEST(ClothForces, DragWithoutDegradationAndAtLowSpeed) {
     // kf = 0 and near-zero normal speed exercise the |v_N| kink of the drag law.
     const fc::ClothMesh mesh = fc::make_swatch_mesh(0.05, 0.05, 3, 3);

@@ -259,5 +259,67 @@ TEST(DiagnoseModelTerms, AModelTermAFinerMeshMatchesIsDiscounted) {
     EXPECT_EQ(d.status, "unexplained") << d.message;
 }
 
+// Screening's parabola on a nearly flat score: error_k = floor_k (4 + g(r)),
+// g(r) = -e r/h + d (r/h)^2 + K max(0, |r|/h - 2)^2 for a camera roll r, h its
+// screening step. Through neutral and +-h the parabola's minimum lies at
+// r/h = e/(2d) = 10, the range's end, where the score is far worse: the
+// screened point stays within two steps, and the refit starts there.
+class FlatNearNeutral : public GapModel {
+public:
+    static constexpr double kSlope = 0.2, kCurvature = 0.01, kWall = 5.0;
+    static double g(double r) {
+        const double x = r / find_effect("camera_roll").parameters[0].screen_step;
+        const double beyond = std::max(0.0, std::abs(x) - 2.0);
+        return -kSlope * x + kCurvature * x * x + kWall * beyond * beyond;
+    }
+    std::string kind() const override { return "cloth"; }
+    std::vector<std::string> trial_names() const override { return {"known"}; }
+    std::vector<std::string> candidate_effects() const override { return {"camera_roll"}; }
+    std::vector<std::string> base_parameter_keys() const override { return {}; }
+    Residuals evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>&) const override {
+        const auto it = effects.find("camera_roll");
+        const double r = it == effects.end() ? 0.0 : it->second(0);
+        Residuals out;
+        for (int frame = 1; frame <= 60; ++frame) {
+            FrameResidual f = known_frame(frame);
+            f.error = f.floor * (4.0 + g(r));
+            out.frames.push_back(f);
+        }
+        return out;
+    }
+    RefitResult refit(const EffectValues& start, int, const std::vector<BaseParameterChange>&) const override {
+        started_at = start;  // no search: the refit stays where screening put it
+        RefitResult r;
+        r.effects = start;
+        r.residuals = evaluate(start, {});
+        r.evaluations = 1;
+        return r;
+    }
+    std::vector<RegionMap> localise(const EffectValues&) const override { return {}; }
+    mutable EffectValues started_at;
+};
+
+TEST(DiagnoseScreening, TrustsItsParabolaOnlyNearItsSteps) {
+    const FlatNearNeutral model;
+    DiagnoseSettings settings = quick();
+    settings.discretisation_control = false;
+    const Diagnosis d = diagnose(model, settings);
+    ASSERT_TRUE(d.gap_detected);
+    ASSERT_EQ(d.candidates.size(), 1u);
+    const double step = find_effect("camera_roll").parameters[0].screen_step;
+    const CandidateEvidence& roll = d.candidates.front();
+    // The parabola's own minimum (10 steps) is clamped to two steps out.
+    EXPECT_NEAR(roll.screened.at("camera_roll")(0), 2.0 * step, 1e-12);
+    int training_frames = 0;
+    for (int frame = 1; frame <= 60; ++frame) training_frames += is_held_out(frame) ? 0 : 1;
+    // Predicted reduction at two steps, in floors: -(g(2h) - g(0)) per training frame.
+    EXPECT_NEAR(roll.screen_score, -training_frames * (2.0 * (-FlatNearNeutral::kSlope) + 4.0 * FlatNearNeutral::kCurvature), 1e-9);
+    ASSERT_TRUE(model.started_at.count("camera_roll"));
+    EXPECT_NEAR(model.started_at.at("camera_roll")(0), 2.0 * step, 1e-12);
+    // At the range's end the model is far worse than at neutral: what the
+    // unclamped parabola would have started the refit from.
+    EXPECT_GT(FlatNearNeutral::g(find_effect("camera_roll").parameters[0].upper), 10.0);
+}
+
 }  // namespace
 }  // namespace flowvid::gap

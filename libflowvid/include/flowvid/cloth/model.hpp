@@ -59,6 +59,15 @@ struct Environment {
     // Jacobians treat the wind as locally uniform.
     Eigen::Vector3d wind_m_per_s = Eigen::Vector3d::Zero();
     std::function<Eigen::Vector3d(const Eigen::Vector3d& position_m, double time_s)> wind_field;
+    // The wind's push as on a flat plate, c = rho_air C_d / 2 (kg/m^3): per
+    // triangle f = a c (w.n)|w.n| n, on top of the drag law on the velocity
+    // relative to the air. A drag law fitted to a swatch's own motion is
+    // tuned to small relative speeds (its degradation caps its push at kN/kf,
+    // a few per cent of the weight of cotton), so a draught of a metre per
+    // second would barely lean the swatch through it alone. 0: the drag law
+    // alone. No velocity derivative; its position derivative only in
+    // JacobianMode::exact (dropped like the drag's in definite mode).
+    double wind_pressure_kg_per_m3 = 0.0;
     std::vector<Collider> colliders;
     ContactSettings contact;
     SelfContactSettings self_contact;
