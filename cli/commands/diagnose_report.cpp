@@ -159,12 +159,17 @@ std::string verdict_box(const json& d) {
     if (member(d, "discretisation_control")) {
         const json& control = d["discretisation_control"];
         const std::string failure = text(control, "failure");
+        // A finer mesh may also widen the gap (a negative share): say so in words.
+        const double control_closed = number(control, "gap_closed");
+        const std::string control_effect = control_closed < 0.0
+                                               ? " widens the held-out gap by " + html::format_percent(-control_closed) +
+                                                     " (so the model's own mesh does not account for it)."
+                                               : " closes " + html::format_percent(control_closed) +
+                                                     " of the held-out gap (what the model's own mesh accounts for; a named "
+                                                     "effect must close clearly more).";
         out << html::element("p",
                              failure.empty()
-                                 ? "Discretisation control: the base model on " + text(control, "refinement") + " closes " +
-                                       html::format_percent(number(control, "gap_closed")) +
-                                       " of the held-out gap (what the model's own mesh accounts for; a named effect must "
-                                       "close clearly more)."
+                                 ? "Discretisation control: the base model on " + text(control, "refinement") + control_effect
                                  : "Discretisation control: the base model on " + text(control, "refinement") +
                                        " could not be measured (" + failure + "); the verdict stands without it.",
                              "note");

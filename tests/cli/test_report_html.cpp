@@ -426,6 +426,18 @@ TEST(DiagnosisReport, NamesTheEquivalenceClassAndAnUnexplainedGap) {
     EXPECT_EQ(unexplained.find("gap closed"), std::string::npos);
 }
 
+TEST(DiagnosisReport, SaysInWordsWhetherTheFinerMeshClosesOrWidensTheGap) {
+    json d = sample_diagnosis();
+    d["discretisation_control"] = {{"refinement", "a 28x28 mesh"}, {"gap_closed", 0.05}, {"discounted_effects", json::array()}, {"failure", nullptr}};
+    std::string verdict = section(diagnosis_report_html(d), "<div class=\"verdict", "</div>");
+    EXPECT_NE(verdict.find("the base model on a 28x28 mesh closes 5% of the held-out gap"), std::string::npos) << verdict;
+    // A finer mesh that widens the gap is not "closes -22%".
+    d["discretisation_control"]["gap_closed"] = -0.22;
+    verdict = section(diagnosis_report_html(d), "<div class=\"verdict", "</div>");
+    EXPECT_NE(verdict.find("the base model on a 28x28 mesh widens the held-out gap by 22%"), std::string::npos) << verdict;
+    EXPECT_EQ(verdict.find("-22"), std::string::npos) << verdict;
+}
+
 TEST(DiagnosisReport, CopesWithoutMapsSpectrumCandidatesOrRefits) {
     json d = sample_diagnosis();
     d.erase("maps");

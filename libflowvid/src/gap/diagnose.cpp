@@ -108,8 +108,8 @@ struct Screened {
 
 // Screening: per parameter, the training score at neutral and two steps
 // (both sides when the range allows, else two steps out); the reduction a
-// quadratic through them predicts, or the best sampled one. An effect's
-// score is its best parameter's.
+// quadratic through them predicts within twice the farthest step, or the
+// best sampled one. An effect's score is its best parameter's.
 Screened screen(const GapModel& model, const std::string& name, const EffectValues& fixed,
                 const std::vector<BaseParameterChange>& base, double base_score, long long& evaluations) {
     const Effect& effect = find_effect(name);

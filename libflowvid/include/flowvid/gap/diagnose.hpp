@@ -12,7 +12,7 @@
 //     the base parameters are refitted alone (the null refit); from
 //     there every candidate effect is screened cheaply (a quadratic through
 //     the training score at the neutral value and two steps, per parameter:
-//     the reduction it predicts); the most promising are refitted jointly with
+//     the reduction it predicts, no further than two steps out); the most promising are refitted jointly with
 //     the base parameters on training frames. A candidate is named when, on
 //     held-out frames, it beats the base parameters refitted alone by a clear
 //     share of the gap, its BIC (training frames) improves on that refit by
