@@ -138,7 +138,7 @@ void parse_candidates(const JsonView& root, const std::string& key) {
         if (!expect_object(c, "write each candidate as an object with \"name\", \"domain\", \"refitted\", ...")) continue;
         c.check_known_keys({"name", "domain", "screen_score", "refitted", "equivalence_class", "passes", "parameters",
                             "base_changes", "held_out_error", "gap_closed", "effect_share", "delta_bic",
-                            "bootstrap_stability"});
+                            "bootstrap_stability", "share_of_remaining"});
         non_empty_string(c, "name", "write the catalogue name of the effect");
         enumerated(c, "domain", kDomains);
         nullable_number(c, "screen_score", NumberRange{});
@@ -154,6 +154,7 @@ void parse_candidates(const JsonView& root, const std::string& key) {
         const bool has_refit = refitted.value_or(false);
         if (has_refit || c.has("base_changes")) parse_base_changes(c, "base_changes");
         if (has_refit || c.has("effect_share")) nullable_number(c, "effect_share", NumberRange{});
+        if (c.has("share_of_remaining")) nullable_number(c, "share_of_remaining", NumberRange{});
         if (passes.value_or(false) && refitted && !*refitted)
             c.diagnostics().error(json_pointer_child(c.pointer(), "passes"), "a candidate that was not refitted cannot pass",
                                   "set \"passes\": false, or \"refitted\": true with the refit's evidence");

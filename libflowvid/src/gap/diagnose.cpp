@@ -240,6 +240,12 @@ Named name_greedily(const GapModel& model, const DiagnoseSettings& settings, con
         // at their fitted values after.
         const Residuals& reference = current.refit.residuals;
         const double current_score = training_score(reference);
+        // What that model leaves of the gap (held-out, above the floor): an
+        // effect must explain a share of it. Measured against the whole gap
+        // instead, an effect whose signature the base parameters partly
+        // mimic (a lag the null refit half absorbs by stiffening) could never
+        // be named, however much of the rest it explains.
+        const double remaining = std::max(held_out_score(reference) - (base_held_out - gap), 1e-12 * gap);
         for (const std::string& name : names) {
             if (current.values.count(name)) continue;
             CandidateEvidence c;
@@ -280,6 +286,7 @@ Named name_greedily(const GapModel& model, const DiagnoseSettings& settings, con
             c.held_out_score = held_out_score(c.refit.residuals);
             c.gap_closed = (base_held_out - c.held_out_score) / gap;
             c.effect_share = (held_out_score(reference) - c.held_out_score) / gap;
+            c.share_of_remaining = (held_out_score(reference) - c.held_out_score) / remaining;
             c.delta_bic = delta_bic(c.refit.residuals, reference, parameter_count(find_effect(c.name)));
         });
         for (long long n : spent) evaluations += n;
@@ -301,7 +308,7 @@ Named name_greedily(const GapModel& model, const DiagnoseSettings& settings, con
             c.bootstrap_stability =
                 terms_compete ? bootstrap_stability(refitted, r, reference, blocks, settings.bootstrap_resamples, round_seed + r)
                               : bootstrap_stability({refitted[r]}, 0, reference, blocks, settings.bootstrap_resamples, round_seed + r);
-            c.passes = c.refit.residuals.ok && c.effect_share >= settings.min_effect_share &&
+            c.passes = c.refit.residuals.ok && c.share_of_remaining >= settings.min_effect_share &&
                        c.delta_bic <= settings.max_delta_bic && c.bootstrap_stability >= settings.min_stability;
         }
         round_seed += 1000;

@@ -129,6 +129,7 @@ nlohmann::json candidates_json(const std::vector<CandidateEvidence>& evidence) {
             j["held_out_error"] = c.held_out_score;
             j["gap_closed"] = number(c.gap_closed);
             j["effect_share"] = number(c.effect_share);
+            j["share_of_remaining"] = number(c.share_of_remaining);
             j["delta_bic"] = number(c.delta_bic);
             j["bootstrap_stability"] = c.bootstrap_stability;
         } else {

@@ -321,5 +321,60 @@ TEST(DiagnoseScreening, TrustsItsParabolaOnlyNearItsSteps) {
     EXPECT_GT(FlatNearNeutral::g(find_effect("camera_roll").parameters[0].upper), 10.0);
 }
 
+// A gap of three parts: what the base parameters mimic (the null refit
+// removes it), a pin lag, and a rest nothing removes: error_k = floor_k (1 +
+// w_k (A [not refitted] + B (1 - lag / lag0)^2 + C)). The lag closes B / (A +
+// B + C) of the gap beyond the null refit but B / (B + C) of what it leaves.
+class PartlyMimicked : public GapModel {
+public:
+    static constexpr double kMimicked = 4.0, kLag = 2.0, kRest = 4.0;
+    std::string kind() const override { return "cloth"; }
+    std::vector<std::string> trial_names() const override { return {"known"}; }
+    std::vector<std::string> candidate_effects() const override { return {"pin_lag"}; }
+    std::vector<std::string> base_parameter_keys() const override { return {"stiffness"}; }
+    Residuals evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>& base) const override {
+        const auto it = effects.find("pin_lag");
+        const double miss = 1.0 - (it == effects.end() ? 0.0 : it->second(0)) / kTrueLag_s;
+        Residuals out;
+        for (int frame = 1; frame <= 60; ++frame) {
+            FrameResidual f = known_frame(frame);
+            const double w = 1.0 + 0.5 * std::sin(0.3 * frame);
+            f.error = f.floor * (1.0 + w * ((base.empty() ? kMimicked : 0.0) + kLag * miss * miss + kRest));
+            out.frames.push_back(f);
+        }
+        return out;
+    }
+    RefitResult refit(const EffectValues& start, int, const std::vector<BaseParameterChange>&) const override {
+        RefitResult r;
+        r.effects = start;
+        if (start.count("pin_lag")) r.effects["pin_lag"] = Eigen::VectorXd::Constant(1, kTrueLag_s);
+        r.base = {{"stiffness", 1.0, 2.0}};  // the base parameters remove their part
+        r.residuals = evaluate(r.effects, r.base);
+        r.evaluations = 1;
+        return r;
+    }
+    std::vector<RegionMap> localise(const EffectValues&) const override { return {}; }
+};
+
+TEST(DiagnoseEvidence, AnEffectMustExplainAShareOfWhatTheNullRefitLeaves) {
+    const PartlyMimicked model;
+    DiagnoseSettings settings = quick();
+    settings.discretisation_control = false;
+    const Diagnosis d = diagnose(model, settings);
+    ASSERT_TRUE(d.gap_detected);
+    ASSERT_FALSE(d.candidates.empty());
+    const CandidateEvidence& lag = d.candidates.front();
+    constexpr double kTotal = PartlyMimicked::kMimicked + PartlyMimicked::kLag + PartlyMimicked::kRest;
+    // Below the bar as a share of the whole gap, above it as a share of the rest.
+    EXPECT_NEAR(lag.effect_share, PartlyMimicked::kLag / kTotal, 1e-9);
+    EXPECT_NEAR(lag.share_of_remaining, PartlyMimicked::kLag / (PartlyMimicked::kLag + PartlyMimicked::kRest), 1e-9);
+    EXPECT_LT(lag.effect_share, settings.min_effect_share);
+    EXPECT_EQ(d.status, "named") << d.message;
+    EXPECT_EQ(d.named, std::vector<std::string>{"pin_lag"});
+    // A bar above what it explains of the rest refuses it.
+    settings.min_effect_share = 0.4;
+    EXPECT_EQ(diagnose(model, settings).status, "unexplained");
+}
+
 }  // namespace
 }  // namespace flowvid::gap

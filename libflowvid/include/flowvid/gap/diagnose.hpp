@@ -46,7 +46,7 @@ struct DiagnoseSettings {
     int max_effects = 2;              // greedy rounds
     int max_model_terms = 2;          // greedy rounds over the model's own terms (before the effects)
     // Evidence needed to name an effect:
-    double min_effect_share = 0.25;   // of the held-out gap, beyond the null refit
+    double min_effect_share = 0.25;   // of the held-out gap the model before it leaves (the null refit's, first)
     double max_delta_bic = -6.0;      // training-frame BIC against the previous model (< -6: strong evidence)
     double min_stability = 0.8;       // share of bootstrap resamples in which it stays best
     int bootstrap_resamples = 400;
@@ -77,7 +77,8 @@ struct CandidateEvidence {
     RefitResult refit;                // when refitted
     double held_out_score = 0.0;      // sum over held-out frames of error/floor
     double gap_closed = 0.0;          // share of the base held-out gap closed (NaN when not refitted)
-    double effect_share = 0.0;        // share closed beyond the null refit
+    double effect_share = 0.0;        // share of the base's gap closed beyond the model before it (the null refit)
+    double share_of_remaining = 0.0;  // share of what that model leaves of the gap, closed (what naming asks for)
     double delta_bic = 0.0;           // against the null refit (NaN when not refitted)
     double bootstrap_stability = 0.0;
     bool passes = false;
