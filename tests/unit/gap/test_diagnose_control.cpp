@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 
 namespace flowvid::gap {
 namespace {
@@ -30,20 +31,42 @@ FrameResidual known_frame(int frame) {
     return f;
 }
 
+// The known models' 60 frames, error_k = floor_k * factor(k).
+Residuals frames_scaled_by(const std::function<double(int)>& factor) {
+    Residuals out;
+    for (int frame = 1; frame <= 60; ++frame) {
+        FrameResidual f = known_frame(frame);
+        f.error = f.floor * factor(frame);
+        out.frames.push_back(f);
+    }
+    return out;
+}
+
+// An effect's first parameter, 0 when the effect is absent.
+double first_value(const EffectValues& effects, const char* name) {
+    const auto it = effects.find(name);
+    return it == effects.end() ? 0.0 : it->second(0);
+}
+
+// What the closed-form models share: one cloth trial, no base parameters, no maps.
+class ClosedFormModel : public GapModel {
+public:
+    std::string kind() const override { return "cloth"; }
+    std::vector<std::string> trial_names() const override { return {"known"}; }
+    std::vector<std::string> base_parameter_keys() const override { return {}; }
+    std::vector<RegionMap> localise(const EffectValues&) const override { return {}; }
+};
+
 // error_k = floor_k (1 + effect_weight * w_k * (1 - lag / true lag)^2 + discretisation_weight * v_k):
 // the effect's part vanishes at the true lag, the discretisation part on the finer mesh.
-class KnownGapModel : public GapModel {
+class KnownGapModel : public ClosedFormModel {
 public:
     KnownGapModel(double effect_weight, double discretisation_weight, bool control_fails = false)
         : m_effect(effect_weight), m_discretisation(discretisation_weight), m_control_fails(control_fails) {}
 
-    std::string kind() const override { return "cloth"; }
-    std::vector<std::string> trial_names() const override { return {"known"}; }
     std::vector<std::string> candidate_effects() const override { return {"pin_lag"}; }
-    std::vector<std::string> base_parameter_keys() const override { return {}; }
     Residuals evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>&) const override {
-        const auto it = effects.find("pin_lag");
-        return residuals(it == effects.end() ? 0.0 : it->second(0), false);
+        return residuals(first_value(effects, "pin_lag"), false);
     }
     RefitResult refit(const EffectValues& start, int, const std::vector<BaseParameterChange>&) const override {
         RefitResult r;
@@ -53,7 +76,6 @@ public:
         r.evaluations = 1;
         return r;
     }
-    std::vector<RegionMap> localise(const EffectValues&) const override { return {}; }
     std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>&, const EffectValues&) const override {
         DiscretisationControl control{"a finer mesh", residuals(0.0, true)};
         if (m_control_fails) {
@@ -65,15 +87,11 @@ public:
 
 private:
     Residuals residuals(double lag_s, bool finer) const {
-        Residuals out;
-        for (int frame = 1; frame <= 60; ++frame) {
-            FrameResidual f = known_frame(frame);
+        const double miss = 1.0 - lag_s / kTrueLag_s;
+        return frames_scaled_by([&](int frame) {
             const double w = 1.0 + 0.5 * std::sin(0.3 * frame), v = 1.0 + 0.5 * std::cos(0.45 * frame);
-            const double miss = 1.0 - lag_s / kTrueLag_s;
-            f.error = f.floor * (1.0 + m_effect * w * miss * miss + (finer ? 0.0 : m_discretisation * v));
-            out.frames.push_back(f);
-        }
-        return out;
+            return 1.0 + m_effect * w * miss * miss + (finer ? 0.0 : m_discretisation * v);
+        });
     }
     double m_effect, m_discretisation;
     bool m_control_fails;
@@ -142,15 +160,12 @@ TEST(DiagnoseControl, AFailedControlLeavesTheVerdictAndSaysWhy) {
 // s / s0)^2 + e w_k (1 - lag / lag0)^2 + c v_k).
 constexpr double kTrueSoftness = 2.0;
 
-class ModelAndEffectGap : public GapModel {
+class ModelAndEffectGap : public ClosedFormModel {
 public:
     ModelAndEffectGap(double model_weight, double effect_weight, double discretisation_weight)
         : m_model(model_weight), m_effect(effect_weight), m_discretisation(discretisation_weight) {}
 
-    std::string kind() const override { return "cloth"; }
-    std::vector<std::string> trial_names() const override { return {"known"}; }
     std::vector<std::string> candidate_effects() const override { return {"compression_softness", "pin_lag"}; }
-    std::vector<std::string> base_parameter_keys() const override { return {}; }
     Residuals evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>&) const override {
         return residuals(effects, false);
     }
@@ -163,7 +178,6 @@ public:
         r.evaluations = 1;
         return r;
     }
-    std::vector<RegionMap> localise(const EffectValues&) const override { return {}; }
     std::optional<DiscretisationControl> discretisation_control(const std::vector<BaseParameterChange>&,
                                                                 const EffectValues& effects) const override {
         return DiscretisationControl{"a finer mesh", residuals(effects, true)};
@@ -186,20 +200,12 @@ private:
     static double w(int frame) { return 1.0 + 0.5 * std::sin(0.3 * frame); }
     static double v(int frame) { return 1.0 + 0.5 * std::cos(0.45 * frame); }
     Residuals residuals(const EffectValues& effects, bool finer) const {
-        const auto value = [&](const char* name) {
-            const auto it = effects.find(name);
-            return it == effects.end() ? 0.0 : it->second(0);
-        };
-        const double soft_miss = 1.0 - value("compression_softness") / kTrueSoftness;
-        const double lag_miss = 1.0 - value("pin_lag") / kTrueLag_s;
-        Residuals out;
-        for (int frame = 1; frame <= 60; ++frame) {
-            FrameResidual f = known_frame(frame);
-            f.error = f.floor * (1.0 + m_model * u(frame) * soft_miss * soft_miss + m_effect * w(frame) * lag_miss * lag_miss +
-                                 (finer ? 0.0 : m_discretisation * v(frame)));
-            out.frames.push_back(f);
-        }
-        return out;
+        const double soft_miss = 1.0 - first_value(effects, "compression_softness") / kTrueSoftness;
+        const double lag_miss = 1.0 - first_value(effects, "pin_lag") / kTrueLag_s;
+        return frames_scaled_by([&](int frame) {
+            return 1.0 + m_model * u(frame) * soft_miss * soft_miss + m_effect * w(frame) * lag_miss * lag_miss +
+                   (finer ? 0.0 : m_discretisation * v(frame));
+        });
     }
     double m_model, m_effect, m_discretisation;
 };
@@ -264,7 +270,7 @@ TEST(DiagnoseModelTerms, AModelTermAFinerMeshMatchesIsDiscounted) {
 // screening step. Through neutral and +-h the parabola's minimum lies at
 // r/h = e/(2d) = 10, the range's end, where the score is far worse: the
 // screened point stays within two steps, and the refit starts there.
-class FlatNearNeutral : public GapModel {
+class FlatNearNeutral : public ClosedFormModel {
 public:
     static constexpr double kSlope = 0.2, kCurvature = 0.01, kWall = 5.0;
     static double g(double r) {
@@ -272,20 +278,10 @@ public:
         const double beyond = std::max(0.0, std::abs(x) - 2.0);
         return -kSlope * x + kCurvature * x * x + kWall * beyond * beyond;
     }
-    std::string kind() const override { return "cloth"; }
-    std::vector<std::string> trial_names() const override { return {"known"}; }
     std::vector<std::string> candidate_effects() const override { return {"camera_roll"}; }
-    std::vector<std::string> base_parameter_keys() const override { return {}; }
     Residuals evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>&) const override {
-        const auto it = effects.find("camera_roll");
-        const double r = it == effects.end() ? 0.0 : it->second(0);
-        Residuals out;
-        for (int frame = 1; frame <= 60; ++frame) {
-            FrameResidual f = known_frame(frame);
-            f.error = f.floor * (4.0 + g(r));
-            out.frames.push_back(f);
-        }
-        return out;
+        const double excess = g(first_value(effects, "camera_roll"));
+        return frames_scaled_by([&](int) { return 4.0 + excess; });
     }
     RefitResult refit(const EffectValues& start, int, const std::vector<BaseParameterChange>&) const override {
         started_at = start;  // no search: the refit stays where screening put it
@@ -295,7 +291,6 @@ public:
         r.evaluations = 1;
         return r;
     }
-    std::vector<RegionMap> localise(const EffectValues&) const override { return {}; }
     mutable EffectValues started_at;
 };
 
@@ -325,24 +320,17 @@ TEST(DiagnoseScreening, TrustsItsParabolaOnlyNearItsSteps) {
 // removes it), a pin lag, and a rest nothing removes: error_k = floor_k (1 +
 // w_k (A [not refitted] + B (1 - lag / lag0)^2 + C)). The lag closes B / (A +
 // B + C) of the gap beyond the null refit but B / (B + C) of what it leaves.
-class PartlyMimicked : public GapModel {
+class PartlyMimicked : public ClosedFormModel {
 public:
     static constexpr double kMimicked = 4.0, kLag = 2.0, kRest = 4.0;
-    std::string kind() const override { return "cloth"; }
-    std::vector<std::string> trial_names() const override { return {"known"}; }
     std::vector<std::string> candidate_effects() const override { return {"pin_lag"}; }
     std::vector<std::string> base_parameter_keys() const override { return {"stiffness"}; }
     Residuals evaluate(const EffectValues& effects, const std::vector<BaseParameterChange>& base) const override {
-        const auto it = effects.find("pin_lag");
-        const double miss = 1.0 - (it == effects.end() ? 0.0 : it->second(0)) / kTrueLag_s;
-        Residuals out;
-        for (int frame = 1; frame <= 60; ++frame) {
-            FrameResidual f = known_frame(frame);
+        const double miss = 1.0 - first_value(effects, "pin_lag") / kTrueLag_s;
+        return frames_scaled_by([&](int frame) {
             const double w = 1.0 + 0.5 * std::sin(0.3 * frame);
-            f.error = f.floor * (1.0 + w * ((base.empty() ? kMimicked : 0.0) + kLag * miss * miss + kRest));
-            out.frames.push_back(f);
-        }
-        return out;
+            return 1.0 + w * ((base.empty() ? kMimicked : 0.0) + kLag * miss * miss + kRest);
+        });
     }
     RefitResult refit(const EffectValues& start, int, const std::vector<BaseParameterChange>&) const override {
         RefitResult r;
@@ -353,7 +341,6 @@ public:
         r.evaluations = 1;
         return r;
     }
-    std::vector<RegionMap> localise(const EffectValues&) const override { return {}; }
 };
 
 TEST(DiagnoseEvidence, AnEffectMustExplainAShareOfWhatTheNullRefitLeaves) {
