@@ -133,6 +133,9 @@ std::string verdict_box(const json& d) {
     else if (status == "no_gap") css = "verdict good", headline = "No gap: the model explains the footage down to its floor";
     else if (status == "named")
         headline = "Gap detected \xE2\x80\x94 named effect: " + (effects.empty() ? std::string("\xE2\x80\x94") : join(labelled_names(effects), " + "));
+    else if (status == "unexplained" && !model_terms.empty())
+        css = "verdict bad", headline = "Gap detected \xE2\x80\x94 the fabric model lacks " + join(labelled_names(model_terms), " + ") +
+                                        "; the rest unexplained";
     else if (status == "unexplained") css = "verdict bad", headline = "Gap detected \xE2\x80\x94 unexplained";
     else headline = detected ? "Gap detected" : "No gap";
 
@@ -371,7 +374,8 @@ std::string candidate_sections(const json& d) {
                          "Every candidate, ranked by its screening score. The best screened were refitted jointly with the base "
                          "parameters and judged on the held-out frames: gap closed is the fraction of the held-out gap (error "
                          "above the floor) that the refit removes; \xCE\x94" "BIC below zero favours the effect despite its extra "
-                         "parameters; bootstrap stability is the fraction of bootstrap resamples that agree.",
+                         "parameters; bootstrap stability is the fraction of resamples (the held-out blocks weighed at random) in "
+                         "which it stays the best.",
                          "note")
         << html::table(ablation);
 

@@ -424,6 +424,12 @@ TEST(DiagnosisReport, NamesTheEquivalenceClassAndAnUnexplainedGap) {
     EXPECT_NE(unexplained.find("unexplained"), std::string::npos);
     EXPECT_NE(unexplained.find("No effect passes."), std::string::npos);
     EXPECT_EQ(unexplained.find("gap closed"), std::string::npos);
+    // A model term named before an unexplained rest is the headline's finding.
+    d["verdict"]["model_terms"] = {"compression_softness"};
+    const std::string with_term = section(diagnosis_report_html(d), "<div class=\"verdict bad\"", "</div>");
+    EXPECT_NE(with_term.find("the fabric model lacks soft compression (buckling) [compression_softness]; the rest unexplained"),
+              std::string::npos)
+        << with_term;
 }
 
 TEST(DiagnosisReport, SaysInWordsWhetherTheFinerMeshClosesOrWidensTheGap) {

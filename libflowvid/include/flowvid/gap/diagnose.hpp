@@ -48,7 +48,7 @@ struct DiagnoseSettings {
     // Evidence needed to name an effect:
     double min_effect_share = 0.25;   // of the held-out gap the model before it leaves (the null refit's, first)
     double max_delta_bic = -6.0;      // training-frame BIC against the previous model (< -6: strong evidence)
-    double min_stability = 0.8;       // share of bootstrap resamples in which it stays best
+    double min_stability = 0.8;       // share of bootstrap resamples in which it stays best (bootstrap_stability)
     int bootstrap_resamples = 400;
     // The discretisation control (GapModel::discretisation_control): named
     // effects must close this much more of the held-out gap than the base
@@ -129,5 +129,15 @@ struct Diagnosis {
 };
 
 Diagnosis diagnose(const GapModel& model, const DiagnoseSettings& settings);
+
+// How robustly candidate `which` wins on held-out frames: the share of
+// `resamples` Bayesian-bootstrap resamples of `blocks` (held-out frames'
+// indices into Residuals::frames, a block each) in which its weighted
+// held-out score (error/floor) is below `null`'s and below every other
+// candidate's. A resample weighs the blocks by flat Dirichlet weights, so
+// no block is ever left out: with two blocks where the candidate gains a
+// and loses b, the share tends to a / (a + b). Seeded: same input, same share.
+double bootstrap_stability(const std::vector<const Residuals*>& candidates, std::size_t which, const Residuals& null,
+                           const std::vector<std::vector<std::size_t>>& blocks, int resamples, std::uint64_t seed);
 
 }  // namespace flowvid::gap
