@@ -251,11 +251,9 @@ Named name_greedily(const GapModel& model, const DiagnoseSettings& settings, con
         // held-out ones. Nothing to judge, nothing continued.
         const bool continue_current = round > 0 && refits > 0;
         std::optional<RefitResult> continued;
-        long long continued_spent = 0;
         pool.run(static_cast<std::size_t>(refits) + (continue_current ? 1 : 0), [&](std::size_t i, int) {
             if (i == static_cast<std::size_t>(refits)) {
                 continued = model.refit(current.values, settings.refit_evaluations, current.refit.base);
-                continued_spent = continued->evaluations;
                 return;
             }
             CandidateEvidence& c = evidence[i];
@@ -267,7 +265,7 @@ Named name_greedily(const GapModel& model, const DiagnoseSettings& settings, con
             c.refitted = true;
         });
         for (long long n : spent) evaluations += n;
-        evaluations += continued_spent;
+        if (continued) evaluations += continued->evaluations;
         if (continued && continued->residuals.ok && training_score(continued->residuals) < current_score) {
             current.values = continued->effects;
             current.refit = std::move(*continued);
@@ -278,13 +276,14 @@ Named name_greedily(const GapModel& model, const DiagnoseSettings& settings, con
         // instead, an effect whose signature the base parameters partly
         // mimic (a lag the null refit half absorbs by stiffening) could never
         // be named, however much of the rest it explains.
-        const double remaining = std::max(held_out_score(reference) - (base_held_out - gap), 1e-12 * gap);
+        const double reference_held_out = held_out_score(reference);
+        const double remaining = std::max(reference_held_out - (base_held_out - gap), 1e-12 * gap);
         for (CandidateEvidence& c : evidence) {
             if (!c.refitted) continue;
             c.held_out_score = held_out_score(c.refit.residuals);
             c.gap_closed = (base_held_out - c.held_out_score) / gap;
-            c.effect_share = (held_out_score(reference) - c.held_out_score) / gap;
-            c.share_of_remaining = (held_out_score(reference) - c.held_out_score) / remaining;
+            c.effect_share = (reference_held_out - c.held_out_score) / gap;
+            c.share_of_remaining = (reference_held_out - c.held_out_score) / remaining;
             c.delta_bic = delta_bic(c.refit.residuals, reference, parameter_count(find_effect(c.name)));
         }
         std::vector<const Residuals*> refitted;
