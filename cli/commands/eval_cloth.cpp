@@ -29,31 +29,32 @@ struct TrialOptions {
     int full_weight_frames = 10;
     double half_life_frames = 10.0;
     std::string metric = "xor";
-    std::string compare = "footage";  // or "scan": the shape the stripes measure
+    std::string compare = cloth_fit::fit_target_name(cloth_fit::kDefaultFitTarget);  // scan or footage (angle maps)
 };
 
 void add_trial_options(CLI::App& app, TrialOptions& options) {
     add_frame_options(app, options.frame_selection,
                       "waving frames A to B compared; A is the wave's first frame (the start is what is predictable)",
-                      "the first N waving frames", "the first 50; --compare scan: 20");
+                      "the first N waving frames", "the first 20; --compare footage: 50");
     app.add_option("--full-weight-frames", options.full_weight_frames, "frames with full weight in the weighted error")
         ->check(CLI::Range(1, 100000))
         ->capture_default_str();
-    app.add_option("--half-life-frames", options.half_life_frames, "later frames' weight halves every this many frames")
-        ->check(CLI::NonNegativeNumber)
-        ->capture_default_str();
+    app.add_option("--half-life-frames", options.half_life_frames,
+                   "later frames' weight halves every this many frames (default: 5; --compare footage: 10)")
+        ->check(CLI::NonNegativeNumber);
     app.add_option("--metric", options.metric, "silhouette term: xor or edge")
         ->check(CLI::IsMember({"xor", "edge"}))
         ->capture_default_str();
     app.add_option("--compare", options.compare,
-                   "footage: angle maps and silhouettes; scan: the swatch's shape the projector's stripes measure "
-                   "(RMS depth error, mm; 20 waving frames, half-life 5 unless given)")
+                   "scan: the swatch's shape the projector's stripes measure (RMS depth error, mm; fit cloth's "
+                   "default); footage: angle maps and silhouettes (the thesis's metric; 50 waving frames, half-life "
+                   "10 unless given)")
         ->check(CLI::IsMember({"footage", "scan"}))
         ->capture_default_str();
 }
 
 cloth_fit::FitTarget compared_target(const TrialOptions& options) {
-    return cloth_fit::fit_target_from_name(options.compare).value_or(cloth_fit::FitTarget::footage);
+    return cloth_fit::fit_target_from_name(options.compare).value_or(cloth_fit::kDefaultFitTarget);
 }
 
 // The waving frames compared: as given, else the default (--compare scan:
@@ -163,16 +164,26 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
         const std::vector<cloth_fit::WindowSummary> windows =
             cloth_fit::summarize_windows(a, cloth_fit::standard_windows(static_cast<int>(trial.frames.size())));
         nlohmann::json window_json = nlohmann::json::array();
+        // A scan's E_k is a mean square depth error (mm^2): people read its root, in mm.
+        const bool shape = trial.measures_shape();
+        const auto shown = [shape](double e) { return shape ? std::sqrt(e) : e; };
+        const std::string metric_name = shape ? "RMS depth error (mm)" : "metric E_k (mean)";
         html::Table table;
-        table.header = {"frames", "metric E_k (mean)", "floor", "vertex RMS (mm)", "floor (mm)"};
+        table.header = {"frames", metric_name, "floor", "vertex RMS (mm)", "floor (mm)"};
         for (const cloth_fit::WindowSummary& w : windows) {
-            window_json.push_back({{"frames", cloth_fit::window_name(w.window)},
-                                   {"metric_mean", number_or_null(w.metric_mean)},
-                                   {"metric_floor", number_or_null(w.metric_floor_mean)},
-                                   {"vertex_rms_mm", number_or_null(1e3 * w.vertex_rms_m)},
-                                   {"vertex_floor_mm", number_or_null(1e3 * w.vertex_floor_m)}});
-            table.rows.push_back({cloth_fit::window_name(w.window), one_decimal(w.metric_mean), one_decimal(w.metric_floor_mean),
-                                  one_decimal(1e3 * w.vertex_rms_m), one_decimal(1e3 * w.vertex_floor_m)});
+            nlohmann::json row = {{"frames", cloth_fit::window_name(w.window)},
+                                  {"metric_mean", number_or_null(w.metric_mean)},
+                                  {"metric_floor", number_or_null(w.metric_floor_mean)},
+                                  {"vertex_rms_mm", number_or_null(1e3 * w.vertex_rms_m)},
+                                  {"vertex_floor_mm", number_or_null(1e3 * w.vertex_floor_m)}};
+            if (shape) {
+                row["metric_rms_mm"] = number_or_null(std::sqrt(w.metric_mean));
+                row["metric_floor_rms_mm"] = number_or_null(std::sqrt(w.metric_floor_mean));
+            }
+            window_json.push_back(row);
+            table.rows.push_back({cloth_fit::window_name(w.window), one_decimal(shown(w.metric_mean)),
+                                  one_decimal(shown(w.metric_floor_mean)), one_decimal(1e3 * w.vertex_rms_m),
+                                  one_decimal(1e3 * w.vertex_floor_m)});
         }
         body << html::element("h2", captures[i].folder) << html::table(table);
         if (a.floor)
@@ -183,11 +194,13 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
                                            ", start jittered by " + html::format_number(1e3 * a.floor->jitter_m) + " mm",
                                   "muted");
         std::vector<double> metric, metric_floor, vertex_mm, vertex_floor_mm;
-        for (const auto& e : a.frames) metric.push_back(e.total);
-        if (a.floor) metric_floor = a.floor->metric;
+        for (const auto& e : a.frames) metric.push_back(shown(e.total));
+        if (a.floor)
+            for (double e : a.floor->metric) metric_floor.push_back(shown(e));
         for (double v : a.vertex_rms_m) vertex_mm.push_back(1e3 * v);
         if (a.floor) for (double v : a.floor->vertex_rms_m) vertex_floor_mm.push_back(1e3 * v);
-        body << frame_plot("metric E_k per frame", "metric E_k", metric, metric_floor);
+        body << frame_plot(shape ? "RMS depth error against the footage's stripe scan per frame (mm)" : "metric E_k per frame",
+                           shape ? "RMS depth error (mm)" : "metric E_k", metric, metric_floor);
         if (!vertex_mm.empty())
             body << frame_plot("vertex RMS vs ground truth per frame (mm)", "vertex RMS (mm)", vertex_mm, vertex_floor_mm);
         nlohmann::json entry = {{"capture", captures[i].folder},
@@ -214,6 +227,7 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
                                    "by one pixel's footprint at the swatch, run as each capture's note says: "
                                    "no model can be expected to match a chaotic trial better than that.");
     const nlohmann::json summary = {{"preset", options.preset},
+                                    {"compared", cloth_fit::fit_target_name(load_settings(options.trial).target)},
                                     {"floor_members", floor.members},
                                     {"floor_includes_uncertainty", floor_has_uncertainty},
                                     {"captures", results}};
@@ -234,7 +248,9 @@ const RegisterEvalKind eval_registration{FitKind{
         auto options = std::make_shared<EvalClothOptions>();
         app.footer(
             "Simulates the preset in each capture's experiment and reports, per time window (frames 1-10,\n"
-            "11-25, 26-end, and the whole trial), the angle-map metric E_k against the footage and --\n"
+            "11-25, 26-end, and the whole trial), the error E_k against the footage (by default the RMS\n"
+            "depth error against the swatch's shape its stripes measure, mm^2; --compare footage: the\n"
+            "angle-map metric) and --\n"
             "when the capture has ground truth (truth/positions.exr, read here for evaluation only, never\n"
             "by a fit) -- the RMS vertex error. Next to each: the predictability floor, the spread of an\n"
             "ensemble of runs whose parameters are drawn within the preset's uncertainty (--floor full;\n"
@@ -366,10 +382,10 @@ const RegisterCommand recognize_registration{Command{
     "recognize", "which fabric preset matches each cloth capture best (thesis fig. 2.21)", [](CLI::App& app) -> CommandRunner {
         auto options = std::make_shared<RecognizeOptions>();
         app.footer(
-            "Simulates every preset in every capture's experiment and prints the matrix of weighted\n"
-            "angle-map errors; each capture is recognised as the preset with the lowest error. With\n"
-            "--compare scan the matrix holds RMS depth errors (mm) against the swatch's shape measured\n"
-            "from the footage's projector stripes instead. With --json, also the RMS vertex error\n"
+            "Simulates every preset in every capture's experiment and prints the matrix of RMS depth\n"
+            "errors (mm) against the swatch's shape measured from the footage's projector stripes;\n"
+            "each capture is recognised as the preset with the lowest error. With --compare footage\n"
+            "the matrix holds weighted angle-map errors instead. With --json, also the RMS vertex error\n"
             "against captures' ground truth where it exists (evaluation only).\n\n"
             "Examples:\n"
             "  flowvid recognize --preset cotton.fabric.json --preset silk.fabric.json \\\n"

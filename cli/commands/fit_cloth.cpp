@@ -16,6 +16,7 @@
 #include "flowvid/cloth_fit/fit_cloth.hpp"
 #include "flowvid/cloth_fit/fit_cloth_shards.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <cmath>
@@ -41,7 +42,10 @@ struct FitClothOptions {
     std::string name;
     std::string drag = "nonlinear";
     std::string metric = "xor";
-    std::string fit_to = "footage";       // or "scan" (the stripes' depth), "tracks" (measured 3D points)
+    // The default compares the swatch's shape the footage's stripes measure:
+    // it reaches the model's capacity where the angle maps did not
+    // (docs/cloth_fitting.md, "Fitting to the scan").
+    std::string fit_to = cloth_fit::fit_target_name(cloth_fit::kDefaultFitTarget);  // scan, footage or tracks
     std::string search = "cmaes";         // or "annealing" (the thesis's)
     std::uint64_t seed = 1;
     long long evaluations = 400;
@@ -88,7 +92,7 @@ cloth_fit::ClothFitRequest make_request(const FitClothOptions& options, const cl
     cloth_fit::ClothFitRequest request;
     request.captures = std::move(captures);
     request.name = options.name.empty() ? std::filesystem::path(out).stem().stem().string() : options.name;
-    request.load.target = cloth_fit::fit_target_from_name(options.fit_to).value_or(cloth_fit::FitTarget::footage);
+    request.load.target = cloth_fit::fit_target_from_name(options.fit_to).value_or(cloth_fit::kDefaultFitTarget);
     request.load.waving_frames = options.frames;
     request.load.full_weight_frames = options.full_weight_frames;
     request.load.half_life_frames = options.half_life_frames;
@@ -156,6 +160,20 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
         captures.push_back(formats::read_capture_of_kind(path, {"cloth.static", "cloth.waving"}, "flowvid fit cloth"));
     formats::create_parent_folder(options.out);
     cloth_fit::ClothFitRequest request = make_request(options, *swatch, std::move(captures), options.out);
+    // Say what the fit compares: the default changed (the scan), and the errors' units follow it.
+    const bool any_waving = std::any_of(request.captures.begin(), request.captures.end(),
+                                        [](const formats::Capture& c) { return c.kind == "cloth.waving"; });
+    switch (request.load.target) {
+        case cloth_fit::FitTarget::scan:
+            log_message("comparing with the swatch's shape the footage's stripes measure (RMS depth error, mm" +
+                        (any_waving ? "; " + std::to_string(request.load.waving_frames) + " waving frames" : std::string()) +
+                        "); --fit-to footage compares the thesis's angle maps");
+            break;
+        case cloth_fit::FitTarget::footage:
+            log_message("comparing the footage's angle maps and silhouettes (the thesis's metric)");
+            break;
+        case cloth_fit::FitTarget::tracks: log_message("comparing the captures' measured 3D points (RMS distance, mm)"); break;
+    }
     if (!options.start.empty()) request.start = cloth::material_from_fabric(formats::read_fabric_preset(options.start).parameters);
     if (sharded) return run_shards(options, global, std::move(request));
     ProgressBar progress(global, "fit cloth");
@@ -372,17 +390,19 @@ const RegisterFitKind registration{FitKind{
         auto options = std::make_shared<FitClothOptions>();
         app.footer(
             "Simulates the capture's swatch experiments with candidate fabrics, renders each frame\n"
-            "through the capture's camera under its stripe projector, and compares angle maps and\n"
-            "silhouettes with the footage (thesis eq. 2.20-2.24). With --fit-to tracks it compares the\n"
-            "capture's measured 3D points instead (capture.json \"tracks\": motion-capture markers, a\n"
-            "scanner): the error is then a weighted mean square distance in mm^2, and the summary gives\n"
-            "each trial's RMS in mm. --fit-to scan measures the swatch's shape from the footage itself\n"
-            "(the projector's stripes triangulated per pixel) and compares depths along the camera rays,\n"
-            "also in mm (background pixels near the swatch's outline that the simulation covers count as\n"
-            "3 cm misses: depth alone cannot see cloth that reaches too far sideways). Several captures\n"
-            "are fitted jointly:\n"
-            "give the static drape(s) and the waving test(s) of one fabric. Static drapes alone fit the\n"
-            "6 stiffness and damping parameters; with a waving test the 3 drag parameters too (9).\n"
+            "through the capture's camera under its stripe projector and compares it with the footage.\n"
+            "By default (--fit-to scan) the footage's own stripes are triangulated per pixel into the\n"
+            "swatch's shape, and the fit compares depths along the camera rays: an RMS depth error in\n"
+            "mm (background pixels near the swatch's outline that the simulation covers count as 3 cm\n"
+            "misses: depth alone cannot see cloth that reaches too far sideways). --fit-to footage\n"
+            "compares angle maps and silhouettes instead (the thesis's eq. 2.20-2.24; its fabrics miss\n"
+            "the captures by more: docs/cloth_fitting.md). --fit-to tracks compares the capture's\n"
+            "measured 3D points (capture.json \"tracks\": motion-capture markers, a scanner), also in mm.\n"
+            "Several captures are fitted jointly: give the static drape(s) and the waving test(s) of\n"
+            "one fabric. Static drapes alone fit the 6 stiffness and damping parameters; with a waving\n"
+            "test the 3 drag parameters too (9). Scan and tracks fits add the hem's mass, soft\n"
+            "compression per direction, tension-only diagonal fibres and (waving) linear drag: 10 and\n"
+            "14 parameters (docs/cloth_model.md).\n"
             "The search is CMA-ES (an evolution strategy that simulates a generation of candidates at\n"
             "once and learns which parameters move together) from the better of the start and a small\n"
             "Halton design (--search annealing: the thesis's design, then simulated annealing), with\n"
@@ -428,15 +448,14 @@ const RegisterFitKind registration{FitKind{
             ->capture_default_str();
         add_frame_options(app, options->frame_selection,
                           "waving frames A to B compared; A is the wave's first frame (the start is what is predictable)",
-                          "the first N waving frames", "the first 50; --fit-to tracks or scan: 20");
+                          "the first N waving frames", "the first 20; --fit-to footage: 50");
         app.add_option("--full-weight-frames", options->full_weight_frames, "waving frames that count fully")
             ->check(CLI::Range(1, 100000))
             ->capture_default_str();
         app.add_option("--half-life-frames", options->half_life_frames,
                        "later frames' weight halves every this many frames (0 = every frame counts fully; "
-                       "--fit-to tracks or scan: 5)")
-            ->check(CLI::NonNegativeNumber)
-            ->capture_default_str();
+                       "default: 5; --fit-to footage: 10)")
+            ->check(CLI::NonNegativeNumber);
         app.add_option("--min-bending", options->min_bending_N_m,
                        "floor on the fitted bending stiffness, N m (0 = its range): the soft bending that reproduces "
                        "folds at the footage's mesh scale drapes differently on other meshes; with 1e-5 the silk captures' "
@@ -456,8 +475,9 @@ const RegisterFitKind registration{FitKind{
             ->check(CLI::IsMember({"xor", "edge"}))
             ->capture_default_str();
         app.add_option("--fit-to", options->fit_to,
-                       "footage: the frames (angle maps and silhouettes); scan: the shape the frames' projector "
-                       "stripes measure (depth per pixel); tracks: the captures' measured 3D points")
+                       "scan: the swatch's shape the frames' projector stripes measure (depth per pixel; 14 parameters "
+                       "with a waving test); footage: the frames' angle maps and silhouettes (the thesis's metric, 9 "
+                       "parameters); tracks: the captures' measured 3D points")
             ->check(CLI::IsMember({"footage", "scan", "tracks"}))
             ->capture_default_str();
         app.add_option("--search", options->search,
@@ -509,7 +529,7 @@ const RegisterFitKind registration{FitKind{
             if (const std::optional<int> count = resolve_waving_frame_count(options->frame_selection, options->captures))
                 options->frames = *count;
             if (options->frames < 2) throw UsageError("", "", "a fit needs at least 2 waving frames", "give --frame-count 2 or more");
-            apply_shape_target_frame_defaults(cloth_fit::fit_target_from_name(options->fit_to).value_or(cloth_fit::FitTarget::footage),
+            apply_shape_target_frame_defaults(cloth_fit::fit_target_from_name(options->fit_to).value_or(cloth_fit::kDefaultFitTarget),
                                               options->frame_selection.given(), half_life->count() > 0, options->frames,
                                               options->half_life_frames);
             return run_fit_cloth(*options, global);

@@ -72,7 +72,11 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
     if (options.match_footage) {
         cloth_fit::ClothFitSettings settings;
         settings.swatch = *swatch;
-        const Eigen::VectorXd start = cloth_fit::matching_equilibrium(cloth_fit::load_trial(capture, {}), material, settings);
+        // The fit's and eval's default start: the scanned first frame's fold state.
+        cloth_fit::TrialLoadSettings first_frame;
+        first_frame.target = cloth_fit::kDefaultFitTarget;
+        first_frame.waving_frames = 2;  // only frame 1 picks the start
+        const Eigen::VectorXd start = cloth_fit::matching_equilibrium(cloth_fit::load_trial(capture, first_frame), material, settings);
         if (start.size() > 0) swatch->initial_positions = start;
     }
 

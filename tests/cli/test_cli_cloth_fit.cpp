@@ -39,7 +39,11 @@ TEST(CliClothFit, StaticFitIsDeterministicImprovesOnItsStartAndRecordsItsSources
     ASSERT_EQ(two.exit_code, 0) << two.err;
     const nlohmann::json summary = nlohmann::json::parse(one.out);
     EXPECT_LT(summary["final_error"].get<double>(), summary["start_error"].get<double>());
-    EXPECT_EQ(summary["parameters"].size(), 6u);  // static drape: stiffness and damping only
+    // The default compares the footage's stripe scan; a static drape fits
+    // stiffness and damping (6) and the capacity terms (hem, two
+    // compression ratios, diagonal fibres: 10).
+    EXPECT_EQ(summary["fit_to"], "scan");
+    EXPECT_EQ(summary["parameters"].size(), 10u);
 
     const flowvid::formats::FabricPreset a = flowvid::formats::read_fabric_preset(dir + "/one.fabric.json");
     const flowvid::formats::FabricPreset b = flowvid::formats::read_fabric_preset(dir + "/two.fabric.json");
@@ -48,10 +52,14 @@ TEST(CliClothFit, StaticFitIsDeterministicImprovesOnItsStartAndRecordsItsSources
     const flowvid::formats::Capture capture = flowvid::formats::read_capture(shared_path(kSilkStatic));
     EXPECT_EQ(a.provenance.captures[0].capture_json_sha256, capture.capture_json_sha256);
     EXPECT_EQ(a.provenance.captures[0].test, "static");
-    // The density the fit simulated: the capture's swatch mass over its area.
+    // The mass the fit simulated is the capture's weighed swatch: the cloth's
+    // area at its density plus the hem around its edge.
     ASSERT_TRUE(capture.swatch.has_value());
-    EXPECT_NEAR(a.parameters.areal_density_kg_per_m2.value,
-                capture.swatch->mass_kg / (capture.swatch->width_m * capture.swatch->height_m), 1e-12);
+    const double width_m = capture.swatch->width_m, height_m = capture.swatch->height_m;
+    EXPECT_GT(a.parameters.hem_line_density_kg_per_m.value, 0.0);
+    EXPECT_NEAR(a.parameters.areal_density_kg_per_m2.value * width_m * height_m +
+                    a.parameters.hem_line_density_kg_per_m.value * 2.0 * (width_m + height_m),
+                capture.swatch->mass_kg, 1e-12);
     EXPECT_TRUE(a.parameters.bend_stiffness_N_m.uncertainty.has_value());
     EXPECT_EQ(run_flowvid({"validate", dir + "/one.fabric.json"}).exit_code, 0);
 }
@@ -246,12 +254,16 @@ TEST(CliClothFit, StartRefinesAPresetAndStaysOutOfShards) {
     // --start: the fit begins at a preset's fabric instead of the middle of
     // the ranges. Its start error is then that preset's own error on the
     // capture (eval cloth scores the same drape from the same fabric), and the
-    // fit keeps it when it finds nothing better.
+    // fit keeps it when it finds nothing better. Angle maps: the example
+    // preset has no capacity terms, which a scan fit's start would clamp into
+    // their ranges (a hem of at least 1e-5 kg/m), so its start would be
+    // another fabric than the preset's.
     const std::string dir = own_dir("cli_fit_start");
     const std::string preset = source_path("formats/examples/cotton.fabric.json");
     const auto fit = [&](const std::vector<std::string>& extra) {
         std::vector<std::string> args = {"fit", "cloth", "--capture", shared_path(kStatic), "--out", dir + "/refined.fabric.json",
-                                         "--evaluations", "10", "--variability-runs", "0", "--resolution", "8x8", "--json"};
+                                         "--evaluations", "10", "--variability-runs", "0", "--resolution", "8x8", "--fit-to",
+                                         "footage", "--json"};
         args.insert(args.end(), extra.begin(), extra.end());
         return run_flowvid(args);
     };
@@ -269,7 +281,7 @@ TEST(CliClothFit, StartRefinesAPresetAndStaysOutOfShards) {
     EXPECT_NE(start_error, from_middle["start_error"].get<double>());
     EXPECT_LE(summary["final_error"].get<double>(), start_error);
     const CliResult eval = run_flowvid({"eval", "cloth", "--preset", preset, "--capture", shared_path(kStatic), "--resolution",
-                                        "8x8", "--floor-members", "0", "--json"});
+                                        "8x8", "--floor-members", "0", "--compare", "footage", "--json"});
     ASSERT_EQ(eval.exit_code, 0) << eval.err;
     EXPECT_NEAR(nlohmann::json::parse(eval.out)["captures"][0]["weighted_error"].get<double>(), start_error, 1e-6 * start_error);
 
@@ -289,7 +301,8 @@ TEST(CliClothFit, RefinementRoundsAreReportedShareTheEvaluationsAndStayOutOfShar
     const std::string dir = own_dir("cli_fit_rounds");
     const auto fit = [&](const std::vector<std::string>& extra) {
         std::vector<std::string> args = {"fit", "cloth", "--capture", shared_path(kStatic), "--out", dir + "/r.fabric.json",
-                                         "--evaluations", "64", "--variability-runs", "0", "--resolution", "8x8", "--json"};
+                                         "--evaluations", "64", "--variability-runs", "0", "--resolution", "8x8", "--fit-to",
+                                         "footage", "--json"};
         args.insert(args.end(), extra.begin(), extra.end());
         return run_flowvid(args);
     };

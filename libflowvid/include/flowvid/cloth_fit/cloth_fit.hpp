@@ -68,6 +68,11 @@ enum class FitTarget { footage, scan, tracks };
 const char* fit_target_name(FitTarget target);  // "footage", "scan", "tracks"
 // The target of one of those names; nullopt for any other text.
 std::optional<FitTarget> fit_target_from_name(std::string_view name);
+// What `fit cloth`, `eval cloth`, `recognize` and the Python module compare
+// with unless told: the scan, from the footage alone, whose fits reach the
+// capacity model where the angle maps' did not (docs/cloth_fitting.md).
+// Library structs keep FitTarget::footage as their own default.
+constexpr FitTarget kDefaultFitTarget = FitTarget::scan;
 
 // A tracks fit's waving frames and their half-life by default: point
 // distances grow with chaos, so fewer and faster-fading frames than a
