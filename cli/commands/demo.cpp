@@ -180,12 +180,15 @@ int run_fabric_stage(const DemoOptions& options, const GlobalOptions& global) {
     const nlohmann::json fit = read_json_file(out / "fit.json");
     const nlohmann::json eval = read_json_file(out / "eval.json");
     if (fit.is_discarded() || eval.is_discarded()) return kExitFailure;
-    std::cout << "  weighted metric error " << html::format_number(fit["start_error"].get<double>()) << " -> "
+    const bool in_mm = eval.value("compared", "") == "scan";  // mean square depths: their roots, in mm
+    std::cout << "  weighted " << (in_mm ? "mean square depth error (mm^2) " : "metric error ")
+              << html::format_number(fit["start_error"].get<double>()) << " -> "
               << html::format_number(fit["final_error"].get<double>()) << " in " << html::format_number(fit["seconds"].get<double>())
-              << " s; per window (metric / floor):";
+              << " s; per window (" << (in_mm ? "RMS depth error / floor, mm" : "metric / floor") << "):";
     for (const auto& w : eval["captures"][0]["windows"])
-        std::cout << "  " << w["frames"].get<std::string>() << ": " << html::format_number(w["metric_mean"].get<double>())
-                  << " / " << html::format_number(number_or_nan(w, "metric_floor"));
+        std::cout << "  " << w["frames"].get<std::string>() << ": "
+                  << html::format_number(number_or_nan(w, in_mm ? "metric_rms_mm" : "metric_mean")) << " / "
+                  << html::format_number(number_or_nan(w, in_mm ? "metric_floor_rms_mm" : "metric_floor"));
     std::cout << "\n  report: " << (out / "eval" / "eval.html").string() << '\n';
     return kExitOk;
 }
@@ -411,8 +414,13 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
             for (const auto& w : eval["captures"][0]["windows"])
                 if (first_window == nullptr) first_window = &w;
         const double start = number_or_nan(fit, "start_error"), final = number_or_nan(fit, "final_error");
+        // A scan fit's errors are mean square depths (mm^2): shown as their roots, in mm.
+        const bool in_mm = eval.is_object() && eval.value("compared", "") == "scan";
+        const char* error_key = in_mm ? "metric_rms_mm" : "metric_mean";
+        const char* floor_key = in_mm ? "metric_floor_rms_mm" : "metric_floor";
+        const std::string error_name = in_mm ? "RMS depth error (mm)" : "metric E_k";
         if (first_window != nullptr) {
-            const double ratio = number_or_nan(*first_window, "metric_mean") / number_or_nan(*first_window, "metric_floor");
+            const double ratio = number_or_nan(*first_window, error_key) / number_or_nan(*first_window, floor_key);
             const double floor_mm = number_or_nan(*first_window, "vertex_floor_mm");
             const double rms_mm = number_or_nan(*first_window, "vertex_rms_mm");
             std::string sentence = "The fit lowered its error by " + html::format_percent(1.0 - final / start) + " in " +
@@ -429,7 +437,8 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
             body << verdict(sentence, ratio <= 3.0 ? "good" : "warn");
         }
         body
-             << "<p>" << link(out / "fabric" / "cotton.fabric.json", out, "cotton.fabric.json") << ": weighted metric error "
+             << "<p>" << link(out / "fabric" / "cotton.fabric.json", out, "cotton.fabric.json") << ": weighted "
+             << (in_mm ? "mean square depth error (mm&sup2;) " : "metric error ")
              << html::format_number(fit.value("start_error", NAN)) << " &rarr; "
              << html::format_number(fit.value("final_error", NAN)) << " (floor "
              << html::format_number(fit.value("final_error_floor", NAN)) << ") in "
@@ -441,22 +450,24 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
             // At a glance: each window's error bar above its floor's (grey);
             // an error bar near its floor is as good as the footage allows.
             html::BarChart chart;
-            chart.title = "metric E_k per window (blue) next to its predictability floor (grey)";
-            chart.value_label = "mean metric E_k per frame";
+            chart.title = (in_mm ? std::string("RMS depth error against the stripe scan, mm") : error_name) +
+                          ": per window (blue), its predictability floor (grey)";
+            chart.value_label = in_mm ? "RMS depth error over the window's frames (mm)" : "mean metric E_k per frame";
             for (const auto& w : eval["captures"][0]["windows"]) {
                 const std::string frames = w.value("frames", "");
-                if (w["metric_mean"].is_number())
-                    chart.bars.push_back({"frames " + frames, w["metric_mean"].get<double>(), "#2e86c1"});
-                if (w["metric_floor"].is_number())
-                    chart.bars.push_back({"floor " + frames, w["metric_floor"].get<double>(), "#aab7b8"});
+                if (w.contains(error_key) && w[error_key].is_number())
+                    chart.bars.push_back({"frames " + frames, w[error_key].get<double>(), "#2e86c1"});
+                if (w.contains(floor_key) && w[floor_key].is_number())
+                    chart.bars.push_back({"floor " + frames, w[floor_key].get<double>(), "#aab7b8"});
             }
             if (!chart.bars.empty()) body << "<figure>" << html::bar_chart_svg(chart) << "</figure>\n";
             html::Table table;
-            table.caption = "metric E_k per window next to its predictability floor";
-            table.header = {"frames", "metric E_k", "floor"};
+            table.caption = (in_mm ? std::string("RMS depth error against the footage's stripe scan") : error_name) +
+                            " per window next to its predictability floor";
+            table.header = {"frames", error_name, "floor"};
             for (const auto& w : eval["captures"][0]["windows"])
-                table.rows.push_back({w.value("frames", ""), html::format_number(number_or_nan(w, "metric_mean")),
-                                      html::format_number(number_or_nan(w, "metric_floor"))});
+                table.rows.push_back({w.value("frames", ""), html::format_number(number_or_nan(w, error_key)),
+                                      html::format_number(number_or_nan(w, floor_key))});
             body << html::table(table);
         }
     }

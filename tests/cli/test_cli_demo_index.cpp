@@ -45,8 +45,12 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
     write_json(out / "fabric" / "fit.json",
                {{"start_error", 11000.0}, {"final_error", 9030.0}, {"final_error_floor", 1234.0}, {"seconds", 151.0}, {"evaluations", 71}});
     fs::copy_file(source_path("formats/examples/cotton.fabric.json"), out / "fabric" / "cotton.fabric.json");
+    // A scan comparison (eval cloth's default): its windows read in mm.
     write_json(out / "fabric" / "eval.json",
-               {{"captures", {{{"windows", {{{"frames", "1-10"}, {"metric_mean", 382.0}, {"metric_floor", 20.9}}}}}}}});
+               {{"compared", "scan"},
+                {"captures",
+                 {{{"windows",
+                    {{{"frames", "1-10"}, {"metric_mean", 384.16}, {"metric_floor", 17.64}, {"metric_rms_mm", 19.6}, {"metric_floor_rms_mm", 4.2}}}}}}}});
     // Real videos, as the product writes them (flowvid synth's .mp4), so the
     // browser can be asked to play them.
     const fs::path bank = out / "tiny.bank.exr";
@@ -95,13 +99,13 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
         EXPECT_EQ(targets.count(expected), 1u) << expected << " not linked";
     for (const std::string& target : targets) EXPECT_TRUE(fs::exists(out / target)) << target;
     // Key figures, as the stages reported them.
-    for (const char* figure : {"11000", "9030", "1230", "151", "382", "20.9", "0.954", "5.52", "0.973", "1.12", "verdict: named", "43%",
+    for (const char* figure : {"11000", "9030", "1230", "151", "19.6", "4.2", "RMS depth error", "0.954", "5.52", "0.973", "1.12", "verdict: named", "43%",
                                "the gap is explained by wind"})
         EXPECT_NE(index.find(figure), std::string::npos) << figure << " missing from index.html";
     // Each stage's verdict in one sentence with its units (as a reader sees it: quotes unescaped).
     const std::string text = std::regex_replace(index, std::regex("&#39;"), "'");
     for (const char* sentence :
-         {"over frames 1-10 the fitted fabric misses the footage by 18.3 times the predictability floor",
+         {"over frames 1-10 the fitted fabric misses the footage by 4.67 times the predictability floor",
           "is 0.954 times the clip's 95th-percentile change (the clip's own largest: 1.12; naive looping: 5.52): no seam",
           "misses held-out frames by 7.50 times the predictability floor; modelling the named effect closes 43% of that gap",
           "Blender simulated and rendered its 1 frames"})
