@@ -138,6 +138,18 @@ double number_or_nan(const nlohmann::json& object, const char* key) {
     return object.is_object() && object.contains(key) && object[key].is_number() ? object[key].get<double>() : NAN;
 }
 
+// Which of eval cloth's window fields the demo shows: a scan comparison's
+// mean square depths as their roots, in mm; the angle-map metric as it is.
+struct EvalWindowFields {
+    bool in_mm = false;
+    const char* error = "metric_mean";
+    const char* floor = "metric_floor";
+};
+EvalWindowFields eval_window_fields(const nlohmann::json& eval) {
+    if (eval.is_object() && eval.value("compared", "") == "scan") return {true, "metric_rms_mm", "metric_floor_rms_mm"};
+    return {};
+}
+
 // The fitted fabric the later stages use: the fabric stage's, or the bundled example.
 fs::path demo_preset(const DemoOptions& options) {
     const fs::path fitted = fs::path(options.out) / "fabric" / "cotton.fabric.json";
@@ -180,15 +192,14 @@ int run_fabric_stage(const DemoOptions& options, const GlobalOptions& global) {
     const nlohmann::json fit = read_json_file(out / "fit.json");
     const nlohmann::json eval = read_json_file(out / "eval.json");
     if (fit.is_discarded() || eval.is_discarded()) return kExitFailure;
-    const bool in_mm = eval.value("compared", "") == "scan";  // mean square depths: their roots, in mm
-    std::cout << "  weighted " << (in_mm ? "mean square depth error (mm^2) " : "metric error ")
+    const EvalWindowFields fields = eval_window_fields(eval);
+    std::cout << "  weighted " << (fields.in_mm ? "mean square depth error (mm^2) " : "metric error ")
               << html::format_number(fit["start_error"].get<double>()) << " -> "
               << html::format_number(fit["final_error"].get<double>()) << " in " << html::format_number(fit["seconds"].get<double>())
-              << " s; per window (" << (in_mm ? "RMS depth error / floor, mm" : "metric / floor") << "):";
+              << " s; per window (" << (fields.in_mm ? "RMS depth error / floor, mm" : "metric / floor") << "):";
     for (const auto& w : eval["captures"][0]["windows"])
-        std::cout << "  " << w["frames"].get<std::string>() << ": "
-                  << html::format_number(number_or_nan(w, in_mm ? "metric_rms_mm" : "metric_mean")) << " / "
-                  << html::format_number(number_or_nan(w, in_mm ? "metric_floor_rms_mm" : "metric_floor"));
+        std::cout << "  " << w["frames"].get<std::string>() << ": " << html::format_number(number_or_nan(w, fields.error))
+                  << " / " << html::format_number(number_or_nan(w, fields.floor));
     std::cout << "\n  report: " << (out / "eval" / "eval.html").string() << '\n';
     return kExitOk;
 }
@@ -414,13 +425,10 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
             for (const auto& w : eval["captures"][0]["windows"])
                 if (first_window == nullptr) first_window = &w;
         const double start = number_or_nan(fit, "start_error"), final = number_or_nan(fit, "final_error");
-        // A scan fit's errors are mean square depths (mm^2): shown as their roots, in mm.
-        const bool in_mm = eval.is_object() && eval.value("compared", "") == "scan";
-        const char* error_key = in_mm ? "metric_rms_mm" : "metric_mean";
-        const char* floor_key = in_mm ? "metric_floor_rms_mm" : "metric_floor";
-        const std::string error_name = in_mm ? "RMS depth error (mm)" : "metric E_k";
+        const EvalWindowFields fields = eval_window_fields(eval);
+        const std::string error_name = fields.in_mm ? "RMS depth error (mm)" : "metric E_k";
         if (first_window != nullptr) {
-            const double ratio = number_or_nan(*first_window, error_key) / number_or_nan(*first_window, floor_key);
+            const double ratio = number_or_nan(*first_window, fields.error) / number_or_nan(*first_window, fields.floor);
             const double floor_mm = number_or_nan(*first_window, "vertex_floor_mm");
             const double rms_mm = number_or_nan(*first_window, "vertex_rms_mm");
             std::string sentence = "The fit lowered its error by " + html::format_percent(1.0 - final / start) + " in " +
@@ -438,7 +446,7 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
         }
         body
              << "<p>" << link(out / "fabric" / "cotton.fabric.json", out, "cotton.fabric.json") << ": weighted "
-             << (in_mm ? "mean square depth error (mm&sup2;) " : "metric error ")
+             << (fields.in_mm ? "mean square depth error (mm&sup2;) " : "metric error ")
              << html::format_number(fit.value("start_error", NAN)) << " &rarr; "
              << html::format_number(fit.value("final_error", NAN)) << " (floor "
              << html::format_number(fit.value("final_error_floor", NAN)) << ") in "
@@ -450,24 +458,24 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
             // At a glance: each window's error bar above its floor's (grey);
             // an error bar near its floor is as good as the footage allows.
             html::BarChart chart;
-            chart.title = (in_mm ? std::string("RMS depth error against the stripe scan, mm") : error_name) +
+            chart.title = (fields.in_mm ? std::string("RMS depth error against the stripe scan, mm") : error_name) +
                           ": per window (blue), its predictability floor (grey)";
-            chart.value_label = in_mm ? "RMS depth error over the window's frames (mm)" : "mean metric E_k per frame";
+            chart.value_label = fields.in_mm ? "RMS depth error over the window's frames (mm)" : "mean metric E_k per frame";
             for (const auto& w : eval["captures"][0]["windows"]) {
                 const std::string frames = w.value("frames", "");
-                if (w.contains(error_key) && w[error_key].is_number())
-                    chart.bars.push_back({"frames " + frames, w[error_key].get<double>(), "#2e86c1"});
-                if (w.contains(floor_key) && w[floor_key].is_number())
-                    chart.bars.push_back({"floor " + frames, w[floor_key].get<double>(), "#aab7b8"});
+                if (w.contains(fields.error) && w[fields.error].is_number())
+                    chart.bars.push_back({"frames " + frames, w[fields.error].get<double>(), "#2e86c1"});
+                if (w.contains(fields.floor) && w[fields.floor].is_number())
+                    chart.bars.push_back({"floor " + frames, w[fields.floor].get<double>(), "#aab7b8"});
             }
             if (!chart.bars.empty()) body << "<figure>" << html::bar_chart_svg(chart) << "</figure>\n";
             html::Table table;
-            table.caption = (in_mm ? std::string("RMS depth error against the footage's stripe scan") : error_name) +
+            table.caption = (fields.in_mm ? std::string("RMS depth error against the footage's stripe scan") : error_name) +
                             " per window next to its predictability floor";
             table.header = {"frames", error_name, "floor"};
             for (const auto& w : eval["captures"][0]["windows"])
-                table.rows.push_back({w.value("frames", ""), html::format_number(number_or_nan(w, error_key)),
-                                      html::format_number(number_or_nan(w, floor_key))});
+                table.rows.push_back({w.value("frames", ""), html::format_number(number_or_nan(w, fields.error)),
+                                      html::format_number(number_or_nan(w, fields.floor))});
             body << html::table(table);
         }
     }

@@ -227,7 +227,7 @@ int run_eval_cloth(const EvalClothOptions& options, const GlobalOptions& global)
                                    "by one pixel's footprint at the swatch, run as each capture's note says: "
                                    "no model can be expected to match a chaotic trial better than that.");
     const nlohmann::json summary = {{"preset", options.preset},
-                                    {"compared", cloth_fit::fit_target_name(load_settings(options.trial).target)},
+                                    {"compared", cloth_fit::fit_target_name(compared_target(options.trial))},
                                     {"floor_members", floor.members},
                                     {"floor_includes_uncertainty", floor_has_uncertainty},
                                     {"captures", results}};

@@ -75,7 +75,7 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
         // The fit's and eval's default start: the scanned first frame's fold state.
         cloth_fit::TrialLoadSettings first_frame;
         first_frame.target = cloth_fit::kDefaultFitTarget;
-        first_frame.waving_frames = 2;  // only frame 1 picks the start
+        first_frame.waving_frames = 1;  // only frame 1 picks the start: scan no other
         const Eigen::VectorXd start = cloth_fit::matching_equilibrium(cloth_fit::load_trial(capture, first_frame), material, settings);
         if (start.size() > 0) swatch->initial_positions = start;
     }
