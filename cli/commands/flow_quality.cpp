@@ -115,10 +115,16 @@ nlohmann::json clip_region_json(const flow::RegionQuality& r) {
             {"region_pixels", r.clip_region_pixels}};
 }
 
-void print_region_table(const std::vector<std::pair<std::string, flow::RegionQuality>>& rows, double region_px) {
+// `still_view`: the rows compare with the stabilised clip instead of the footage as filmed.
+void print_region_table(const std::vector<std::pair<std::string, flow::RegionQuality>>& rows, double region_px,
+                        bool still_view = false) {
     if (rows.empty()) return;
-    std::printf("whole flow region (within %.0f px of the drawn lines; ../shared/tools/baselines_flow.py's measures):\n",
-                region_px);
+    if (still_view)
+        std::printf("the same against the clip seen from the output's still view (the camera's drift taken out):\n");
+    else
+        std::printf("whole flow region (within %.0f px of the drawn lines; ../shared/tools/baselines_flow.py's measures, "
+                    "against the clip as filmed):\n",
+                    region_px);
     std::printf("%-9s %9s %9s %9s %9s | %7s %9s %9s | %7s\n", "method", "seam/p99", "share>p99", "pulse cv", "pulse pk",
                 "detail", "patch fid", "patch rms", "motion");
     for (const auto& [name, r] : rows)
@@ -154,6 +160,10 @@ int run_edit_quality(const QualityOptions& options, const flow::PreparedSynthesi
                               {"carry_background", prepared.settings.carry_background},
                               {"region", {{"ours", region_json(edit)}}},
                               {"clip_region_reference", clip_region_json(edit)}};
+    if (measured.region_still_view) {
+        summary["region_still_view"] = {{"ours", region_json(*measured.region_still_view)}};
+        summary["clip_region_reference_still_view"] = clip_region_json(*measured.region_still_view);
+    }
     if (options.json) {
         std::cout << summary.dump(2) << '\n';
         return kExitOk;
@@ -161,6 +171,7 @@ int run_edit_quality(const QualityOptions& options, const flow::PreparedSynthesi
     std::printf("%s: %d clip frames, %d output frames of the edit along %zu output lines%s\n", clip_frames_name(prepared).c_str(),
                 clip.count(), frames, prepared.drawing.outputs.size(), moving_lines ? " (moving: the region follows them)" : "");
     print_region_table({{"edit", edit}}, options.region_px);
+    if (measured.region_still_view) print_region_table({{"edit", *measured.region_still_view}}, options.region_px, true);
     return kExitOk;
 }
 
@@ -183,6 +194,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     compare.threads = options.threads;
     compare.region_lines = flow::drawn_input_polylines(prepared.drawing);
     compare.region.region_px = options.region_px;
+    compare.footage = prepared.footage.get();
     const flow::Comparison result =
         flow::compare_with_baselines(clip, *prepared.streams, *prepared.synthesizer, plate, compare, progress.callback());
     progress.finish();
@@ -217,19 +229,28 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                                 {"borrow_within_frames", options.synthesis.borrow_within_frames},
                                 {"first_start_frame", schedule.first_start_frame}}}};
     summary.update(flow::window_summary(schedule));
-    nlohmann::json methods = nlohmann::json::object(), region = nlohmann::json::object();
-    std::vector<std::pair<std::string, flow::RegionQuality>> region_rows;
+    nlohmann::json methods = nlohmann::json::object(), region = nlohmann::json::object(),
+                   region_still = nlohmann::json::object();
+    std::vector<std::pair<std::string, flow::RegionQuality>> region_rows, still_rows;
     for (const flow::MethodQuality& m : result.methods) {
         methods[m.method] = report_json(m.report);
         if (m.region) {
             region[m.method] = region_json(*m.region);
             region_rows.emplace_back(m.method, *m.region);
         }
+        if (m.region_still_view) {
+            region_still[m.method] = region_json(*m.region_still_view);
+            still_rows.emplace_back(m.method, *m.region_still_view);
+        }
     }
     summary["methods"] = methods;
     summary["region_px"] = options.region_px;
     summary["region"] = region;
     if (!region_rows.empty()) summary["clip_region_reference"] = clip_region_json(region_rows.front().second);
+    if (!still_rows.empty()) {
+        summary["region_still_view"] = region_still;
+        summary["clip_region_reference_still_view"] = clip_region_json(still_rows.front().second);
+    }
     // The clip against itself: what an output that moves like it scores.
     const flow::QualityReport& reference = result.methods.front().report;
     summary["clip_reference"] = {{"seam_max_ratio", reference.clip_max_ratio},
@@ -261,6 +282,7 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
                 "than the clip at every frame\n",
                 reference.clip_min_ratio, reference.clip_max_ratio, reference.clip_min_ratio);
     print_region_table(region_rows, options.region_px);
+    print_region_table(still_rows, options.region_px, true);
     return kExitOk;
 }
 
@@ -293,6 +315,8 @@ const RegisterCommand registration{Command{
             "             over the clip's own leave-one-frame-out distance (1: as novel as a real frame)\n"
             "  motion     median change in the region, output / clip\n"
             "The clip rows measure the clip against itself: what an output that moves like the clip scores.\n"
+            "Against the clip as filmed, as the tool does. When the camera drifts, a second table compares\n"
+            "with the clip seen from the output's still view: the difference is what the drift costs.\n"
             "--edit measures the edit along the drawing's output lines instead (as flowvid edit renders it,\n"
             "with its options): over the output lines' region, at every frame for moving (keyed) lines.\n\n"
             "Examples:\n"

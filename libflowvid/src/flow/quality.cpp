@@ -333,7 +333,7 @@ Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams&
         SequenceStats series = sequence_stats(frames, width, height, mask);
         QualityReport report =
             quality_from_stats(out.clip_series, series, clip_luma, frames, width, height, mask, settings.quality);
-        out.methods.push_back({method, std::move(report), std::move(series)});
+        out.methods.push_back({method, std::move(report), std::move(series), {}, {}});
     };
     add("ours", ours);
     add("loop", loop);
@@ -341,10 +341,22 @@ Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams&
     if (!settings.region_lines.empty()) {
         const std::vector<std::uint8_t> region =
             line_band_mask(settings.region_lines, width, height, settings.region.region_px);
-        const RegionMeter meter(clip_luma, width, height, region, settings.region);
-        out.methods[0].region = meter.measure(ours, {region});
-        out.methods[1].region = meter.measure(loop, {region});
-        out.methods[2].region = meter.measure(flowmap, {region});
+        const auto measure_all = [&](const std::vector<std::vector<float>>& reference, auto member) {
+            const RegionMeter meter(reference, width, height, region, settings.region);
+            out.methods[0].*member = meter.measure(ours, {region});
+            out.methods[1].*member = meter.measure(loop, {region});
+            out.methods[2].*member = meter.measure(flowmap, {region});
+        };
+        if (settings.footage) {
+            if (settings.footage->width() != width || settings.footage->height() != height)
+                throw std::invalid_argument("the footage and the clip differ in size");
+            std::vector<std::vector<float>> footage_luma;
+            for (int i = 0; i < settings.footage->count(); ++i) footage_luma.push_back(settings.footage->luma(i));
+            measure_all(footage_luma, &MethodQuality::region);
+            measure_all(clip_luma, &MethodQuality::region_still_view);
+        } else {
+            measure_all(clip_luma, &MethodQuality::region);
+        }
     }
     return out;
 }

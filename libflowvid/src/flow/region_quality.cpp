@@ -120,7 +120,7 @@ public:
         Eigen::Index column = 0;
         for (int f : frames)
             for (const auto& [x, y] : grid) {
-                m_raw.col(column++) = cut_patch(clip[static_cast<std::size_t>(f)], width, x, y, s.patch_px);
+                m_raw.col(column++) = cut_patch(clip[static_cast<std::size_t>(f)], width, x, y, s.patch_px).cast<std::uint8_t>();
                 m_frame.push_back(f);
             }
         if (m_raw.cols() == 0) return;
@@ -137,7 +137,8 @@ public:
         const int components = std::min(32, dims);
         m_mean = mean.cast<float>();
         m_basis = solver.eigenvectors().rightCols(components).cast<float>();  // ascending order: the last are the largest
-        m_projected = m_basis.transpose() * (m_raw.colwise() - m_mean);
+        m_projected.resize(components, m_raw.cols());
+        for (Eigen::Index j = 0; j < m_raw.cols(); ++j) m_projected.col(j) = m_basis.transpose() * (m_raw.col(j).cast<float>() - m_mean);
         m_projected_norm = m_projected.colwise().squaredNorm().transpose();
     }
 
@@ -159,13 +160,15 @@ public:
         }
         double nearest = std::numeric_limits<double>::infinity();
         for (const auto& [_, j] : best)
-            nearest = std::min(nearest, static_cast<double>((m_raw.col(j) - query).squaredNorm()));
+            nearest = std::min(nearest, static_cast<double>((m_raw.col(j).cast<float>() - query).squaredNorm()));
         return std::isfinite(nearest) ? std::sqrt(nearest / static_cast<double>(query.size())) : 0.0;
     }
 
 private:
     int m_patch;
-    Eigen::MatrixXf m_raw;  // one patch per column
+    // One patch per column, grey levels: 8 bits, as the tool's frames (a
+    // quarter of floats' memory, which every clip frame's patches need).
+    Eigen::Matrix<std::uint8_t, Eigen::Dynamic, Eigen::Dynamic> m_raw;
     std::vector<int> m_frame;
     Eigen::VectorXf m_mean;
     Eigen::MatrixXf m_basis;
@@ -249,7 +252,8 @@ RegionMeter::RegionMeter(const std::vector<std::vector<float>>& clip_luma, int w
     c.p99 = percentile(c.transitions, 0.99);
     for (const auto& g : clip_luma) c.energy.push_back(laplacian_variance(g, width, height, c.region));
     c.motion = percentile(region_transitions(clip_luma, {c.region}), 0.5);
-    const std::vector<int> search_frames = spread(static_cast<int>(clip_luma.size()), s.max_search_frames);
+    const int clip_count = static_cast<int>(clip_luma.size());
+    const std::vector<int> search_frames = spread(clip_count, s.max_search_frames > 0 ? s.max_search_frames : clip_count);
     c.patches = std::make_unique<PatchDatabase>(clip_luma, search_frames, width, height, c.region, s);
     // Leave-one-frame-out queries come from searched frames, so that leaving one out means something.
     std::vector<int> queries;

@@ -148,7 +148,7 @@ PreparedSynthesis assemble(SynthesisSources sources, const SynthesisJob& job, co
         const ClipFrames& footage = sources.footage.count() > 0 ? sources.footage : *out.clip;
         const BackgroundChoice choice =
             choose_background(out.streams, out.clip, footage, settings, drawn_input_polylines(out.drawing));
-        sources.footage = ClipFrames();  // not needed while rendering
+        if (!job.keep_clip) sources.footage = ClipFrames();  // not needed while rendering
         out.background = choice.mode;
         out.median_detail = choice.median_detail;
         const bool carry = job.edit && job.carry_replayed_background && out.background == BackgroundMode::replay &&
@@ -190,6 +190,8 @@ PreparedSynthesis assemble(SynthesisSources sources, const SynthesisJob& job, co
     const std::vector<std::string>& scheduled = out.streams->schedule().warnings;
     for (const std::string& w : out.synthesizer->warnings())
         if (std::find(scheduled.begin(), scheduled.end(), w) == scheduled.end()) say(log, "warning: " + w);
+    if (job.keep_clip && sources.footage.count() > 0)
+        out.footage = std::make_shared<const ClipFrames>(std::move(sources.footage));
     if (!job.keep_clip) out.clip.reset();  // a background that replays the clip holds it itself
     return out;
 }
@@ -244,7 +246,7 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& pro
         sources.clip = std::make_shared<const ClipFrames>(read_clip_stabilised(
             frames, sources.drawing, camera,
             [&](const ProgressReport& r) { return !(cancelled = progress && !progress(r)); },
-            decided.background_to_choose ? &sources.footage : nullptr));
+            decided.background_to_choose || job.keep_clip ? &sources.footage : nullptr));
         if (cancelled) throw Cancelled();
         sources.camera = camera;
         say(log, describe(camera));
@@ -311,9 +313,18 @@ EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double r
     if (rendered < out.output_frames) throw Cancelled();
     RegionSettings settings;
     settings.region_px = region_px;
-    const RegionMeter meter(clip_luma, width, height,
-                            line_band_mask(drawn_input_polylines(prepared.drawing), width, height, region_px), settings);
-    out.region = meter.measure(output_luma, regions);
+    const std::vector<std::uint8_t> clip_region =
+        line_band_mask(drawn_input_polylines(prepared.drawing), width, height, region_px);
+    if (prepared.footage) {
+        // The shared scoring tool compares with the footage as filmed; the
+        // still view says how much of the difference is the camera's drift.
+        std::vector<std::vector<float>> footage_luma;
+        for (int i = 0; i < prepared.footage->count(); ++i) footage_luma.push_back(prepared.footage->luma(i));
+        out.region = RegionMeter(footage_luma, width, height, clip_region, settings).measure(output_luma, regions);
+        out.region_still_view = RegionMeter(clip_luma, width, height, clip_region, settings).measure(output_luma, regions);
+    } else {
+        out.region = RegionMeter(clip_luma, width, height, clip_region, settings).measure(output_luma, regions);
+    }
     report_progress(progress, "measure", 1.0);
     return out;
 }

@@ -267,3 +267,79 @@ TEST(FlowRegionQuality, AMovingRegionIsMeasuredWhereItIsAtEachFrame) {
     EXPECT_LT(still.detail, 0.6 * followed.detail);
     EXPECT_THROW(measure_region_quality(clip, output, kW, kH, fixed, {fixed, fixed}, settings), std::invalid_argument);
 }
+
+// The whole-region measures compare with the footage as filmed (as the shared
+// scoring tool does) when the clip synthesis used was stabilised, and with the
+// stabilised clip beside it: replaying the stabilised clip is the clip itself
+// in the still view, and 1-3 px off the shaking footage as filmed.
+TEST(FlowRegionQuality, ComparesWithTheFootageAsFilmedAndTheStillViewBeside) {
+    SyntheticFlowSpec spec;
+    spec.width = 96;
+    spec.height = 96;
+    spec.frames = 48;
+    spec.curve = {{48.0, -8.0}, {48.0, 104.0}};
+    spec.band_px = 6.0;
+    spec.speed_px_per_frame = [](double) { return 3.0; };
+    spec.feature_px = 3.0;
+    const SyntheticFlow flow(spec);
+    std::vector<RgbImage> steady, filmed;
+    for (int t = 0; t < spec.frames; ++t) {
+        const RgbImage frame = flow.frame(t);
+        // The camera 1 px to the side, 3 px in the odd frames: odd shifts,
+        // off the even search grid of the patches.
+        RgbImage moved = frame;
+        for (int y = 0; y < spec.height; ++y)
+            for (int x = 0; x < spec.width; ++x)
+                for (int c = 0; c < 3; ++c) moved.pixel(x, y)[c] = frame.pixel(std::max(0, x - 1 - 2 * (t % 2)), y)[c];
+        steady.push_back(frame);
+        filmed.push_back(moved);
+    }
+    MemoryFrames steady_frames(steady, spec.fps), filmed_frames(filmed, spec.fps);
+    formats::FlowLine line;
+    line.id = "in-1";
+    line.points = spec.curve;
+    TrackingSettings tracking;
+    tracking.patch_size_px = 16;
+    tracking.start_every = 2;
+    tracking.max_path_frames = -1;
+    auto bank = std::make_shared<formats::ParticleBank>(track_particles(steady_frames, {line}, tracking).bank);
+    auto clip = std::make_shared<const ClipFrames>(ClipFrames::read_all(steady_frames));
+    const ClipFrames footage = ClipFrames::read_all(filmed_frames);
+    SynthesisSettings settings;
+    formats::FlowLineSet drawing;
+    drawing.width = spec.width;
+    drawing.height = spec.height;
+    drawing.inputs = {line};
+    auto streams = std::make_shared<ParticleStreams>(bank, ParticleStreams::input_points_from_drawing(*bank, drawing, "drawing"),
+                                                     settings);
+    const Synthesizer synth(streams, {}, Background::looped(clip), settings);
+
+    ComparisonSettings compare;
+    compare.output_frames = 48;
+    compare.threads = 1;
+    compare.region_lines = {line.points};
+    compare.region.patch_px = 12;
+    compare.region.query_stride_px = 6;
+    compare.region.search_stride_px = 2;
+    const RgbImage plate = median_plate(*clip);
+    const Comparison only_clip = compare_with_baselines(*clip, *streams, synth, plate, compare);
+    compare.footage = &footage;
+    const Comparison both = compare_with_baselines(*clip, *streams, synth, plate, compare);
+
+    ASSERT_EQ(both.methods.size(), 3u);
+    const MethodQuality& loop = both.methods[1];
+    ASSERT_EQ(loop.method, "loop");
+    ASSERT_TRUE(loop.region && loop.region_still_view);
+    EXPECT_FALSE(only_clip.methods[1].region_still_view);
+    // The still view is the comparison made without footage, to the bit.
+    EXPECT_EQ(loop.region_still_view->patch_rms, only_clip.methods[1].region->patch_rms);
+    EXPECT_EQ(both.methods[0].region_still_view->detail, only_clip.methods[0].region->detail);
+    EXPECT_NEAR(loop.region_still_view->patch_rms, 0.0, 1e-6);  // every replayed patch is a clip patch
+    EXPECT_GT(loop.region->patch_rms, 1.0);                      // the footage's frames are 1 or 3 px off
+    // The footage's camera jumps 2 px every frame: its transitions (and p99) are larger.
+    EXPECT_GT(loop.region->clip_seam_max_ratio, 0.0);
+    EXPECT_LT(loop.region->seam_max_ratio, loop.region_still_view->seam_max_ratio);
+    const ClipFrames wrong_size(10, 10, 25.0, "small");
+    compare.footage = &wrong_size;
+    EXPECT_THROW(compare_with_baselines(*clip, *streams, synth, plate, compare), std::invalid_argument);
+}

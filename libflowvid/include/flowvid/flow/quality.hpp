@@ -143,7 +143,7 @@ struct RegionSettings {
     int query_frames = 20;      // ... in this many output frames, evenly spread
     int max_queries = 240;      // at most (drawn evenly from the grid)
     int search_stride_px = 6;   // clip patches on this grid
-    int max_search_frames = 60; // clip frames searched (evenly spread)
+    int max_search_frames = 0;  // clip frames searched (evenly spread); 0: every frame, as the tool searches
     std::uint64_t seed = 7;
 };
 
@@ -239,13 +239,19 @@ struct ComparisonSettings {
     // the whole flow region (measure_region_quality).
     std::vector<std::vector<Eigen::Vector2d>> region_lines;
     RegionSettings region;
+    // The clip as filmed, when `clip` was stabilised: the region measures
+    // compare with it, as the shared scoring tool compares with the footage,
+    // and again with `clip` (MethodQuality::region_still_view). Null: `clip`
+    // is the footage.
+    const ClipFrames* footage = nullptr;
 };
 
 struct MethodQuality {
     std::string method;  // "ours", "loop", "flow map"
     QualityReport report;
     SequenceStats series;  // per frame, in the mask: where a seam or a pulse happens
-    std::optional<RegionQuality> region;
+    std::optional<RegionQuality> region;             // against the footage as filmed
+    std::optional<RegionQuality> region_still_view;  // against the stabilised clip (a drifting camera only)
 };
 
 struct Comparison {

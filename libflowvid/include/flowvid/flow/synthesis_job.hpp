@@ -71,6 +71,10 @@ struct PreparedSynthesis {
     std::vector<std::vector<Eigen::Vector2d>> input_points;  // the bank's lines, in order
     std::shared_ptr<ParticleStreams> streams;
     std::shared_ptr<const ClipFrames> clip;  // the frames synthesis used (stabilised); kept with keep_clip
+    // The clip as filmed, kept with keep_clip when the camera drifted (the
+    // measures compare with the footage, as the shared scoring tool does);
+    // null when `clip` is the footage itself.
+    std::shared_ptr<const ClipFrames> footage;
     std::optional<CameraMotion> camera;      // when the clip was read
     BackgroundMode background = BackgroundMode::median;
     double median_detail = -1.0;             // auto: detail kept over the median plate (choose_background); -1 otherwise
@@ -103,7 +107,7 @@ struct SynthesisSources {
     // The clip's frames in the bank's pixels (stabilised when the camera
     // drifts). Needed unless the background is none with whole textures.
     std::shared_ptr<const ClipFrames> clip;
-    ClipFrames footage;                        // as filmed, when `clip` was resampled (auto background); empty: clip
+    ClipFrames footage;                        // as filmed, when `clip` was resampled (auto background, keep_clip); empty: clip
     std::optional<formats::Capture> capture;   // informative
     std::optional<CameraMotion> camera;        // informative
 };
@@ -149,10 +153,12 @@ SynthesisOutcome render_synthesis(const SynthesisJob& job, const SynthesisOutput
 // 1..frames (0: twice the clip) rendered from a PreparedSynthesis prepared
 // with keep_clip, measured over the output lines' region (within region_px
 // of them, at every frame for keyed lines) against the clip's own over its
-// drawn input lines (quality.hpp RegionMeter). Progress: stage "measure";
-// cancelling throws flowvid::Cancelled.
+// drawn input lines (quality.hpp RegionMeter), the clip as filmed. When the
+// camera drifted, also against the clip seen from the output's still view.
+// Progress: stage "measure"; cancelling throws flowvid::Cancelled.
 struct EditQuality {
-    RegionQuality region;
+    RegionQuality region;                          // against the footage as filmed
+    std::optional<RegionQuality> region_still_view;  // against the stabilised clip (drifting camera only)
     int output_frames = 0;
     bool moving_lines = false;  // keyed output lines: the region follows them
 };
