@@ -195,6 +195,8 @@ int run_quality(const QualityOptions& options, const GlobalOptions& global) {
     compare.region_lines = flow::drawn_input_polylines(prepared.drawing);
     compare.region.region_px = options.region_px;
     compare.footage = prepared.footage.get();
+    if (prepared.footage && prepared.camera)
+        compare.footage_region_lines = flow::polylines_as_drawn(compare.region_lines, *prepared.camera);
     const flow::Comparison result =
         flow::compare_with_baselines(clip, *prepared.streams, *prepared.synthesizer, plate, compare, progress.callback());
     progress.finish();

@@ -201,7 +201,9 @@ int run_track(TrackOptions& options, const GlobalOptions& global) {
                           {"travel_frames", p.travel_frames},
                           {"segments", p.segments},
                           {"untracked_segments", p.untracked}});
-    summary["camera"] = {{"model", flow::to_string(camera.model)}, {"largest_drift_px", camera.largest_offset_px}};
+    summary["camera"] = {{"model", flow::to_string(camera.model)},
+                         {"largest_drift_px", camera.largest_offset_px},
+                         {"view_frame", camera.view_frame + 1}};
     summary["densify_px"] = outcome.densify_px;
     if (!auto_summary.is_null()) summary["auto_lines"] = auto_summary;
     summary["drawn_lines"] = probes;
@@ -292,9 +294,10 @@ const RegisterCommand registration{Command{
             "tracks along them; give the corrected file back with --flowlines. With a drawing too, the log\n"
             "says how far the proposal lies from it.\n"
             "A camera that drifts is measured first (on the background, away from the lines) and the clip\n"
-            "is tracked in its first frame's view, where the lines are drawn; synth, edit and quality do the\n"
-            "same, so the output is a still camera. A still camera, or one whose background changes too much\n"
-            "to tell (firelight), leaves the frames as they are; the log says which.\n\n"
+            "is tracked in its central view (the frame whose camera is nearest the others'; the lines, drawn\n"
+            "on the first frame, are carried into it); synth, edit and quality do the same, so the output is\n"
+            "a still camera in that view. A still camera, or one whose background changes too much to tell\n"
+            "(firelight), leaves the frames as they are; the log says which.\n\n"
             "CLIP is a video.flow capture folder (its flowlines.svg is used unless --flowlines is given),\n"
             "a video file, or an image pattern such as frames/%06d.png.\n\n"
             "Exit codes: 0 bank written, 1 no particle completed its path, 2 usage, 3 invalid input,\n"

@@ -287,7 +287,9 @@ AutoLines propose_input_lines_steadied(const formats::Capture& capture, int max_
     CaptureFrames again(capture, max_frames);
     bool cancelled = false;
     const Progress drift = stage("camera drift");
-    camera = estimate_camera_motion(again, drawn_input_polylines(lines.drawing), {}, [&](const ProgressReport& r) {
+    CameraMotionSettings first_view;  // the proposal is drawn over the first frame, as an artist draws
+    first_view.view = CameraMotionSettings::View::first_frame;
+    camera = estimate_camera_motion(again, drawn_input_polylines(lines.drawing), first_view, [&](const ProgressReport& r) {
         cancelled = !drift(r);
         return !cancelled;
     });

@@ -341,21 +341,26 @@ Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams&
     if (!settings.region_lines.empty()) {
         const std::vector<std::uint8_t> region =
             line_band_mask(settings.region_lines, width, height, settings.region.region_px);
-        const auto measure_all = [&](const std::vector<std::vector<float>>& reference, auto member) {
-            const RegionMeter meter(reference, width, height, region, settings.region);
-            out.methods[0].*member = meter.measure(ours, {region});
-            out.methods[1].*member = meter.measure(loop, {region});
-            out.methods[2].*member = meter.measure(flowmap, {region});
+        const auto measure_all = [&](const std::vector<std::vector<float>>& reference, const std::vector<std::uint8_t>& in,
+                                     auto member) {
+            const RegionMeter meter(reference, width, height, in, settings.region);
+            out.methods[0].*member = meter.measure(ours, {in});
+            out.methods[1].*member = meter.measure(loop, {in});
+            out.methods[2].*member = meter.measure(flowmap, {in});
         };
         if (settings.footage) {
             if (settings.footage->width() != width || settings.footage->height() != height)
                 throw std::invalid_argument("the footage and the clip differ in size");
             std::vector<std::vector<float>> footage_luma;
             for (int i = 0; i < settings.footage->count(); ++i) footage_luma.push_back(settings.footage->luma(i));
-            measure_all(footage_luma, &MethodQuality::region);
-            measure_all(clip_luma, &MethodQuality::region_still_view);
+            const std::vector<std::uint8_t> as_drawn =
+                settings.footage_region_lines.empty()
+                    ? region
+                    : line_band_mask(settings.footage_region_lines, width, height, settings.region.region_px);
+            measure_all(footage_luma, as_drawn, &MethodQuality::region);
+            measure_all(clip_luma, region, &MethodQuality::region_still_view);
         } else {
-            measure_all(clip_luma, &MethodQuality::region);
+            measure_all(clip_luma, region, &MethodQuality::region);
         }
     }
     return out;

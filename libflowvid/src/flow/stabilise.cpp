@@ -1,14 +1,17 @@
 // Camera drift estimated by ECC on the background and removed by resampling
-// each frame into the first frame's view (stabilise.hpp).
+// each frame into the clip's central view (stabilise.hpp).
 #include "flowvid/flow/stabilise.hpp"
 
+#include <Eigen/LU>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 #include <utility>
 
@@ -89,7 +92,61 @@ std::pair<std::vector<Eigen::Matrix<double, 2, 3>>, double> estimate_with(const 
     return {maps, worst};
 }
 
+Eigen::Vector2d apply(const Eigen::Matrix<double, 2, 3>& m, const Eigen::Vector2d& p) { return m.leftCols<2>() * p + m.col(2); }
+
+Eigen::Matrix<double, 2, 3> inverse(const Eigen::Matrix<double, 2, 3>& m) {
+    Eigen::Matrix<double, 2, 3> out;
+    const Eigen::Matrix2d a = m.leftCols<2>().inverse();
+    out.leftCols<2>() = a;
+    out.col(2) = -a * m.col(2);
+    return out;
+}
+
+// The frame whose camera is nearest all the others: the least sum, over the
+// frames and the four corners, of squared distances between where each
+// frame sees the same scene point.
+int central_frame(const std::vector<Eigen::Matrix<double, 2, 3>>& first_to_frame, int width, int height) {
+    const std::size_t n = first_to_frame.size();
+    std::vector<std::array<Eigen::Vector2d, 4>> seen(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        int k = 0;
+        for (const Eigen::Vector2d& corner : {Eigen::Vector2d(0, 0), Eigen::Vector2d(width - 1, 0), Eigen::Vector2d(0, height - 1),
+                                             Eigen::Vector2d(width - 1, height - 1)})
+            seen[i][static_cast<std::size_t>(k++)] = apply(first_to_frame[i], corner);
+    }
+    int best = 0;
+    double best_sum = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < n; ++i) {
+        double sum = 0.0;
+        for (std::size_t j = 0; j < n; ++j)
+            for (std::size_t k = 0; k < 4; ++k) sum += (seen[i][k] - seen[j][k]).squaredNorm();
+        if (sum < best_sum - 1e-9) {  // the earliest of equals: deterministic
+            best_sum = sum;
+            best = static_cast<int>(i);
+        }
+    }
+    return best;
+}
+
 }  // namespace
+
+Eigen::Matrix<double, 2, 3> CameraMotion::view_to_frame(int frame) const {
+    if (still()) return Eigen::Matrix<double, 2, 3>::Identity();
+    const Eigen::Matrix<double, 2, 3>& to_frame = first_to_frame.at(static_cast<std::size_t>(frame));
+    const Eigen::Matrix<double, 2, 3> view_to_first = inverse(first_to_frame.at(static_cast<std::size_t>(view_frame)));
+    Eigen::Matrix<double, 2, 3> out;
+    out.leftCols<2>() = to_frame.leftCols<2>() * view_to_first.leftCols<2>();
+    out.col(2) = to_frame.leftCols<2>() * view_to_first.col(2) + to_frame.col(2);
+    return out;
+}
+
+Eigen::Vector2d CameraMotion::first_to_view(const Eigen::Vector2d& first_px) const {
+    return still() ? first_px : apply(first_to_frame.at(static_cast<std::size_t>(view_frame)), first_px);
+}
+
+Eigen::Vector2d CameraMotion::view_to_first(const Eigen::Vector2d& view_px) const {
+    return still() ? view_px : apply(inverse(first_to_frame.at(static_cast<std::size_t>(view_frame))), view_px);
+}
 
 const char* to_string(CameraMotion::Model model) {
     switch (model) {
@@ -143,6 +200,7 @@ CameraMotion estimate_camera_motion(FrameSequence& frames, const std::vector<std
         motion.worst_correlation = affine_correlation;
     }
     for (const auto& m : motion.first_to_frame) motion.largest_offset_px = std::max(motion.largest_offset_px, largest_corner_offset(m, width, height));
+    if (settings.view == CameraMotionSettings::View::central) motion.view_frame = central_frame(motion.first_to_frame, width, height);
     if (progress) progress({"camera drift", 1.0, {}});
     return motion;
 }
@@ -155,18 +213,18 @@ StabilisedFrames::StabilisedFrames(FrameSequence& source, CameraMotion motion) :
 RgbImage StabilisedFrames::frame(int index) {
     RgbImage seen = m_source.frame(index);
     if (m_motion.still()) return seen;
-    const Eigen::Matrix<double, 2, 3>& m = m_motion.first_to_frame[static_cast<std::size_t>(index)];
+    const Eigen::Matrix<double, 2, 3> m = m_motion.view_to_frame(index);
     cv::Mat map(2, 3, CV_64F);
     for (int r = 0; r < 2; ++r)
         for (int c = 0; c < 3; ++c) map.at<double>(r, c) = m(r, c);
     const cv::Mat in(seen.height, seen.width, CV_32FC3, seen.rgb.data());
     RgbImage out(seen.width, seen.height);
     cv::Mat warped(out.height, out.width, CV_32FC3, out.rgb.data());
-    // WARP_INVERSE_MAP: out(x) = in(A x + t), the first frame's pixel x as this frame saw it.
+    // WARP_INVERSE_MAP: out(x) = in(A x + t), the view's pixel x as this frame saw it.
     cv::warpAffine(in, warped, map, warped.size(), cv::INTER_LANCZOS4 | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
     for (float& v : out.rgb) v = std::clamp(v, 0.0f, 1.0f);  // Lanczos rings a little past the range
     // What this frame did not see (the camera had moved on) is shown as the
-    // first frame saw it, fading in over a pixel: the repeated border column
+    // view frame saw it, fading in over a pixel: the repeated border column
     // read as a streaked strip along the edge of every replayed frame.
     const cv::Mat ones(seen.height, seen.width, CV_32F, cv::Scalar(1.0f));
     cv::Mat seen_weight;
@@ -176,11 +234,48 @@ RgbImage StabilisedFrames::frame(int index) {
         for (int x = 0; x < out.width; ++x) {
             const float w = std::clamp(seen_weight.at<float>(y, x), 0.0f, 1.0f);
             if (w >= 1.0f) continue;
-            if (!m_first) m_first = m_source.frame(0);  // the first frame's own view: the camera's reference
+            if (!m_view) m_view = m_source.frame(m_motion.view_frame);  // the view's own frame
             float* o = out.pixel(x, y);
-            const float* f = m_first->pixel(x, y);
+            const float* f = m_view->pixel(x, y);
             for (int c = 0; c < 3; ++c) o[c] = w * o[c] + (1.0f - w) * f[c];
         }
+    return out;
+}
+
+namespace {
+
+template <class Move>
+formats::FlowLineSet moved_drawing(const formats::FlowLineSet& drawing, const Move& move_point) {
+    formats::FlowLineSet out = drawing;
+    const auto move = [&move_point](std::vector<Eigen::Vector2d>& points) {
+        for (Eigen::Vector2d& p : points) p = move_point(p);
+    };
+    for (auto* lines : {&out.inputs, &out.outputs})
+        for (formats::FlowLine& line : *lines) {
+            move(line.points);
+            for (formats::FlowLineKey& key : line.keys) move(key.points);
+        }
+    return out;
+}
+
+}  // namespace
+
+formats::FlowLineSet drawing_in_view(const formats::FlowLineSet& drawing, const CameraMotion& motion) {
+    if (motion.still()) return drawing;
+    return moved_drawing(drawing, [&motion](const Eigen::Vector2d& p) { return motion.first_to_view(p); });
+}
+
+formats::FlowLineSet drawing_as_drawn(const formats::FlowLineSet& view_drawing, const CameraMotion& motion) {
+    if (motion.still()) return view_drawing;
+    return moved_drawing(view_drawing, [&motion](const Eigen::Vector2d& p) { return motion.view_to_first(p); });
+}
+
+std::vector<std::vector<Eigen::Vector2d>> polylines_as_drawn(const std::vector<std::vector<Eigen::Vector2d>>& view_lines,
+                                                             const CameraMotion& motion) {
+    std::vector<std::vector<Eigen::Vector2d>> out = view_lines;
+    if (motion.still()) return out;
+    for (auto& line : out)
+        for (Eigen::Vector2d& p : line) p = motion.view_to_first(p);
     return out;
 }
 
@@ -217,9 +312,10 @@ std::string describe(const CameraMotion& motion) {
         std::snprintf(text, sizeof text, "camera still (largest drift %.1f px): frames used as they are", motion.largest_offset_px);
     else
         std::snprintf(text, sizeof text,
-                      "camera drifts up to %.1f px (%s, lowest correlation %.2f): tracked and rendered in the first "
-                      "frame's view, a still camera",
-                      motion.largest_offset_px, to_string(motion.model), motion.worst_correlation);
+                      "camera drifts up to %.1f px (%s, lowest correlation %.2f): tracked and rendered in the view of "
+                      "frame %d%s, a still camera",
+                      motion.largest_offset_px, to_string(motion.model), motion.worst_correlation, motion.view_frame + 1,
+                      motion.view_frame == 0 ? "" : ", the middle of its path");
     return text;
 }
 

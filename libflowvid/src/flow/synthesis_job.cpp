@@ -249,6 +249,8 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& pro
             decided.background_to_choose || job.keep_clip ? &sources.footage : nullptr));
         if (cancelled) throw Cancelled();
         sources.camera = camera;
+        // The lines were drawn on the first frame; the clip is now seen from its central view.
+        sources.drawing = drawing_in_view(sources.drawing, camera);
         say(log, describe(camera));
     }
     // check_drawing has spoken; assemble says the rest.
@@ -268,7 +270,9 @@ SynthesisOutcome render_synthesis(const SynthesisJob& job, const SynthesisOutput
     SynthesisOutcome outcome;
     outcome.plan = prepared.plan;
     if (prepared.plan && !output.dense_lines_path.empty())
-        formats::write_flowline_set(output.dense_lines_path, plan_to_flowlines(prepared.drawing, *prepared.plan));
+        formats::write_flowline_set(output.dense_lines_path,
+                                    drawing_as_drawn(plan_to_flowlines(prepared.drawing, *prepared.plan),
+                                                     prepared.camera.value_or(CameraMotion())));
     outcome.first_frame = output.loop ? 1 : output.first_frame;
     outcome.last_frame = output.loop ? prepared.synthesizer->period_frames() : output.last_frame;
     outcome.schedule = prepared.streams->schedule();
@@ -303,11 +307,19 @@ EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double r
     std::vector<std::vector<float>> clip_luma, output_luma;
     for (int i = 0; i < clip.count(); ++i) clip_luma.push_back(clip.luma(i));
     for (const formats::FlowLine& line : prepared.drawing.outputs) out.moving_lines = out.moving_lines || line.is_time_varying();
-    std::vector<std::vector<std::uint8_t>> regions;
+    // Regions in the output's view, and where the lines were drawn (the
+    // footage's pixels: the shared tool reads the drawing as it is).
+    const CameraMotion still_camera;
+    const CameraMotion& camera = prepared.footage && prepared.camera ? *prepared.camera : still_camera;
+    std::vector<std::vector<std::uint8_t>> regions, regions_as_drawn;
     const int rendered = prepared.synthesizer->render_frames(1, out.output_frames, threads, [&](int frame, const RgbImage& image) {
         output_luma.push_back(luma(to_display(image)));
-        if (out.moving_lines || regions.empty())
-            regions.push_back(line_band_mask(prepared.drawn_lines_at(frame), width, height, region_px));
+        if (out.moving_lines || regions.empty()) {
+            const std::vector<std::vector<Eigen::Vector2d>> lines = prepared.drawn_lines_at(frame);
+            regions.push_back(line_band_mask(lines, width, height, region_px));
+            if (prepared.footage)
+                regions_as_drawn.push_back(line_band_mask(polylines_as_drawn(lines, camera), width, height, region_px));
+        }
         return !progress || progress({"measure", 0.8 * frame / out.output_frames, "frame " + std::to_string(frame)});
     });
     if (rendered < out.output_frames) throw Cancelled();
@@ -320,7 +332,9 @@ EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double r
         // still view says how much of the difference is the camera's drift.
         std::vector<std::vector<float>> footage_luma;
         for (int i = 0; i < prepared.footage->count(); ++i) footage_luma.push_back(prepared.footage->luma(i));
-        out.region = RegionMeter(footage_luma, width, height, clip_region, settings).measure(output_luma, regions);
+        const std::vector<std::uint8_t> footage_region =
+            line_band_mask(polylines_as_drawn(drawn_input_polylines(prepared.drawing), camera), width, height, region_px);
+        out.region = RegionMeter(footage_luma, width, height, footage_region, settings).measure(output_luma, regions_as_drawn);
         out.region_still_view = RegionMeter(clip_luma, width, height, clip_region, settings).measure(output_luma, regions);
     } else {
         out.region = RegionMeter(clip_luma, width, height, clip_region, settings).measure(output_luma, regions);

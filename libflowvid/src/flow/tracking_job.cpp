@@ -14,11 +14,21 @@ void say(const Progress& progress, const std::string& line) { report_message(pro
 
 TrackingOutcome track_clip(FrameSequence& frames, const TrackingJob& job, const Progress& progress) {
     TrackingOutcome out;
-    const formats::FlowLineSet& drawing = job.drawing;
-    if (drawing.width != frames.width() || drawing.height != frames.height())
-        say(progress, "warning: " + job.drawing_name + ": drawn for " + std::to_string(drawing.width) + " x " +
-                          std::to_string(drawing.height) + " but the clip is " + std::to_string(frames.width()) + " x " +
+    if (job.drawing.width != frames.width() || job.drawing.height != frames.height())
+        say(progress, "warning: " + job.drawing_name + ": drawn for " + std::to_string(job.drawing.width) + " x " +
+                          std::to_string(job.drawing.height) + " but the clip is " + std::to_string(frames.width()) + " x " +
                           std::to_string(frames.height()));
+    // A drifting camera is tracked in the clip's central view (stabilise.hpp),
+    // the lines drawn on the first frame carried into it.
+    bool cancelled = false;
+    out.camera = estimate_camera_motion(frames, drawn_input_polylines(job.drawing), {}, [&](const ProgressReport& r) {
+        return !(cancelled = progress && !progress(r));
+    });
+    if (cancelled) {
+        out.result.report.status = TrackingReport::Status::cancelled;
+        return out;
+    }
+    const formats::FlowLineSet drawing = drawing_in_view(job.drawing, out.camera);
     TrackingSettings settings = job.settings;
     char text[400];
     if (settings.patch_size_px <= 0) {
@@ -58,15 +68,6 @@ TrackingOutcome track_clip(FrameSequence& frames, const TrackingJob& job, const 
                               "): synthesis shows the background between them; draw lines closer, leave --densify "
                               "automatic, or use a larger --patch");
         }
-    }
-    // A drifting camera is tracked in the first frame's view (stabilise.hpp).
-    bool cancelled = false;
-    out.camera = estimate_camera_motion(frames, drawn_input_polylines(drawing), {}, [&](const ProgressReport& r) {
-        return !(cancelled = progress && !progress(r));
-    });
-    if (cancelled) {
-        out.result.report.status = TrackingReport::Status::cancelled;
-        return out;
     }
     say(progress, describe(out.camera));
     StabilisedFrames stabilised(frames, out.camera);

@@ -1,8 +1,9 @@
 // Camera drift (issue #30): a clip whose camera drifts by known sub-pixel
 // amounts while "water" churns along a line. The estimate must find the
-// drift (not the water's motion), the stabilised frames must show the first
-// frame's view, and a still camera must leave the frames bit for bit as they
-// were, even with flickering light in the flow.
+// drift (not the water's motion), the stabilised frames must show the view
+// of the clip's central frame (the drawing carried into it), and a still
+// camera must leave the frames bit for bit as they were, even with
+// flickering light in the flow.
 
 #include "flowvid/flow/stabilise.hpp"
 
@@ -71,34 +72,71 @@ TEST(CameraDrift, FindsASubPixelDriftAroundTheFlowAndUndoesIt) {
     }
     EXPECT_NEAR(motion.largest_offset_px, shifts.back().norm(), 0.1);
 
-    // Stabilised, the last frame shows the first frame's scene away from the
-    // flow and the borders.
-    StabilisedFrames stabilised(clip, motion);
-    const RgbImage first = frames.front(), last = stabilised.frame(11);
-    double sum = 0.0, drifting = 0.0;
-    int n = 0;
-    for (int y = 8; y < kHeight - 8; ++y)
-        for (int x = 8; x < kWidth - 8; ++x) {
-            if (std::abs(x - 80) < 22) continue;  // the flow band, wherever the camera put it
-            sum += std::pow(last.pixel(x, y)[0] - first.pixel(x, y)[0], 2.0);
-            drifting += std::pow(frames.back().pixel(x, y)[0] - first.pixel(x, y)[0], 2.0);
-            ++n;
-        }
-    EXPECT_LT(std::sqrt(sum / n), 0.004);      // about 1/250 of the range: resampling only
-    EXPECT_GT(std::sqrt(drifting / n), 0.05);  // and the drift was plain to see
+    // The view is the middle of the drift: the frame whose camera is nearest
+    // every other's (the drift is nearly even, so frame 5 or 6 of 0..11).
+    EXPECT_GE(motion.view_frame, 5);
+    EXPECT_LE(motion.view_frame, 6);
+    const RgbImage& view = frames[static_cast<std::size_t>(motion.view_frame)];
 
-    // The last frame saw the first frame's pixels from x + 4.95: its right-most
-    // 4 columns it did not see at all. They show the first frame there, not the
+    // Stabilised, the first and the last frame show the view frame's scene
+    // away from the flow and the borders.
+    StabilisedFrames stabilised(clip, motion);
+    for (int index : {0, 11}) {
+        const RgbImage seen = stabilised.frame(index);
+        const RgbImage& filmed = frames[static_cast<std::size_t>(index)];
+        double sum = 0.0, drifting = 0.0;
+        int n = 0;
+        for (int y = 8; y < kHeight - 8; ++y)
+            for (int x = 8; x < kWidth - 8; ++x) {
+                if (std::abs(x - 80) < 22) continue;  // the flow band, wherever the camera put it
+                sum += std::pow(seen.pixel(x, y)[0] - view.pixel(x, y)[0], 2.0);
+                drifting += std::pow(filmed.pixel(x, y)[0] - view.pixel(x, y)[0], 2.0);
+                ++n;
+            }
+        EXPECT_LT(std::sqrt(sum / n), 0.004) << index;      // about 1/250 of the range: resampling only
+        EXPECT_GT(std::sqrt(drifting / n), 0.02) << index;  // and the drift was plain to see
+    }
+
+    // The last frame saw the view's pixels from x + 2.2 or more: its right-most
+    // 2 columns it did not see at all. They show the view frame there, not the
     // frame's own border column repeated (which differs from it).
+    const RgbImage last = stabilised.frame(11);
     double unseen_error = 0.0, repeated_border = 0.0;
     for (int y = 20; y < kHeight - 20; ++y)
-        for (int x = kWidth - 4; x < kWidth; ++x) {
-            unseen_error = std::max(unseen_error, static_cast<double>(std::fabs(last.pixel(x, y)[0] - first.pixel(x, y)[0])));
+        for (int x = kWidth - 2; x < kWidth; ++x) {
+            unseen_error = std::max(unseen_error, static_cast<double>(std::fabs(last.pixel(x, y)[0] - view.pixel(x, y)[0])));
             repeated_border = std::max(repeated_border, static_cast<double>(std::fabs(
-                                                            frames.back().pixel(kWidth - 1, y)[0] - first.pixel(x, y)[0])));
+                                                            frames.back().pixel(kWidth - 1, y)[0] - view.pixel(x, y)[0])));
         }
     EXPECT_LT(unseen_error, 1e-6);
     EXPECT_GT(repeated_border, 0.05);
+
+    // Lines drawn on the first frame are carried into the view with the
+    // scene, and back.
+    formats::FlowLineSet drawing;
+    formats::FlowLine input, output;
+    input.id = "in-1";
+    input.points = {Eigen::Vector2d(30, 10), Eigen::Vector2d(40, 100)};
+    output.id = "out-1";
+    output.from = "in-1";
+    output.keys = {{1, {Eigen::Vector2d(50, 20), Eigen::Vector2d(60, 90)}}};
+    drawing.inputs = {input};
+    drawing.outputs = {output};
+    const formats::FlowLineSet in_view = drawing_in_view(drawing, motion);
+    const Eigen::Vector2d view_shift = shifts[static_cast<std::size_t>(motion.view_frame)];
+    EXPECT_NEAR((in_view.inputs[0].points[1] - input.points[1] - view_shift).norm(), 0.0, 0.12);
+    EXPECT_NEAR((in_view.outputs[0].keys[0].points[0] - output.keys[0].points[0] - view_shift).norm(), 0.0, 0.12);
+    const auto back = polylines_as_drawn({in_view.inputs[0].points}, motion);
+    EXPECT_NEAR((back[0][0] - input.points[0]).norm(), 0.0, 1e-9);
+    const formats::FlowLineSet as_drawn = drawing_as_drawn(in_view, motion);
+    EXPECT_NEAR((as_drawn.outputs[0].keys[0].points[1] - output.keys[0].points[1]).norm(), 0.0, 1e-9);
+
+    // Asked for the first frame's view, the frames are brought into it.
+    CameraMotionSettings first_view = small_frame_settings();
+    first_view.view = CameraMotionSettings::View::first_frame;
+    const CameraMotion from_first = estimate_camera_motion(clip, kLine, first_view);
+    EXPECT_EQ(from_first.view_frame, 0);
+    EXPECT_EQ(drawing_in_view(drawing, from_first), drawing);
 }
 
 TEST(CameraDrift, AStillCameraWithFlickeringFlowLeavesTheFramesUnchanged) {

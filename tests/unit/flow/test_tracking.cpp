@@ -323,8 +323,9 @@ TEST(FlowTracking, RealWaterfallTracksWithHighCorrelation) {
 }
 
 // flow::track_clip is the pipeline `flowvid track` runs: the same bank as its
-// steps taken by hand (patch from the drawing, lines densified two patches
-// apart, the camera's drift undone), and it says what it chose.
+// steps taken by hand (patch from the drawing, the camera's drift undone into
+// the central view with the lines carried there, lines densified two patches
+// apart), and it says what it chose.
 TEST(FlowTrackingJob, TracksAsItsStepsByHandAndSaysWhatItChose) {
     const std::string capture_dir = flowvid::testing::shared_path("captures/video-waterfall-cascade");
     if (!std::filesystem::exists(capture_dir)) GTEST_SKIP() << "no shared captures";
@@ -338,8 +339,11 @@ TEST(FlowTrackingJob, TracksAsItsStepsByHandAndSaysWhatItChose) {
     settings.max_path_frames = frame_count;
     CaptureFrames frames(capture, frame_count);
     const CameraMotion camera = estimate_camera_motion(frames, drawn_input_polylines(drawing));
+    ASSERT_FALSE(camera.still());
     StabilisedFrames stabilised(frames, camera);
-    const std::vector<formats::FlowLine> lines = densify_input_lines(drawing, 2.0 * patch_px, 6.0 * patch_px);
+    // The lines drawn on the first frame, carried into the clip's central view.
+    const std::vector<formats::FlowLine> lines =
+        densify_input_lines(drawing_in_view(drawing, camera), 2.0 * patch_px, 6.0 * patch_px);
     const TrackingResult by_hand = track_particles(stabilised, lines, settings);
 
     TrackingJob job;
@@ -357,7 +361,8 @@ TEST(FlowTrackingJob, TracksAsItsStepsByHandAndSaysWhatItChose) {
     });
     EXPECT_EQ(outcome.patch_px, patch_px);
     EXPECT_DOUBLE_EQ(outcome.densify_px, 2.0 * patch_px);
-    EXPECT_EQ(outcome.lines.size(), lines.size());
+    ASSERT_EQ(outcome.lines.size(), lines.size());
+    for (std::size_t i = 0; i < lines.size(); ++i) EXPECT_EQ(outcome.lines[i].points, lines[i].points) << lines[i].id;
     EXPECT_EQ(outcome.camera.largest_offset_px, camera.largest_offset_px);
     ASSERT_EQ(outcome.result.bank.particles.size(), by_hand.bank.particles.size());
     for (std::size_t i = 0; i < by_hand.bank.particles.size(); ++i)

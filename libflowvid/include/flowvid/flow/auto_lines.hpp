@@ -71,8 +71,9 @@ AutoLines propose_input_lines(FrameSequence& frames, const AutoLineSettings& set
                               const Progress& progress = {});
 
 // The lines `flowvid track --auto-lines` proposes for a clip (its first
-// max_frames frames; 0: all), in the view of its first frame, where the bank
-// is tracked: proposed once on the frames as filmed; when the camera drifts
+// max_frames frames; 0: all), in the view of its first frame, where an
+// artist draws (tracking carries them into the clip's central view):
+// proposed once on the frames as filmed; when the camera drifts
 // (measured away from those lines: the flowing part of the frame would pull
 // the estimate along with it), proposed again on the steadied frames.
 // `camera` receives the drift. `progress` gets the stage ("optical flow",

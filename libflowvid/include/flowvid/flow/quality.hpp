@@ -244,6 +244,9 @@ struct ComparisonSettings {
     // and again with `clip` (MethodQuality::region_still_view). Null: `clip`
     // is the footage.
     const ClipFrames* footage = nullptr;
+    // region_lines where they were drawn, in the footage's pixels (the view
+    // moved them; stabilise.hpp polylines_as_drawn). Empty: region_lines.
+    std::vector<std::vector<Eigen::Vector2d>> footage_region_lines;
 };
 
 struct MethodQuality {

@@ -1,10 +1,14 @@
 #pragma once
 // Camera drift (issue #30): a clip filmed from a camera that drifts by a few
 // pixels smears the still median plate and makes particles' patches slide
-// under them. The clip is brought into the view of its first frame (where the
-// flow lines are drawn), tracked and synthesized there; the output is a still
-// camera, since an infinite sequence cannot replay a finite drift without a
-// jump. A clip whose camera holds still is left exactly as it is.
+// under them. The clip is brought into one still view, tracked and
+// synthesized there; the output is a still camera, since an infinite sequence
+// cannot replay a finite drift without a jump. The view is the clip's central
+// one (the frame whose camera is nearest the others'), so that the output
+// looks like as many of the clip's frames as it can: from the first frame's
+// view, the end of a drift is a whole drift away. The flow lines, drawn on
+// the first frame, are carried into that view (drawing_in_view). A clip whose
+// camera holds still is left exactly as it is.
 //
 // The drift is estimated on the background only (pixels far from every input
 // line: water and flames move on their own) by enhanced correlation
@@ -38,6 +42,12 @@ struct CameraMotionSettings {
     // Frames wider than this are estimated at a reduced size (speed); the
     // offsets are scaled back.
     int estimate_width_px = 640;
+    // The still view the clip is brought into: the central frame's (the
+    // least summed squared displacement to every other frame, at the
+    // corners), or the first frame's (where the lines are drawn: auto lines
+    // are proposed there).
+    enum class View { central, first_frame };
+    View view = View::central;
 };
 
 // Where the camera of each frame looked, relative to the first frame.
@@ -47,6 +57,13 @@ struct CameraMotion {
     // Per frame: maps a pixel of the first frame's view to the same scene
     // point in that frame (x' = A x + t), pixels. Identity when still.
     std::vector<Eigen::Matrix<double, 2, 3>> first_to_frame;
+    // The frame whose view the stabilised frames (and the output) show; 0 when still.
+    int view_frame = 0;
+    // Maps a pixel of the view to the same scene point in `frame`.
+    Eigen::Matrix<double, 2, 3> view_to_frame(int frame) const;
+    // A point of the first frame (where lines are drawn) in the view, and back.
+    Eigen::Vector2d first_to_view(const Eigen::Vector2d& first_px) const;
+    Eigen::Vector2d view_to_first(const Eigen::Vector2d& view_px) const;
     double largest_offset_px = 0.0;  // the largest corner displacement over all frames
     double worst_correlation = 1.0;  // ECC's lowest correlation coefficient over the frames
     bool untrusted = false;          // still because the background matched too poorly to tell
@@ -61,11 +78,11 @@ CameraMotion estimate_camera_motion(FrameSequence& frames, const std::vector<std
                                     const CameraMotionSettings& settings = {},
                                     const Progress& progress = {});
 
-// The frames of `source` seen from the first frame's camera: each frame is
+// The frames of `source` seen from the view frame's camera: each frame is
 // resampled (Lanczos, 8 x 8 taps: bilinear would halve the fine detail of
-// water) where the first frame's pixels lie in it; pixels the frame did not
-// see show the first frame's (fading in over a pixel). Frames of a still
-// camera are passed through unchanged. `source` must outlive this.
+// water) where the view's pixels lie in it; pixels the frame did not see show
+// the view frame's own (fading in over a pixel). Frames of a still camera are
+// passed through unchanged. `source` must outlive this.
 class StabilisedFrames : public FrameSequence {
 public:
     StabilisedFrames(FrameSequence& source, CameraMotion motion);
@@ -80,15 +97,25 @@ public:
 private:
     FrameSequence& m_source;
     CameraMotion m_motion;
-    std::optional<RgbImage> m_first;  // read when a frame first needs it
+    std::optional<RgbImage> m_view;  // the view frame, read when a frame first needs it
 };
+
+// The drawing (drawn on the clip's first frame) in the view the clip is
+// stabilised into: every input and output line's points and keys moved with
+// the camera. Unchanged for a still camera.
+formats::FlowLineSet drawing_in_view(const formats::FlowLineSet& drawing, const CameraMotion& motion);
+// The inverse: lines of the view back in the first frame's pixels (files an artist overlays on the clip).
+formats::FlowLineSet drawing_as_drawn(const formats::FlowLineSet& view_drawing, const CameraMotion& motion);
+// Polylines of the view back where they were drawn (the first frame's pixels).
+std::vector<std::vector<Eigen::Vector2d>> polylines_as_drawn(const std::vector<std::vector<Eigen::Vector2d>>& view_lines,
+                                                             const CameraMotion& motion);
 
 // The drawing's input lines as polylines: what the drift estimate leaves out.
 // track, synth, edit and quality all estimate from the drawn lines (not the
 // densified ones), so that they find the same drift for the same drawing.
 std::vector<std::vector<Eigen::Vector2d>> drawn_input_polylines(const formats::FlowLineSet& drawing);
 
-// The whole clip in memory as seen from its first frame's camera: read once,
+// The whole clip in memory as seen from its view frame's camera: read once,
 // the drift estimated around the drawing's input lines, then resampled
 // (unchanged when the camera is still). `motion` receives the estimate;
 // `as_filmed`, when given and the frames were resampled, the frames as they
@@ -99,7 +126,8 @@ ClipFrames read_clip_stabilised(FrameSequence& frames, const formats::FlowLineSe
                                 const Progress& progress = {}, ClipFrames* as_filmed = nullptr);
 
 // A one-line account for logs: "camera still" or "camera drifts up to 10.4 px
-// (translation): tracked and rendered in the first frame's view".
+// (translation, ...): tracked and rendered in the view of frame 19, the
+// middle of its path, a still camera".
 std::string describe(const CameraMotion& motion);
 
 }  // namespace flowvid::flow

@@ -67,7 +67,7 @@ struct PreparedSynthesis {
     std::shared_ptr<formats::ParticleBank> bank;
     std::optional<formats::Capture> capture;  // none when the background is `none` and the clip was not needed
     std::string flowlines_path;
-    formats::FlowLineSet drawing;
+    formats::FlowLineSet drawing;  // in the clip's (stabilised) view: drawing_in_view of the file's
     std::vector<std::vector<Eigen::Vector2d>> input_points;  // the bank's lines, in order
     std::shared_ptr<ParticleStreams> streams;
     std::shared_ptr<const ClipFrames> clip;  // the frames synthesis used (stabilised); kept with keep_clip
@@ -102,7 +102,7 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& pro
 // fields; its paths are not read.
 struct SynthesisSources {
     std::shared_ptr<formats::ParticleBank> bank;  // the moving layer keeps only the light the flow adds, in place
-    formats::FlowLineSet drawing;                 // input lines named as the bank's; output lines for an edit
+    formats::FlowLineSet drawing;                 // input lines named as the bank's; output lines for an edit, in the clip's view
     std::string drawing_name;                     // names the drawing in messages (its file, when it has one)
     // The clip's frames in the bank's pixels (stabilised when the camera
     // drifts). Needed unless the background is none with whole textures.
@@ -123,7 +123,7 @@ struct SynthesisOutput {
     int last_frame = 1;   // the same whichever range renders it)
     bool loop = false;    // instead of the range: exactly one period, frames 1..period (a file that loops)
     int threads = 0;      // frames rendered at once (flowvid/threads.hpp)
-    std::string dense_lines_path;  // edit with interpolation: also write its dense lines (*.flowlines.json)
+    std::string dense_lines_path;  // edit with interpolation: also write its dense lines (*.flowlines.json, as drawn)
 };
 
 struct SynthesisOutcome {

@@ -6,7 +6,8 @@
 // the lines densified where neighbours are further apart than two patches
 // (where synthesis would show the background); the camera's drift measured
 // on the background and undone (stabilise.hpp), so particles are tracked in
-// the first frame's view; then track_particles (tracking.hpp).
+// the clip's central view (the drawing carried into it); then
+// track_particles (tracking.hpp).
 
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/flow/stabilise.hpp"
@@ -34,7 +35,7 @@ struct TrackingOutcome {
     CameraMotion camera;                 // the drift that was undone
     int patch_px = 0;                    // as tracked
     double densify_px = 0.0;
-    std::vector<formats::FlowLine> lines;  // the input lines tracked (drawn and densified)
+    std::vector<formats::FlowLine> lines;  // the input lines tracked (drawn and densified), in the view's pixels
 };
 
 // Tracks `frames` along the job's lines. Progress: stages "camera drift" and
