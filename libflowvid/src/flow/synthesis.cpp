@@ -194,7 +194,7 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         carry.flowing_arcs_px = std::move(flowing_arcs_px);
         if (!output_line.is_time_varying()) {
             carry.warp = build_warp(LineGeometry(output_line.points, patch / 3.0), *carry.input, settings.mapping, patch,
-                                    m_plan->width, m_plan->height);
+                                    m_plan->width, m_plan->height, carry_band_px(patch));
             keep_carry_on_flowing_arcs(carry.warp, carry.flowing_arcs_px, 0.5 * patch);
         }
         m_plan->carry_lines.push_back(std::move(carry));
@@ -302,7 +302,7 @@ void Synthesizer::carry_background_into(int frame, RgbImage& out, CarryBuffers& 
             continue;
         }
         b.keyed_warps[keyed] = build_warp(LineGeometry(formats::points_at_frame(line.line, frame), patch / 3.0),
-                                          *line.input, m_settings.mapping, patch, w, h);
+                                          *line.input, m_settings.mapping, patch, w, h, carry_band_px(patch));
         keep_carry_on_flowing_arcs(b.keyed_warps[keyed], line.flowing_arcs_px, 0.5 * patch);
         b.tables.push_back(&b.keyed_warps[keyed++]);
     }

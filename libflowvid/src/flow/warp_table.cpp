@@ -7,13 +7,13 @@
 namespace flowvid::flow::detail {
 
 WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, ArcMapping mapping, int patch, int width,
-                     int height) {
+                     int height, double reach_across_px) {
     WarpTable table;
     const double half = (patch - 1) / 2.0;
     const double length_out = out_line.length_px(), length_in = in_line.length_px();
     const double scale = arc_mapping_scale(mapping, length_in, length_out);
     table.reach_in = (half + 1.0) * std::sqrt(2.0) + 1.0;
-    const double reach_out = table.reach_in * std::max(1.0, 1.0 / scale);
+    const double reach_out = std::max(table.reach_in * std::max(1.0, 1.0 / scale), reach_across_px);
 
     const auto& pts = out_line.points();
     Eigen::Vector2d lo = pts.front(), hi = pts.front();
@@ -78,10 +78,7 @@ WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, 
             if (entry.fade <= 0.0f) continue;
             const double beyond = std::max(-s_out, s_out - length_out);  // > 0 past an end
             const double along = std::clamp(1.0 - std::max(0.0, beyond) / (0.5 * patch), 0.0, 1.0);
-            // Carried background reaches three quarters of a patch across
-            // (cos^2): a new channel's outer edge fades like mist, where half
-            // a patch ended in a hard edge.
-            const double band_px = 0.75 * patch;
+            const double band_px = carry_band_px(patch);  // cos^2 across
             const double across = std::cos(0.5 * M_PI * static_cast<double>(best_n[k]) / band_px);
             entry.carry = std::abs(best_n[k]) < band_px ? static_cast<float>(along * across * across) : 0.0f;
             entries.emplace_back(static_cast<float>(s_in), entry);

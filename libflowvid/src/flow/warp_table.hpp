@@ -35,9 +35,19 @@ struct WarpTable {
     double reach_in = 0.0;               // input-space reach of a patch around its centre
 };
 
-// The table of `out_line` carrying `in_line`'s texture (a frame of `width` x `height`).
+// How far carried background reaches across its line (cos^2 to zero there),
+// px: a patch and a half. A new channel's outer edge then fades over about
+// 0.6 of that (10 to 90 %), as the waterfall's own edge fades into the rock
+// (25 px, against 22 px with its 24 px patches); three quarters of a patch
+// left a straight wall of water.
+inline double carry_band_px(int patch) { return 1.5 * patch; }
+
+// The table of `out_line` carrying `in_line`'s texture (a frame of `width` x
+// `height`). Entries reach as far across the line as a particle's patch
+// does, or `reach_across_px` when larger (tables that carry background:
+// carry_band_px).
 WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, ArcMapping mapping, int patch, int width,
-                     int height);
+                     int height, double reach_across_px = 0.0);
 
 // Carried background comes only from where the flow is: entries whose input
 // arc lies outside every range of `arcs_px` (stretches of the input line no

@@ -624,11 +624,11 @@ TEST(FlowEditing, ANewLineCarriesTheBackgroundAroundItsInputLineWhereParticlesLe
             EXPECT_NEAR(on.pixel(70 + n, y)[0], (20.0 + n) / 120.0, 2e-3) << "y " << y << " n " << n;
             EXPECT_NEAR(on.pixel(70 + n, y)[1], y / 120.0, 2e-3) << "y " << y << " n " << n;
         }
-    // Carried background fades out three quarters of a patch (6 px) to the
-    // side: a little shows 5 px off, none 7 px off or past the line's end.
-    EXPECT_GT(std::fabs(on.pixel(75, 72)[0] - off.pixel(75, 72)[0]), 1e-3);
-    EXPECT_NEAR(on.pixel(77, 72)[0], off.pixel(77, 72)[0], 1e-6);
-    EXPECT_NEAR(on.pixel(80, 72)[0], 80.0 / 120.0, 1e-5);
+    // Carried background fades out a patch and a half (12 px) to the side:
+    // a little shows 10 px off, none 13 px off or past the line's end.
+    EXPECT_GT(std::fabs(on.pixel(80, 72)[0] - off.pixel(80, 72)[0]), 1e-3);
+    EXPECT_NEAR(on.pixel(83, 72)[0], off.pixel(83, 72)[0], 1e-6);
+    EXPECT_NEAR(on.pixel(84, 72)[0], 84.0 / 120.0, 1e-5);
     // Nor from the stretch of the input line no particle crossed (arc beyond
     // 70 + half a patch): its rock would stand in the new flow.
     for (int y : {86, 89}) EXPECT_NEAR(on.pixel(70, y)[0], 70.0 / 120.0, 1e-5) << y;
