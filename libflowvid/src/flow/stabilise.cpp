@@ -104,22 +104,20 @@ Eigen::Matrix<double, 2, 3> inverse(const Eigen::Matrix<double, 2, 3>& m) {
 
 // The frame whose camera is nearest all the others: the least sum, over the
 // frames and the four corners, of squared distances between where each
-// frame sees the same scene point.
+// frame sees the same scene point. That sum is n times the squared distance
+// to the mean position plus a constant, so the nearest to the mean wins.
 int central_frame(const std::vector<Eigen::Matrix<double, 2, 3>>& first_to_frame, int width, int height) {
-    const std::size_t n = first_to_frame.size();
-    std::vector<std::array<Eigen::Vector2d, 4>> seen(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        int k = 0;
-        for (const Eigen::Vector2d& corner : {Eigen::Vector2d(0, 0), Eigen::Vector2d(width - 1, 0), Eigen::Vector2d(0, height - 1),
-                                             Eigen::Vector2d(width - 1, height - 1)})
-            seen[i][static_cast<std::size_t>(k++)] = apply(first_to_frame[i], corner);
-    }
+    const std::array<Eigen::Vector2d, 4> corners = {Eigen::Vector2d(0, 0), Eigen::Vector2d(width - 1, 0),
+                                                    Eigen::Vector2d(0, height - 1), Eigen::Vector2d(width - 1, height - 1)};
+    std::array<Eigen::Vector2d, 4> mean;
+    mean.fill(Eigen::Vector2d::Zero());
+    for (const auto& m : first_to_frame)
+        for (std::size_t k = 0; k < 4; ++k) mean[k] += apply(m, corners[k]) / static_cast<double>(first_to_frame.size());
     int best = 0;
     double best_sum = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t i = 0; i < first_to_frame.size(); ++i) {
         double sum = 0.0;
-        for (std::size_t j = 0; j < n; ++j)
-            for (std::size_t k = 0; k < 4; ++k) sum += (seen[i][k] - seen[j][k]).squaredNorm();
+        for (std::size_t k = 0; k < 4; ++k) sum += (apply(first_to_frame[i], corners[k]) - mean[k]).squaredNorm();
         if (sum < best_sum - 1e-9) {  // the earliest of equals: deterministic
             best_sum = sum;
             best = static_cast<int>(i);
