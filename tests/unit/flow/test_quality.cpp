@@ -37,6 +37,19 @@ std::vector<float> box_blur(const std::vector<float>& g) {
 
 std::vector<std::uint8_t> everywhere() { return std::vector<std::uint8_t>(static_cast<std::size_t>(kW) * kH, 1); }
 
+// A vertical band of fine texture falling 3 px per frame through a 96 x 96 frame, 48 frames.
+SyntheticFlowSpec falling_band_spec() {
+    SyntheticFlowSpec spec;
+    spec.width = 96;
+    spec.height = 96;
+    spec.frames = 48;
+    spec.curve = {{48.0, -8.0}, {48.0, 104.0}};
+    spec.band_px = 6.0;
+    spec.speed_px_per_frame = [](double) { return 3.0; };
+    spec.feature_px = 3.0;
+    return spec;
+}
+
 }  // namespace
 
 TEST(FlowQuality, NaiveLoopSpikesOncePerPeriod) {
@@ -137,14 +150,7 @@ TEST(FlowQuality, FlowMapBaselineAdvectsAndCrossFades) {
 // the output over it keeps little of the clip's detail, and the clip is
 // replayed instead.
 TEST(FlowQuality, TheDefaultBackgroundReplaysTheClipWhereTheMedianPlateBlursIt) {
-    SyntheticFlowSpec spec;
-    spec.width = 96;
-    spec.height = 96;
-    spec.frames = 48;
-    spec.curve = {{48.0, -8.0}, {48.0, 104.0}};
-    spec.band_px = 6.0;
-    spec.speed_px_per_frame = [](double) { return 3.0; };
-    spec.feature_px = 3.0;
+    const SyntheticFlowSpec spec = falling_band_spec();
     const SyntheticFlow flow(spec);
     formats::FlowLineSet drawing;
     drawing.width = spec.width;
@@ -273,14 +279,7 @@ TEST(FlowRegionQuality, AMovingRegionIsMeasuredWhereItIsAtEachFrame) {
 // stabilised clip beside it: replaying the stabilised clip is the clip itself
 // in the still view, and 1-3 px off the shaking footage as filmed.
 TEST(FlowRegionQuality, ComparesWithTheFootageAsFilmedAndTheStillViewBeside) {
-    SyntheticFlowSpec spec;
-    spec.width = 96;
-    spec.height = 96;
-    spec.frames = 48;
-    spec.curve = {{48.0, -8.0}, {48.0, 104.0}};
-    spec.band_px = 6.0;
-    spec.speed_px_per_frame = [](double) { return 3.0; };
-    spec.feature_px = 3.0;
+    const SyntheticFlowSpec spec = falling_band_spec();
     const SyntheticFlow flow(spec);
     std::vector<RgbImage> steady, filmed;
     for (int t = 0; t < spec.frames; ++t) {
