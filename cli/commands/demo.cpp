@@ -525,7 +525,7 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
         if (fs::exists(out / (stem + "_clip.png")) && fs::exists(out / (stem + "_synth.png")) &&
             fs::exists(out / (stem + "_edit.png"))) {
             body << "<p>Frame " << kSideBySideFrame
-                 << ": the clip as filmed &middot; the synthesis (a still camera in the clip's first-frame view) &middot; "
+                 << ": the clip as filmed &middot; the synthesis (a still camera in the clip's central view) &middot; "
                     "an edit along the capture's drawn output lines (a new channel on the left)</p>\n<p>";
             for (const auto& [file, what] : {std::pair<const char*, const char*>{"_clip.png", "the clip"},
                                               {"_synth.png", "the synthesis"}, {"_edit.png", "the edit"}})

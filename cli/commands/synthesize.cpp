@@ -108,7 +108,7 @@ const RegisterCommand synth_registration{Command{
             "The background (--background auto) is the clip's median plate, or the clip replayed in step\n"
             "with the particles when over the plate the output would keep under 80 % of the clip's detail\n"
             "around the lines (mist and spray the particles do not cover); the log says which and why.\n"
-            "A drifting camera is rendered still, in the clip's first-frame view (flowvid help track).\n\n"
+            "A drifting camera is rendered still, in the clip's central view (flowvid help track).\n\n"
             "Examples:\n"
             "  flowvid synth --bank waterfall.bank.exr --frame-count 250 --out out/%06d.png\n"
             "  flowvid synth --bank waterfall.bank.exr --frames 251:500 --out out/%06d.png   # continues the above\n"

@@ -215,7 +215,8 @@ progress(frame, frame_count) -> bool may cancel (status "cancelled"); initial_po
     cloth_module.def("fit", &fit_cloth, py::arg("captures"), py::arg("out") = "", py::arg("name") = "fitted fabric",
                      py::arg("evaluations") = 400, py::arg("budget_seconds") = 0.0, py::arg("seed") = 1,
                      py::arg("rows") = 24, py::arg("cols") = 24, py::arg("integrator") = "implicit",
-                     py::arg("fit_to") = std::string(cloth_fit::fit_target_name(cloth_fit::kDefaultFitTarget)), py::arg("search") = "cmaes", py::arg("variability_runs") = 4,
+                     py::arg("fit_to") = std::string(cloth_fit::fit_target_name(cloth_fit::kDefaultFitTarget)),
+                     py::arg("search") = "cmaes", py::arg("variability_runs") = 4,
                      py::arg("floor_members") = 4, py::arg("threads") = 0, py::arg("progress") = py::none(),
                      R"(Fit a fabric preset to cloth captures, as `flowvid fit cloth` does (cloth_fit::fit_cloth).
 

@@ -192,6 +192,13 @@ RgbImage ClipFrames::linear(int index) const {
     return out;
 }
 
+std::vector<std::vector<float>> ClipFrames::luma_frames() const {
+    std::vector<std::vector<float>> out;
+    out.reserve(m_frames.size());
+    for (int i = 0; i < count(); ++i) out.push_back(luma(i));
+    return out;
+}
+
 std::vector<float> ClipFrames::luma(int index) const {
     const auto& data = m_frames.at(static_cast<std::size_t>(index));
     std::vector<float> y(static_cast<std::size_t>(m_width) * m_height);

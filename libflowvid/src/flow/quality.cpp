@@ -165,8 +165,8 @@ double detail_kept(const Synthesizer& synth, const ClipFrames& footage, const st
                    int sample_frames, double region_px) {
     const int width = footage.width(), height = footage.height();
     const std::vector<std::uint8_t> region = line_band_mask(lines, width, height, region_px);
-    std::vector<std::vector<float>> clip_luma, output_luma;
-    for (int i = 0; i < footage.count(); ++i) clip_luma.push_back(footage.luma(i));
+    const std::vector<std::vector<float>> clip_luma = footage.luma_frames();
+    std::vector<std::vector<float>> output_luma;
     const int period = std::max(1, synth.period_frames());
     for (int k = 0; k < sample_frames; ++k)
         output_luma.push_back(luma(to_display(synth.render(1 + k * period / std::max(1, sample_frames)))));
@@ -351,8 +351,7 @@ Comparison compare_with_baselines(const ClipFrames& clip, const ParticleStreams&
         if (settings.footage) {
             if (settings.footage->width() != width || settings.footage->height() != height)
                 throw std::invalid_argument("the footage and the clip differ in size");
-            std::vector<std::vector<float>> footage_luma;
-            for (int i = 0; i < settings.footage->count(); ++i) footage_luma.push_back(settings.footage->luma(i));
+            const std::vector<std::vector<float>> footage_luma = settings.footage->luma_frames();
             const std::vector<std::uint8_t> as_drawn =
                 settings.footage_region_lines.empty()
                     ? region

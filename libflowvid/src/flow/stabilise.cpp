@@ -128,22 +128,20 @@ int central_frame(const std::vector<Eigen::Matrix<double, 2, 3>>& first_to_frame
 
 }  // namespace
 
+Eigen::Matrix<double, 2, 3> CameraMotion::first_to_view() const {
+    return still() ? Eigen::Matrix<double, 2, 3>::Identity() : first_to_frame.at(static_cast<std::size_t>(view_frame));
+}
+
+Eigen::Matrix<double, 2, 3> CameraMotion::view_to_first() const { return inverse(first_to_view()); }
+
 Eigen::Matrix<double, 2, 3> CameraMotion::view_to_frame(int frame) const {
     if (still()) return Eigen::Matrix<double, 2, 3>::Identity();
     const Eigen::Matrix<double, 2, 3>& to_frame = first_to_frame.at(static_cast<std::size_t>(frame));
-    const Eigen::Matrix<double, 2, 3> view_to_first = inverse(first_to_frame.at(static_cast<std::size_t>(view_frame)));
+    const Eigen::Matrix<double, 2, 3> back = view_to_first();
     Eigen::Matrix<double, 2, 3> out;
-    out.leftCols<2>() = to_frame.leftCols<2>() * view_to_first.leftCols<2>();
-    out.col(2) = to_frame.leftCols<2>() * view_to_first.col(2) + to_frame.col(2);
+    out.leftCols<2>() = to_frame.leftCols<2>() * back.leftCols<2>();
+    out.col(2) = to_frame.leftCols<2>() * back.col(2) + to_frame.col(2);
     return out;
-}
-
-Eigen::Vector2d CameraMotion::first_to_view(const Eigen::Vector2d& first_px) const {
-    return still() ? first_px : apply(first_to_frame.at(static_cast<std::size_t>(view_frame)), first_px);
-}
-
-Eigen::Vector2d CameraMotion::view_to_first(const Eigen::Vector2d& view_px) const {
-    return still() ? view_px : apply(inverse(first_to_frame.at(static_cast<std::size_t>(view_frame))), view_px);
 }
 
 const char* to_string(CameraMotion::Model model) {
@@ -242,11 +240,10 @@ RgbImage StabilisedFrames::frame(int index) {
 
 namespace {
 
-template <class Move>
-formats::FlowLineSet moved_drawing(const formats::FlowLineSet& drawing, const Move& move_point) {
+formats::FlowLineSet moved_drawing(const formats::FlowLineSet& drawing, const Eigen::Matrix<double, 2, 3>& map) {
     formats::FlowLineSet out = drawing;
-    const auto move = [&move_point](std::vector<Eigen::Vector2d>& points) {
-        for (Eigen::Vector2d& p : points) p = move_point(p);
+    const auto move = [&map](std::vector<Eigen::Vector2d>& points) {
+        for (Eigen::Vector2d& p : points) p = apply(map, p);
     };
     for (auto* lines : {&out.inputs, &out.outputs})
         for (formats::FlowLine& line : *lines) {
@@ -260,20 +257,21 @@ formats::FlowLineSet moved_drawing(const formats::FlowLineSet& drawing, const Mo
 
 formats::FlowLineSet drawing_in_view(const formats::FlowLineSet& drawing, const CameraMotion& motion) {
     if (motion.still()) return drawing;
-    return moved_drawing(drawing, [&motion](const Eigen::Vector2d& p) { return motion.first_to_view(p); });
+    return moved_drawing(drawing, motion.first_to_view());
 }
 
 formats::FlowLineSet drawing_as_drawn(const formats::FlowLineSet& view_drawing, const CameraMotion& motion) {
     if (motion.still()) return view_drawing;
-    return moved_drawing(view_drawing, [&motion](const Eigen::Vector2d& p) { return motion.view_to_first(p); });
+    return moved_drawing(view_drawing, motion.view_to_first());
 }
 
 std::vector<std::vector<Eigen::Vector2d>> polylines_as_drawn(const std::vector<std::vector<Eigen::Vector2d>>& view_lines,
                                                              const CameraMotion& motion) {
     std::vector<std::vector<Eigen::Vector2d>> out = view_lines;
     if (motion.still()) return out;
+    const Eigen::Matrix<double, 2, 3> back = motion.view_to_first();
     for (auto& line : out)
-        for (Eigen::Vector2d& p : line) p = motion.view_to_first(p);
+        for (Eigen::Vector2d& p : line) p = apply(back, p);
     return out;
 }
 

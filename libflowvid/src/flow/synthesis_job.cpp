@@ -304,13 +304,12 @@ EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double r
     const int width = clip.width(), height = clip.height();
     EditQuality out;
     out.output_frames = frames > 0 ? frames : 2 * clip.count();
-    std::vector<std::vector<float>> clip_luma, output_luma;
-    for (int i = 0; i < clip.count(); ++i) clip_luma.push_back(clip.luma(i));
+    const std::vector<std::vector<float>> clip_luma = clip.luma_frames();
+    std::vector<std::vector<float>> output_luma;
     for (const formats::FlowLine& line : prepared.drawing.outputs) out.moving_lines = out.moving_lines || line.is_time_varying();
     // Regions in the output's view, and where the lines were drawn (the
     // footage's pixels: the shared tool reads the drawing as it is).
-    const CameraMotion still_camera;
-    const CameraMotion& camera = prepared.footage && prepared.camera ? *prepared.camera : still_camera;
+    const CameraMotion camera = prepared.camera.value_or(CameraMotion());
     std::vector<std::vector<std::uint8_t>> regions, regions_as_drawn;
     const int rendered = prepared.synthesizer->render_frames(1, out.output_frames, threads, [&](int frame, const RgbImage& image) {
         output_luma.push_back(luma(to_display(image)));
@@ -330,8 +329,7 @@ EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double r
     if (prepared.footage) {
         // The shared scoring tool compares with the footage as filmed; the
         // still view says how much of the difference is the camera's drift.
-        std::vector<std::vector<float>> footage_luma;
-        for (int i = 0; i < prepared.footage->count(); ++i) footage_luma.push_back(prepared.footage->luma(i));
+        const std::vector<std::vector<float>> footage_luma = prepared.footage->luma_frames();
         const std::vector<std::uint8_t> footage_region =
             line_band_mask(polylines_as_drawn(drawn_input_polylines(prepared.drawing), camera), width, height, region_px);
         out.region = RegionMeter(footage_luma, width, height, footage_region, settings).measure(output_luma, regions_as_drawn);

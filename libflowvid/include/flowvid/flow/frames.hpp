@@ -111,6 +111,7 @@ public:
     RgbImage display(int index) const;
     RgbImage linear(int index) const;
     std::vector<float> luma(int index) const;
+    std::vector<std::vector<float>> luma_frames() const;  // luma(i) of every frame, in order
 
 private:
     int m_width = 0;

@@ -61,9 +61,9 @@ struct CameraMotion {
     int view_frame = 0;
     // Maps a pixel of the view to the same scene point in `frame`.
     Eigen::Matrix<double, 2, 3> view_to_frame(int frame) const;
-    // A point of the first frame (where lines are drawn) in the view, and back.
-    Eigen::Vector2d first_to_view(const Eigen::Vector2d& first_px) const;
-    Eigen::Vector2d view_to_first(const Eigen::Vector2d& view_px) const;
+    // Maps a pixel of the first frame (where lines are drawn) to the view, and back.
+    Eigen::Matrix<double, 2, 3> first_to_view() const;
+    Eigen::Matrix<double, 2, 3> view_to_first() const;
     double largest_offset_px = 0.0;  // the largest corner displacement over all frames
     double worst_correlation = 1.0;  // ECC's lowest correlation coefficient over the frames
     bool untrusted = false;          // still because the background matched too poorly to tell

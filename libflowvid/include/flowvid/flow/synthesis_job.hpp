@@ -6,7 +6,8 @@
 // edit render.
 //
 // Steps: read the bank and the drawing; read the clip, stabilised into its
-// first frame's view when the camera drifts (stabilise.hpp); schedule the
+// central view when the camera drifts, the drawing carried into that view
+// (stabilise.hpp); schedule the
 // particles; for an edit, plan the dense output lines (editing.hpp); choose
 // the background (`auto`: quality.hpp choose_background); for the moving
 // layer, keep the light the flow adds (synthesis.hpp keep_moving_part).
