@@ -199,6 +199,8 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         }
         m_plan->carry_lines.push_back(std::move(carry));
     };
+    RgbImage flow_look;  // what the background shows around the input lines
+    if (m_carry_background) m_background.fill(1, m_plan->width, m_plan->height, flow_look);
     std::vector<std::string> off_frame, too_short;
     for (OutputLine& output : outputs) {
         // A line drawn off the frame, or shorter than a pixel (in every key), shows nothing: say so.
@@ -227,7 +229,7 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         const ParticleStreams::InputLine& in = m_streams->input_lines()[static_cast<std::size_t>(group)];
         std::vector<std::pair<double, double>> tracked_arcs;
         for (const ParticleStreams::InputLine::Segment& seg : in.segments) tracked_arcs.emplace_back(seg.from_px, seg.to_px);
-        add_carry(output.line, in.points, tracked_arcs);
+        add_carry(output.line, in.points, arcs_showing_the_flow(in.points, tracked_arcs, flow_look, patch));
         const auto part_of = [&](const std::vector<Eigen::Vector2d>& points, const ParticleStreams::InputLine::Segment& seg,
                                  bool& empty) {
             const double length = formats::polyline_length(points);

@@ -120,6 +120,77 @@ void keep_carry_on_flowing_arcs(WarpTable& table, const std::vector<std::pair<do
     }
 }
 
+namespace {
+
+// Display luma of a linear image averaged over the square of `radius` pixels
+// around `centre` (clipped to the frame).
+double mean_display_luma(const RgbImage& linear, const Eigen::Vector2d& centre, int radius) {
+    const int cx = static_cast<int>(std::lround(centre.x())), cy = static_cast<int>(std::lround(centre.y()));
+    double sum = 0.0;
+    int count = 0;
+    for (int y = std::max(0, cy - radius); y <= std::min(linear.height - 1, cy + radius); ++y)
+        for (int x = std::max(0, cx - radius); x <= std::min(linear.width - 1, cx + radius); ++x) {
+            const float* c = linear.pixel(x, y);
+            sum += 0.2126 * linear_to_srgb(c[0]) + 0.7152 * linear_to_srgb(c[1]) + 0.0722 * linear_to_srgb(c[2]);
+            ++count;
+        }
+    return count > 0 ? sum / count : 0.0;
+}
+
+}  // namespace
+
+std::vector<std::pair<double, double>> arcs_showing_the_flow(const std::vector<Eigen::Vector2d>& points,
+                                                             const std::vector<std::pair<double, double>>& tracked_px,
+                                                             const RgbImage& background, int patch) {
+    if (tracked_px.size() < 2 || background.empty() || points.size() < 2) return tracked_px;
+    const LineGeometry line(points, patch / 3.0);
+    constexpr double kStepPx = 2.0;
+    const int samples = static_cast<int>(std::floor(line.length_px() / kStepPx)) + 1;
+    std::vector<double> luma_at(static_cast<std::size_t>(samples));
+    std::vector<char> tracked(static_cast<std::size_t>(samples), 0);
+    std::vector<double> tracked_luma;
+    int first = samples, last = -1;
+    for (int i = 0; i < samples; ++i) {
+        const double s = i * kStepPx;
+        luma_at[static_cast<std::size_t>(i)] = mean_display_luma(background, line.point(s), std::max(1, patch / 2));
+        for (const auto& [from, to] : tracked_px)
+            if (s >= from && s <= to) tracked[static_cast<std::size_t>(i)] = 1;
+        if (!tracked[static_cast<std::size_t>(i)]) continue;
+        tracked_luma.push_back(luma_at[static_cast<std::size_t>(i)]);
+        first = std::min(first, i);
+        last = i;
+    }
+    if (tracked_luma.empty()) return tracked_px;
+    std::sort(tracked_luma.begin(), tracked_luma.end());
+    const auto quantile = [&](double q) {
+        return tracked_luma[static_cast<std::size_t>(std::lround(q * static_cast<double>(tracked_luma.size() - 1)))];
+    };
+    const double low = quantile(0.1) - 0.1, high = quantile(0.9) + 0.1;
+    const auto looks_like_flow = [&](int i) {
+        const double y = luma_at[static_cast<std::size_t>(i)];
+        return y >= low && y <= high;
+    };
+    // Grow each tracked arc into the untracked stretches between first and
+    // last while the background looks like the flow (from both sides: a
+    // gap's middle may be a ledge, its ends still water).
+    std::vector<char> flow = tracked;
+    for (int i = first + 1; i <= last; ++i)
+        if (!flow[static_cast<std::size_t>(i)] && flow[static_cast<std::size_t>(i - 1)] && looks_like_flow(i)) flow[static_cast<std::size_t>(i)] = 1;
+    for (int i = last - 1; i >= first; --i)
+        if (!flow[static_cast<std::size_t>(i)] && flow[static_cast<std::size_t>(i + 1)] && looks_like_flow(i)) flow[static_cast<std::size_t>(i)] = 1;
+    std::vector<std::pair<double, double>> arcs = tracked_px;
+    for (int i = first; i <= last; ++i)
+        if (flow[static_cast<std::size_t>(i)] && !tracked[static_cast<std::size_t>(i)])
+            arcs.emplace_back((i - 1) * kStepPx, (i + 1) * kStepPx);  // to the neighbouring samples
+    std::sort(arcs.begin(), arcs.end());
+    std::vector<std::pair<double, double>> merged;
+    for (const auto& arc : arcs) {
+        if (!merged.empty() && arc.first <= merged.back().second) merged.back().second = std::max(merged.back().second, arc.second);
+        else merged.push_back(arc);
+    }
+    return merged;
+}
+
 void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStreams::Visible& particle, int patch) {
     if (table.bucket_start.size() < 2) return;
     const int buckets = static_cast<int>(table.bucket_start.size()) - 1;
