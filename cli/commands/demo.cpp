@@ -280,8 +280,13 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
     };
     if (!quality.is_discarded() && quality.contains("region") && quality["region"].contains("ours"))
         print_region("loop", quality["region"]["ours"]);
-    if (!quality_edit.is_discarded() && quality_edit.contains("region") && quality_edit["region"].contains("ours"))
+    if (!quality_edit.is_discarded() && quality_edit.contains("region") && quality_edit["region"].contains("ours")) {
         print_region("particle edit", quality_edit["region"]["ours"]);
+        if (quality_edit.contains("tracked_texture_detail"))
+            std::cout << "  (the clip's moving texture alone has detail "
+                      << html::format_number(quality_edit.value("tracked_texture_detail", NAN))
+                      << ": an edit covered by moved texture keeps about that much)\n";
+    }
     if (!quality.is_discarded() && quality.contains("methods")) {
         for (const char* method : {"ours", "loop", "flow map"}) {
             if (!quality["methods"].contains(method)) continue;

@@ -159,7 +159,8 @@ int run_edit_quality(const QualityOptions& options, const flow::PreparedSynthesi
                               {"coverage", prepared.settings.coverage_weight},
                               {"carry_background", prepared.settings.carry_background},
                               {"region", {{"ours", region_json(edit)}}},
-                              {"clip_region_reference", clip_region_json(edit)}};
+                              {"clip_region_reference", clip_region_json(edit)},
+                              {"tracked_texture_detail", measured.tracked_texture_detail}};
     if (measured.region_still_view) {
         summary["region_still_view"] = {{"ours", region_json(*measured.region_still_view)}};
         summary["clip_region_reference_still_view"] = clip_region_json(*measured.region_still_view);
@@ -171,6 +172,9 @@ int run_edit_quality(const QualityOptions& options, const flow::PreparedSynthesi
     std::printf("%s: %d clip frames, %d output frames of the edit along %zu output lines%s\n", clip_frames_name(prepared).c_str(),
                 clip.count(), frames, prepared.drawing.outputs.size(), moving_lines ? " (moving: the region follows them)" : "");
     print_region_table({{"edit", edit}}, options.region_px);
+    std::printf("the clip's moving texture alone (within half a patch of the stretches tracked) has detail %.2f: an edit\n"
+                "covered by moved texture keeps about that much; more is the scene showing between and under it\n",
+                measured.tracked_texture_detail);
     if (measured.region_still_view) print_region_table({{"edit", *measured.region_still_view}}, options.region_px, true);
     return kExitOk;
 }

@@ -304,6 +304,20 @@ RegionQuality RegionMeter::measure(const std::vector<std::vector<float>>& output
     return q;
 }
 
+double clip_detail_share(const std::vector<std::vector<float>>& clip_luma, int width, int height,
+                         const std::vector<std::uint8_t>& region, const std::vector<std::uint8_t>& clip_region) {
+    const std::size_t pixels = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+    if (region.size() != pixels || clip_region.size() != pixels)
+        throw std::invalid_argument("clip_detail_share: the regions are not the clip's size");
+    if (clip_luma.empty() || std::count(region.begin(), region.end(), 1) == 0) return 0.0;
+    double over_region = 0.0, over_clip_region = 0.0;
+    for (const auto& g : clip_luma) {
+        over_region += laplacian_variance(g, width, height, region);
+        over_clip_region += laplacian_variance(g, width, height, clip_region);
+    }
+    return over_clip_region > 0.0 ? over_region / over_clip_region : 0.0;
+}
+
 RegionQuality measure_region_quality(const std::vector<std::vector<float>>& clip_luma,
                                      const std::vector<std::vector<float>>& output_luma, int width, int height,
                                      const std::vector<std::uint8_t>& clip_region,

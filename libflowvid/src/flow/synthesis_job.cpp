@@ -324,6 +324,7 @@ EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double r
     if (rendered < out.output_frames) throw Cancelled();
     RegionSettings settings;
     settings.region_px = region_px;
+    const double half_patch_px = 0.5 * prepared.bank->patch_size_px;  // what a particle's patch carries
     const std::vector<std::uint8_t> clip_region =
         line_band_mask(drawn_input_polylines(prepared.drawing), width, height, region_px);
     if (prepared.footage) {
@@ -334,8 +335,14 @@ EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double r
             line_band_mask(polylines_as_drawn(drawn_input_polylines(prepared.drawing), camera), width, height, region_px);
         out.region = RegionMeter(footage_luma, width, height, footage_region, settings).measure(output_luma, regions_as_drawn);
         out.region_still_view = RegionMeter(clip_luma, width, height, clip_region, settings).measure(output_luma, regions);
+        out.tracked_texture_detail =
+            clip_detail_share(footage_luma, width, height,
+                              line_band_mask(polylines_as_drawn(prepared.input_points, camera), width, height, half_patch_px),
+                              footage_region);
     } else {
         out.region = RegionMeter(clip_luma, width, height, clip_region, settings).measure(output_luma, regions);
+        out.tracked_texture_detail = clip_detail_share(
+            clip_luma, width, height, line_band_mask(prepared.input_points, width, height, half_patch_px), clip_region);
     }
     report_progress(progress, "measure", 1.0);
     return out;

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 using namespace flowvid;
 using namespace flowvid::flow;
@@ -341,4 +342,26 @@ TEST(FlowRegionQuality, ComparesWithTheFootageAsFilmedAndTheStillViewBeside) {
     const ClipFrames wrong_size(10, 10, 25.0, "small");
     compare.footage = &wrong_size;
     EXPECT_THROW(compare_with_baselines(*clip, *streams, synth, plate, compare), std::invalid_argument);
+}
+
+TEST(FlowRegionQuality, TheClipsDetailOverPartOfItsRegionIsTheLaplacianVarianceRatio) {
+    // White noise of standard deviation a left of x = 32 and b right of it:
+    // the 4-neighbour Laplacian of independent pixels has variance 20 s^2,
+    // so the left half holds 2 a^2 / (a^2 + b^2) of the whole frame's mean
+    // (0.4 for a = 0.02, b = 0.04; the column where they meet mixes a little).
+    std::mt19937 rng(11);
+    std::normal_distribution<float> unit(0.0f, 1.0f);
+    const double a = 0.02, b = 0.04;
+    std::vector<std::vector<float>> clip(4, std::vector<float>(static_cast<std::size_t>(kW) * kH));
+    for (auto& frame : clip)
+        for (int y = 0; y < kH; ++y)
+            for (int x = 0; x < kW; ++x)
+                frame[static_cast<std::size_t>(y) * kW + x] = 0.5f + static_cast<float>(x < 32 ? a : b) * unit(rng);
+    std::vector<std::uint8_t> left(static_cast<std::size_t>(kW) * kH, 0), all(left.size(), 1);
+    for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < 32; ++x) left[static_cast<std::size_t>(y) * kW + x] = 1;
+    const double share = clip_detail_share(clip, kW, kH, left, all);
+    EXPECT_NEAR(share, 2.0 * a * a / (a * a + b * b), 0.03);
+    EXPECT_NEAR(clip_detail_share(clip, kW, kH, all, all), 1.0, 1e-12);
+    EXPECT_THROW(clip_detail_share(clip, kW, kH, std::vector<std::uint8_t>(10, 1), all), std::invalid_argument);
 }

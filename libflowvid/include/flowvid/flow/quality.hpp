@@ -192,6 +192,15 @@ RegionQuality measure_region_quality(const std::vector<std::vector<float>>& clip
                                      const std::vector<std::vector<std::uint8_t>>& output_regions,
                                      const RegionSettings& settings = {});
 
+// The clip's detail over `region` as a share of its detail over
+// `clip_region` (mean over the clip's frames of the Laplacian variance, as
+// `detail` above). With `region` the pixels particles carry (within half a
+// patch of the stretches the tracker followed), it is the detail an output
+// covered by moved texture keeps on average: more shows the scene between
+// and under the texture (rock edges and splash do not move with the flow).
+double clip_detail_share(const std::vector<std::vector<float>>& clip_luma, int width, int height,
+                         const std::vector<std::uint8_t>& region, const std::vector<std::uint8_t>& clip_region);
+
 // The share of a series' variation (around its mean) in its strongest DFT bin
 // with a period of min_period..max_period samples (0 for fewer than 8 samples).
 double periodic_peak_share(const std::vector<double>& series, double min_period = 4.0, double max_period = 50.0);

@@ -162,6 +162,10 @@ struct EditQuality {
     std::optional<RegionQuality> region_still_view;  // against the stabilised clip (drifting camera only)
     int output_frames = 0;
     bool moving_lines = false;  // keyed output lines: the region follows them
+    // The clip's detail within half a patch of the stretches the tracker
+    // followed, over its flow region's (clip_detail_share, as filmed): what
+    // an edit covered by moved texture keeps on average.
+    double tracked_texture_detail = 0.0;
 };
 EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double region_px, int threads,
                          const Progress& progress = {});
