@@ -229,7 +229,7 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         const ParticleStreams::InputLine& in = m_streams->input_lines()[static_cast<std::size_t>(group)];
         std::vector<std::pair<double, double>> tracked_arcs;
         for (const ParticleStreams::InputLine::Segment& seg : in.segments) tracked_arcs.emplace_back(seg.from_px, seg.to_px);
-        add_carry(output.line, in.points, arcs_showing_the_flow(in.points, tracked_arcs, flow_look, patch));
+        add_carry(output.line, in.points, arcs_to_carry(in.points, tracked_arcs, flow_look, patch));
         const auto part_of = [&](const std::vector<Eigen::Vector2d>& points, const ParticleStreams::InputLine::Segment& seg,
                                  bool& empty) {
             const double length = formats::polyline_length(points);
@@ -275,7 +275,7 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
     if (!m_plan->carry_lines.empty() && m_background.mode() == BackgroundMode::median) {
         RgbImage plate;
         m_background.fill(1, m_plan->width, m_plan->height, plate);
-        m_plan->carry_source = smoothed(plate, std::max(1, patch / 2));
+        m_plan->carry_source = smoothed(plate, carry_smoothing_radius_px(patch));
         if (all_fixed) {
             CarryBuffers buffers;
             carry_background_into(1, plate, buffers);  // before carried_plate is set: composites
@@ -308,7 +308,7 @@ void Synthesizer::carry_background_into(int frame, RgbImage& out, CarryBuffers& 
         keep_carry_on_flowing_arcs(b.keyed_warps[keyed], line.flowing_arcs_px, 0.5 * patch);
         b.tables.push_back(&b.keyed_warps[keyed++]);
     }
-    if (m_plan->carry_source.empty()) b.source = smoothed(out, std::max(1, patch / 2));
+    if (m_plan->carry_source.empty()) b.source = smoothed(out, carry_smoothing_radius_px(patch));
     carry_background(b.tables, m_plan->carry_source.empty() ? b.source : m_plan->carry_source,
                      static_cast<float>(std::max(1e-6, m_settings.coverage_weight)), m_plan->carry_allowed, b.sums, out);
 }

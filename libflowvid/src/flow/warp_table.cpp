@@ -139,13 +139,14 @@ double mean_display_luma(const RgbImage& linear, const Eigen::Vector2d& centre, 
 
 }  // namespace
 
-std::vector<std::pair<double, double>> arcs_showing_the_flow(const std::vector<Eigen::Vector2d>& points,
-                                                             const std::vector<std::pair<double, double>>& tracked_px,
-                                                             const RgbImage& background, int patch) {
-    if (tracked_px.size() < 2 || background.empty() || points.size() < 2) return tracked_px;
+std::vector<std::pair<double, double>> arcs_to_carry(const std::vector<Eigen::Vector2d>& points,
+                                                     const std::vector<std::pair<double, double>>& tracked_px,
+                                                     const RgbImage& background, int patch) {
+    if (tracked_px.empty() || points.size() < 2 || background.empty()) return tracked_px;
     const LineGeometry line(points, patch / 3.0);
+    const double length = line.length_px();
     constexpr double kStepPx = 2.0;
-    const int samples = static_cast<int>(std::floor(line.length_px() / kStepPx)) + 1;
+    const int samples = static_cast<int>(std::floor(length / kStepPx)) + 1;
     std::vector<double> luma_at(static_cast<std::size_t>(samples));
     std::vector<char> tracked(static_cast<std::size_t>(samples), 0);
     std::vector<double> tracked_luma;
@@ -170,14 +171,22 @@ std::vector<std::pair<double, double>> arcs_showing_the_flow(const std::vector<E
         const double y = luma_at[static_cast<std::size_t>(i)];
         return y >= low && y <= high;
     };
+    // Unlike enough to show as a smear in the smoothed flow (a ledge): twice
+    // as far outside the tracked range.
+    const auto far_unlike_flow = [&](int i) {
+        const double y = luma_at[static_cast<std::size_t>(i)];
+        return y < low - 0.1 || y > high + 0.1;
+    };
     // Grow each tracked arc into the untracked stretches between first and
     // last while the background looks like the flow (from both sides: a
     // gap's middle may be a ledge, its ends still water).
     std::vector<char> flow = tracked;
     for (int i = first + 1; i <= last; ++i)
-        if (!flow[static_cast<std::size_t>(i)] && flow[static_cast<std::size_t>(i - 1)] && looks_like_flow(i)) flow[static_cast<std::size_t>(i)] = 1;
+        if (!flow[static_cast<std::size_t>(i)] && flow[static_cast<std::size_t>(i - 1)] && looks_like_flow(i))
+            flow[static_cast<std::size_t>(i)] = 1;
     for (int i = last - 1; i >= first; --i)
-        if (!flow[static_cast<std::size_t>(i)] && flow[static_cast<std::size_t>(i + 1)] && looks_like_flow(i)) flow[static_cast<std::size_t>(i)] = 1;
+        if (!flow[static_cast<std::size_t>(i)] && flow[static_cast<std::size_t>(i + 1)] && looks_like_flow(i))
+            flow[static_cast<std::size_t>(i)] = 1;
     std::vector<std::pair<double, double>> arcs = tracked_px;
     for (int i = first; i <= last; ++i)
         if (flow[static_cast<std::size_t>(i)] && !tracked[static_cast<std::size_t>(i)])
@@ -185,8 +194,28 @@ std::vector<std::pair<double, double>> arcs_showing_the_flow(const std::vector<E
     std::sort(arcs.begin(), arcs.end());
     std::vector<std::pair<double, double>> merged;
     for (const auto& arc : arcs) {
-        if (!merged.empty() && arc.first <= merged.back().second) merged.back().second = std::max(merged.back().second, arc.second);
+        if (!merged.empty() && arc.first <= merged.back().second + 1e-6)
+            merged.back().second = std::max(merged.back().second, arc.second);
         else merged.push_back(arc);
+    }
+    // An end whose smoothing window reaches background far unlike the flow
+    // within the line is pulled in by the window's reach.
+    const double reach = 2.0 * carry_smoothing_radius_px(patch);
+    const int reach_samples = static_cast<int>(std::ceil(reach / kStepPx));
+    const auto sees_other = [&](double s, int direction) {
+        const int i0 = static_cast<int>(std::lround(s / kStepPx));
+        for (int k = 1; k <= reach_samples; ++k) {
+            const int i = i0 + direction * k;
+            if (i < 0 || i >= samples) break;  // past the line's own end: nothing it crosses
+            if (far_unlike_flow(i)) return true;
+        }
+        return false;
+    };
+    for (auto& [from, to] : merged) {
+        const double middle = 0.5 * (from + to);
+        const bool pull_from = sees_other(from, -1), pull_to = sees_other(to, +1);
+        if (pull_from) from = std::min(middle, from + reach);
+        if (pull_to) to = std::max(middle, to - reach);
     }
     return merged;
 }

@@ -10,6 +10,7 @@
 #include "flowvid/flow/geometry.hpp"
 #include "flowvid/flow/synthesis.hpp"
 
+#include <algorithm>
 #include <utility>
 #include <vector>
 
@@ -55,20 +56,28 @@ WarpTable build_warp(const LineGeometry& out_line, const LineGeometry& in_line, 
 // fading over `fade_px` beyond each range. Empty `arcs_px`: unchanged.
 void keep_carry_on_flowing_arcs(WarpTable& table, const std::vector<std::pair<double, double>>& arcs_px, double fade_px);
 
-// The stretches of an input line (`points`) that show the flow, for carrying
-// background: `tracked_px` (the arcs its particles crossed), each grown into
-// the untracked stretches between the first and the last of them while the
-// background there looks like them (its mean display luma over a patch
-// around the line within the tracked arcs' 10-90 % range, widened by a tenth
-// of full scale). Water too bright and even to have texture to follow (the
-// top of a fall) is flow the tracker could not see, and a new line should
-// show it rather than the rock it was drawn over; a rock ledge the line
-// crosses is far darker and stays out, and so do the stretches beyond the
-// first and last tracked arcs (where a drawn line runs past the flow).
-// Fewer than two arcs, or an empty `background`: `tracked_px` unchanged.
-std::vector<std::pair<double, double>> arcs_showing_the_flow(const std::vector<Eigen::Vector2d>& points,
-                                                             const std::vector<std::pair<double, double>>& tracked_px,
-                                                             const RgbImage& background, int patch);
+// Carried background is the background smoothed by a box of this radius,
+// twice (a tent reaching twice as far): half a patch.
+inline int carry_smoothing_radius_px(int patch) { return std::max(1, patch / 2); }
+
+// The stretches of an input line (`points`) to carry background from: where
+// the flow is, and where the carried background's smoothing sees only the
+// flow. `tracked_px` (the arcs its particles crossed) are joined, and each
+// grown into the untracked stretches between the first and the last of them
+// while the background there looks like them (its mean display luma over a
+// patch around the line within the tracked arcs' 10-90 % range, widened by a
+// tenth of full scale). Water too bright and even to have texture to follow
+// (the top of a fall) is flow the tracker could not see, and a new line
+// should show it rather than the rock it was drawn over; a rock ledge the
+// line crosses is far darker and stays out, and so do the stretches beyond
+// the first and last tracked arcs (where a drawn line runs past the flow).
+// Then every end whose smoothing window (2 carry_smoothing_radius_px
+// along the line) reaches background far unlike the flow (outside the range
+// widened by a fifth) is pulled in by that reach, so that a ledge's rock
+// does not come along as a grey smear where the flow ends. An empty `background`: `tracked_px` unchanged.
+std::vector<std::pair<double, double>> arcs_to_carry(const std::vector<Eigen::Vector2d>& points,
+                                                     const std::vector<std::pair<double, double>>& tracked_px,
+                                                     const RgbImage& background, int patch);
 
 // One particle's patch added through a warp table (the whole-frame pass).
 void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStreams::Visible& particle, int patch);
