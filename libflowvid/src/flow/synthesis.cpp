@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <unordered_map>
 
 namespace flowvid::flow {
 
@@ -201,6 +202,7 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
     };
     RgbImage flow_look;  // what the background shows around the input lines
     if (m_carry_background) m_background.fill(1, m_plan->width, m_plan->height, flow_look);
+    std::unordered_map<int, std::vector<std::pair<double, double>>> carried_arcs;  // per input line, found once
     std::vector<std::string> off_frame, too_short;
     for (OutputLine& output : outputs) {
         // A line drawn off the frame, or shorter than a pixel (in every key), shows nothing: say so.
@@ -227,9 +229,12 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         // A line tracked in segments: each segment goes to the matching part
         // of the output line (equal arc length, or scaled to the output's length).
         const ParticleStreams::InputLine& in = m_streams->input_lines()[static_cast<std::size_t>(group)];
-        std::vector<std::pair<double, double>> tracked_arcs;
-        for (const ParticleStreams::InputLine::Segment& seg : in.segments) tracked_arcs.emplace_back(seg.from_px, seg.to_px);
-        add_carry(output.line, in.points, arcs_to_carry(in.points, tracked_arcs, flow_look, patch));
+        if (m_carry_background && !carried_arcs.count(group)) {
+            std::vector<std::pair<double, double>> tracked_arcs;
+            for (const ParticleStreams::InputLine::Segment& seg : in.segments) tracked_arcs.emplace_back(seg.from_px, seg.to_px);
+            carried_arcs[group] = arcs_to_carry(in.points, tracked_arcs, flow_look, patch);
+        }
+        add_carry(output.line, in.points, m_carry_background ? carried_arcs[group] : std::vector<std::pair<double, double>>{});
         const auto part_of = [&](const std::vector<Eigen::Vector2d>& points, const ParticleStreams::InputLine::Segment& seg,
                                  bool& empty) {
             const double length = formats::polyline_length(points);

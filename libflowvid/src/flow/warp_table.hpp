@@ -65,16 +65,17 @@ inline int carry_smoothing_radius_px(int patch) { return std::max(1, patch / 2);
 // flow. `tracked_px` (the arcs its particles crossed) are joined, and each
 // grown into the untracked stretches between the first and the last of them
 // while the background there looks like them (its mean display luma over a
-// patch around the line within the tracked arcs' 10-90 % range, widened by a
-// tenth of full scale). Water too bright and even to have texture to follow
+// patch around the line within the tracked arcs' 10-90 % range, widened by
+// 0.1 of full scale). Water too bright and even to have texture to follow
 // (the top of a fall) is flow the tracker could not see, and a new line
 // should show it rather than the rock it was drawn over; a rock ledge the
 // line crosses is far darker and stays out, and so do the stretches beyond
 // the first and last tracked arcs (where a drawn line runs past the flow).
-// Then every end whose smoothing window (2 carry_smoothing_radius_px
-// along the line) reaches background far unlike the flow (outside the range
-// widened by a fifth) is pulled in by that reach, so that a ledge's rock
-// does not come along as a grey smear where the flow ends. An empty `background`: `tracked_px` unchanged.
+// Then every end whose smoothing window (2 carry_smoothing_radius_px along
+// the line) reaches background far unlike the flow (outside the tracked
+// range widened by 0.2) is pulled in by that reach, so that a ledge's rock
+// does not come along as a grey smear where the flow ends. An empty
+// `background`: `tracked_px` unchanged.
 std::vector<std::pair<double, double>> arcs_to_carry(const std::vector<Eigen::Vector2d>& points,
                                                      const std::vector<std::pair<double, double>>& tracked_px,
                                                      const RgbImage& background, int patch);
