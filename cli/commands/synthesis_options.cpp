@@ -68,10 +68,10 @@ void add_edit_options(CLI::App& app, EditOptions& o) {
         ->capture_default_str();
     app.add_flag("--carry-background", o.carry_background,
                  "under the particles of a line moved off the flow, show the background around its input line "
-                 "(smoothed): fills the gaps its particles leave (for water; not for fire). Default: on where "
-                 "--background auto replays the clip");
+                 "(smoothed): fills the gaps its particles leave, and the new flow fades into the scene (for water; "
+                 "not for fire). Default: on for whole textures under --background auto");
     app.add_flag("--no-carry-background", o.no_carry_background,
-                 "never carry the background, not even where --background auto replays the clip")
+                 "never carry the background, not even under --background auto")
         ->excludes("--carry-background");
 }
 
@@ -79,7 +79,7 @@ void apply_edit_options(const EditOptions& o, int threads, flow::SynthesisJob& j
     job.edit = true;
     job.settings.mapping = flow::arc_mapping_from_string(o.mapping);
     job.settings.carry_background = o.carry_background;
-    job.carry_replayed_background = !o.no_carry_background;
+    job.carry_background_auto = !o.no_carry_background;
     job.interpolate = !o.no_interpolate;
     job.edit_settings.spacing_px = o.spacing_px;
     job.edit_settings.max_gap_px = o.max_gap_px;

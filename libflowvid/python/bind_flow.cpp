@@ -33,8 +33,8 @@ py::object synthesize(const std::string& bank, const std::string& out, const std
     job.edit = edit;
     job.interpolate = interpolate;
     job.settings.mapping = flow::arc_mapping_from_string(mapping);
-    // None: carried where `auto` replays the clip (as the CLI's default).
-    job.carry_replayed_background = carry_background.is_none() || carry_background.cast<bool>();
+    // None: carried as the CLI's default (whole textures over what `auto` chose).
+    job.carry_background_auto = carry_background.is_none() || carry_background.cast<bool>();
     job.settings.carry_background = !carry_background.is_none() && carry_background.cast<bool>();
     job.edit_settings.threads = threads;
     flow::SynthesisOutput output;

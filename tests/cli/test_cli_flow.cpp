@@ -659,4 +659,5 @@ TEST(CliFlow, EditDefaultsFollowTheBankAndTheClip) {
     ASSERT_EQ(asked.exit_code, 0) << asked.err;
     EXPECT_EQ(nlohmann::json::parse(asked.out).at("texture"), "whole");
     EXPECT_EQ(nlohmann::json::parse(asked.out).at("coverage").get<double>(), 1.0);
+    EXPECT_TRUE(nlohmann::json::parse(asked.out).at("carry_background").get<bool>());  // whole textures carry
 }

@@ -151,8 +151,9 @@ PreparedSynthesis assemble(SynthesisSources sources, const SynthesisJob& job, co
         if (!job.keep_clip) sources.footage = ClipFrames();  // not needed while rendering
         out.background = choice.mode;
         out.median_detail = choice.median_detail;
-        const bool carry = job.edit && job.carry_replayed_background && out.background == BackgroundMode::replay &&
-                           !settings.carry_background;
+        const bool carry = job.edit && job.carry_background_auto && !settings.carry_background &&
+                           (out.background == BackgroundMode::replay ||
+                            (out.background == BackgroundMode::median && settings.texture_layer == TextureLayer::whole));
         if (carry) settings.carry_background = true;
         char text[400];
         std::snprintf(text, sizeof text,
@@ -161,9 +162,11 @@ PreparedSynthesis assemble(SynthesisSources sources, const SynthesisJob& job, co
                       to_string(out.background), 100.0 * choice.median_detail,
                       out.background == BackgroundMode::replay ? ", below 80 %: the clip is replayed in step with the particles"
                                                                : "",
-                      carry ? "; lines moved off the flow carry it from around their input lines "
-                              "(--no-carry-background: not)"
-                            : "");
+                      !carry ? ""
+                      : out.background == BackgroundMode::replay
+                          ? "; lines moved off the flow carry it from around their input lines (--no-carry-background: not)"
+                          : "; lines moved off the flow carry the plate from around their input lines "
+                            "(--no-carry-background: not)");
         say(log, text);
     }
     Background background = moving && out.background == BackgroundMode::median

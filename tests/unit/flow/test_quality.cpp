@@ -2,6 +2,7 @@
 // known, and the two baselines they compare against.
 
 #include "flowvid/flow/quality.hpp"
+#include "flowvid/flow/synthesis_job.hpp"
 #include "flowvid/flow/synthetic.hpp"
 #include "flowvid/flow/tracking.hpp"
 
@@ -49,6 +50,41 @@ SyntheticFlowSpec falling_band_spec() {
     spec.speed_px_per_frame = [](double) { return 3.0; };
     spec.feature_px = 3.0;
     return spec;
+}
+
+// The falling band tracked, over still rock (a fine still texture the
+// median plate keeps) or over mist (texture that changes every frame, which
+// the median blurs).
+struct TrackedBand {
+    formats::FlowLine line;
+    std::shared_ptr<formats::ParticleBank> bank;
+    std::shared_ptr<ClipFrames> clip;
+};
+TrackedBand tracked_band(bool mist) {
+    const SyntheticFlowSpec spec = falling_band_spec();
+    const SyntheticFlow flow(spec);
+    TrackedBand band;
+    band.line.id = "in-1";
+    band.line.points = spec.curve;
+    std::vector<RgbImage> display;
+    for (int t = 0; t < spec.frames; ++t) {
+        RgbImage frame = flow.frame(t);
+        if (mist)
+            for (int y = 0; y < spec.height; ++y)
+                for (int x = 0; x < spec.width; ++x)
+                    if (std::abs(x - 48) > 9)
+                        for (int c = 0; c < 3; ++c)
+                            frame.pixel(x, y)[c] = 0.3f + 0.4f * value_noise(x / 2.0, y / 2.0, 100 + static_cast<std::uint64_t>(t));
+        display.push_back(frame);
+    }
+    MemoryFrames frames(display, spec.fps);
+    TrackingSettings tracking;
+    tracking.patch_size_px = 16;
+    tracking.start_every = 2;
+    tracking.max_path_frames = -1;
+    band.bank = std::make_shared<formats::ParticleBank>(track_particles(frames, {band.line}, tracking).bank);
+    band.clip = std::make_shared<ClipFrames>(ClipFrames::read_all(frames));
+    return band;
 }
 
 }  // namespace
@@ -151,44 +187,54 @@ TEST(FlowQuality, FlowMapBaselineAdvectsAndCrossFades) {
 // the output over it keeps little of the clip's detail, and the clip is
 // replayed instead.
 TEST(FlowQuality, TheDefaultBackgroundReplaysTheClipWhereTheMedianPlateBlursIt) {
-    const SyntheticFlowSpec spec = falling_band_spec();
-    const SyntheticFlow flow(spec);
-    formats::FlowLineSet drawing;
-    drawing.width = spec.width;
-    drawing.height = spec.height;
-    formats::FlowLine line;
-    line.id = "in-1";
-    line.points = spec.curve;
-    drawing.inputs = {line};
-
-    const auto choose = [&](bool mist) {
-        std::vector<RgbImage> display;
-        for (int t = 0; t < spec.frames; ++t) {
-            RgbImage frame = flow.frame(t);
-            if (mist)
-                for (int y = 0; y < spec.height; ++y)
-                    for (int x = 0; x < spec.width; ++x)
-                        if (std::abs(x - 48) > 9)
-                            for (int c = 0; c < 3; ++c)
-                                frame.pixel(x, y)[c] = 0.3f + 0.4f * value_noise(x / 2.0, y / 2.0, 100 + static_cast<std::uint64_t>(t));
-            display.push_back(frame);
-        }
-        MemoryFrames frames(display, spec.fps);
-        TrackingSettings tracking;
-        tracking.patch_size_px = 16;
-        tracking.start_every = 2;
-        tracking.max_path_frames = -1;
-        auto bank = std::make_shared<formats::ParticleBank>(track_particles(frames, {line}, tracking).bank);
-        auto clip = std::make_shared<ClipFrames>(ClipFrames::read_all(frames));
+    const auto choose = [](bool mist) {
+        const TrackedBand band = tracked_band(mist);
         SynthesisSettings settings;
-        auto streams = std::make_shared<ParticleStreams>(bank, std::vector<std::vector<Eigen::Vector2d>>{line.points}, settings);
-        return choose_background(streams, clip, *clip, settings, {line.points});
+        auto streams = std::make_shared<ParticleStreams>(band.bank, std::vector<std::vector<Eigen::Vector2d>>{band.line.points},
+                                                         settings);
+        return choose_background(streams, band.clip, *band.clip, settings, {band.line.points});
     };
     const BackgroundChoice rock = choose(false), mist = choose(true);
     EXPECT_EQ(rock.mode, BackgroundMode::median) << rock.median_detail;
     EXPECT_GT(rock.median_detail, 0.9);
     EXPECT_EQ(mist.mode, BackgroundMode::replay) << mist.median_detail;
     EXPECT_LT(mist.median_detail, 0.6);
+}
+
+TEST(FlowQuality, AnEditOfWholeTexturesCarriesTheBackgroundAutoChose) {
+    // A new line 24 px left of the band. Over the median plate (rock) as
+    // over the replayed clip (mist), whole textures carry the background
+    // from around the input line, so the new flow does not show the scene
+    // through scalloped patch borders; the moving layer (flames) and
+    // --no-carry-background do not.
+    for (const bool mist : {false, true}) {
+        const TrackedBand band = tracked_band(mist);
+        const auto prepare = [&](bool carry_auto, TextureLayer texture) {
+            SynthesisSources sources;
+            sources.bank = std::make_shared<formats::ParticleBank>(*band.bank);
+            sources.drawing.width = sources.drawing.height = 96;
+            sources.drawing.inputs = {band.line};
+            formats::FlowLine moved;
+            moved.id = "out-1";
+            moved.from = "in-1";
+            moved.points = {{24.0, -8.0}, {24.0, 104.0}};
+            sources.drawing.outputs = {moved};
+            sources.drawing_name = "memory";
+            sources.clip = band.clip;
+            SynthesisJob job;
+            job.edit = true;
+            job.interpolate = false;
+            job.carry_background_auto = carry_auto;
+            job.texture_auto = false;
+            job.settings.texture_layer = texture;
+            return prepare_synthesis(std::move(sources), job);
+        };
+        const PreparedSynthesis whole = prepare(true, TextureLayer::whole);
+        EXPECT_EQ(whole.background, mist ? BackgroundMode::replay : BackgroundMode::median);
+        EXPECT_TRUE(whole.settings.carry_background) << (mist ? "mist" : "rock");
+        EXPECT_FALSE(prepare(false, TextureLayer::whole).settings.carry_background) << (mist ? "mist" : "rock");
+        if (!mist) EXPECT_FALSE(prepare(true, TextureLayer::moving).settings.carry_background);
+    }
 }
 
 // ---- the whole flow region ---------------------------------------------------------

@@ -40,12 +40,15 @@ struct SynthesisJob {
     // plate), median, loop, replay, relit or none.
     std::string background = "auto";
     SynthesisSettings settings;  // texture layer, arc mapping, carried background, blending
-    // An edit whose background `auto` chose to replay the clip carries it
-    // under lines moved off the flow (settings.carry_background): a new
-    // channel then shows the moving water around its input line where its
-    // particles leave gaps, not the still scene it was drawn over. false:
-    // settings.carry_background alone decides.
-    bool carry_replayed_background = true;
+    // An edit of whole textures carries the background `auto` chose (the
+    // replayed clip, or the median plate) under lines moved off the flow
+    // (settings.carry_background): a new channel then shows the water around
+    // its input line where its particles leave gaps, and fades into the
+    // scene over the carried band, instead of showing the scene it was drawn
+    // over through scalloped patch borders. Not for the moving layer
+    // (flames: the scene stays where it is). false: settings.carry_background
+    // alone decides.
+    bool carry_background_auto = true;
     // Chosen from the bank when true (settings.texture_layer and
     // coverage_weight are then ignored): an edit of a non-stationary bank
     // (flames, smoke) moves only the light the flow adds (TextureLayer::moving;
