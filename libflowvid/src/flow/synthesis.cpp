@@ -201,7 +201,11 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         m_plan->carry_lines.push_back(std::move(carry));
     };
     RgbImage flow_look;  // what the background shows around the input lines
-    if (m_carry_background) m_background.fill(1, m_plan->width, m_plan->height, flow_look);
+    std::vector<float> flow_look_luma;
+    if (m_carry_background) {
+        m_background.fill(1, m_plan->width, m_plan->height, flow_look);
+        flow_look_luma = luma(to_display(flow_look));
+    }
     std::unordered_map<int, std::vector<std::pair<double, double>>> carried_arcs;  // per input line, found once
     std::vector<std::string> off_frame, too_short;
     for (OutputLine& output : outputs) {
@@ -229,12 +233,15 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
         // A line tracked in segments: each segment goes to the matching part
         // of the output line (equal arc length, or scaled to the output's length).
         const ParticleStreams::InputLine& in = m_streams->input_lines()[static_cast<std::size_t>(group)];
-        if (m_carry_background && !carried_arcs.count(group)) {
-            std::vector<std::pair<double, double>> tracked_arcs;
-            for (const ParticleStreams::InputLine::Segment& seg : in.segments) tracked_arcs.emplace_back(seg.from_px, seg.to_px);
-            carried_arcs[group] = arcs_to_carry(in.points, tracked_arcs, flow_look, patch);
+        if (m_carry_background) {
+            const auto [arcs, fresh] = carried_arcs.try_emplace(group);
+            if (fresh) {
+                std::vector<std::pair<double, double>> tracked_arcs;
+                for (const ParticleStreams::InputLine::Segment& seg : in.segments) tracked_arcs.emplace_back(seg.from_px, seg.to_px);
+                arcs->second = arcs_to_carry(in.points, tracked_arcs, flow_look_luma, m_plan->width, m_plan->height, patch);
+            }
+            add_carry(output.line, in.points, arcs->second);
         }
-        add_carry(output.line, in.points, m_carry_background ? carried_arcs[group] : std::vector<std::pair<double, double>>{});
         const auto part_of = [&](const std::vector<Eigen::Vector2d>& points, const ParticleStreams::InputLine::Segment& seg,
                                  bool& empty) {
             const double length = formats::polyline_length(points);
@@ -278,8 +285,7 @@ Synthesizer::Synthesizer(std::shared_ptr<const ParticleStreams> streams, std::ve
     const bool all_fixed = std::none_of(m_plan->carry_lines.begin(), m_plan->carry_lines.end(),
                                         [](const Plan::CarryLine& l) { return l.line.is_time_varying(); });
     if (!m_plan->carry_lines.empty() && m_background.mode() == BackgroundMode::median) {
-        RgbImage plate;
-        m_background.fill(1, m_plan->width, m_plan->height, plate);
+        RgbImage plate = std::move(flow_look);  // carry lines exist only when carrying: filled above
         m_plan->carry_source = smoothed(plate, carry_smoothing_radius_px(patch));
         if (all_fixed) {
             CarryBuffers buffers;

@@ -122,16 +122,15 @@ void keep_carry_on_flowing_arcs(WarpTable& table, const std::vector<std::pair<do
 
 namespace {
 
-// Display luma of a linear image averaged over the square of `radius` pixels
-// around `centre` (clipped to the frame).
-double mean_display_luma(const RgbImage& linear, const Eigen::Vector2d& centre, int radius) {
+// The mean of `luma` (`width` x `height`) over the square of `radius`
+// pixels around `centre` (clipped to the frame).
+double mean_around(const std::vector<float>& luma, int width, int height, const Eigen::Vector2d& centre, int radius) {
     const int cx = static_cast<int>(std::lround(centre.x())), cy = static_cast<int>(std::lround(centre.y()));
     double sum = 0.0;
     int count = 0;
-    for (int y = std::max(0, cy - radius); y <= std::min(linear.height - 1, cy + radius); ++y)
-        for (int x = std::max(0, cx - radius); x <= std::min(linear.width - 1, cx + radius); ++x) {
-            const float* c = linear.pixel(x, y);
-            sum += 0.2126 * linear_to_srgb(c[0]) + 0.7152 * linear_to_srgb(c[1]) + 0.0722 * linear_to_srgb(c[2]);
+    for (int y = std::max(0, cy - radius); y <= std::min(height - 1, cy + radius); ++y)
+        for (int x = std::max(0, cx - radius); x <= std::min(width - 1, cx + radius); ++x) {
+            sum += luma[static_cast<std::size_t>(y) * width + x];
             ++count;
         }
     return count > 0 ? sum / count : 0.0;
@@ -141,8 +140,9 @@ double mean_display_luma(const RgbImage& linear, const Eigen::Vector2d& centre, 
 
 std::vector<std::pair<double, double>> arcs_to_carry(const std::vector<Eigen::Vector2d>& points,
                                                      const std::vector<std::pair<double, double>>& tracked_px,
-                                                     const RgbImage& background, int patch) {
-    if (tracked_px.empty() || points.size() < 2 || background.empty()) return tracked_px;
+                                                     const std::vector<float>& background_luma, int width, int height,
+                                                     int patch) {
+    if (tracked_px.empty() || points.size() < 2 || background_luma.empty()) return tracked_px;
     const LineGeometry line(points, patch / 3.0);
     const double length = line.length_px();
     constexpr double kStepPx = 2.0;
@@ -153,7 +153,7 @@ std::vector<std::pair<double, double>> arcs_to_carry(const std::vector<Eigen::Ve
     int first = samples, last = -1;
     for (int i = 0; i < samples; ++i) {
         const double s = i * kStepPx;
-        luma_at[static_cast<std::size_t>(i)] = mean_display_luma(background, line.point(s), std::max(1, patch / 2));
+        luma_at[static_cast<std::size_t>(i)] = mean_around(background_luma, width, height, line.point(s), std::max(1, patch / 2));
         for (const auto& [from, to] : tracked_px)
             if (s >= from && s <= to) tracked[static_cast<std::size_t>(i)] = 1;
         if (!tracked[static_cast<std::size_t>(i)]) continue;

@@ -74,11 +74,13 @@ inline int carry_smoothing_radius_px(int patch) { return std::max(1, patch / 2);
 // Then every end whose smoothing window (2 carry_smoothing_radius_px along
 // the line) reaches background far unlike the flow (outside the tracked
 // range widened by 0.2) is pulled in by that reach, so that a ledge's rock
-// does not come along as a grey smear where the flow ends. An empty
-// `background`: `tracked_px` unchanged.
+// does not come along as a grey smear where the flow ends.
+// `background_luma`: the background's display luma (luma(to_display(...))),
+// `width` x `height`; empty: `tracked_px` unchanged.
 std::vector<std::pair<double, double>> arcs_to_carry(const std::vector<Eigen::Vector2d>& points,
                                                      const std::vector<std::pair<double, double>>& tracked_px,
-                                                     const RgbImage& background, int patch);
+                                                     const std::vector<float>& background_luma, int width, int height,
+                                                     int patch);
 
 // One particle's patch added through a warp table (the whole-frame pass).
 void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStreams::Visible& particle, int patch);
