@@ -90,7 +90,9 @@ struct Options {
     // halving every 5; the study before them used 50 and 10).
     int waving_frames = cf::kTracksWavingFrames;
     double half_life_frames = cf::kTracksHalfLifeFrames;
-    double static_weight = 1.0;  // the static drape's frame against a waving frame's full weight
+    // The static drape's frame against a waving frame's full weight (unset:
+    // fit cloth's default, a drape counting as much as a waving test).
+    std::optional<double> static_weight;
     // A floor on the fitted bending stiffness (N m), 0: the fit's own range.
     // Folds much finer than the mesh make a drape mesh-dependent; a floor
     // trades reach for a preset that is the same fabric on any mesh.
@@ -217,12 +219,12 @@ cf::ClothFitSettings fit_settings() {
 }
 
 // What the fits (and --score) read: the trials' frames and weights.
-cf::TrialLoadSettings training_load(const Options& o) {
+cf::TrialLoadSettings training_load(const Options& o, const std::vector<ff::Capture>& captures) {
     cf::TrialLoadSettings load;
     load.target = o.fit_to;
     load.half_life_frames = o.half_life_frames;  // late, chaotic frames count less
     load.waving_frames = o.waving_frames;
-    load.static_weight = o.static_weight;
+    load.static_weight = o.static_weight.value_or(cf::default_static_weight(load, captures));
     load.scan_outside.max_px = o.outside_band_px;
     return load;
 }
@@ -421,9 +423,10 @@ int main(int argc, char** argv) {
                         "  [--evaluations 400[,800]] [--captures DIR (cloth-<fabric>-static-1, -waving-1, -waving-2)]\n"
                         "  [--threads 2] [--seed 1] [--scratch DIR] [--json FILE] [--blender PATH | --no-blender]\n"
                         "  [--blender-grids 12,24,48] [--no-resolution] [--nested-from EARLIER.json]\n"
-                        "  [--waving-frames 20] [--half-life 5] [--static-weight 1] (the waving trial's fitted frames,\n"
-                        "   their weights' half-life after the first 10, the static drape's weight; predictions always\n"
-                        "   cover the whole held-out trial)\n"
+                        "  [--waving-frames 20] [--half-life 5] [--static-weight W] (the waving trial's fitted frames,\n"
+                        "   their weights' half-life after the first 10, the static drape's weight -- default: as much\n"
+                        "   as the waving trial's frames together, as fit cloth's; predictions always cover the whole\n"
+                        "   held-out trial)\n"
                         "  [--min-bending N_m] (a floor on the fitted bending stiffness; default: the fit's range)\n"
                         "  [--outside-band 16] (scan fits: background pixels this near the swatch's outline count\n"
                         "   against a simulation covering them; 0: off)\n"
@@ -479,7 +482,7 @@ int main(int argc, char** argv) {
         std::printf("\n### %s: fit %s + %s to %s, predict %s%s\n\n", fabric.c_str(), static1.c_str(), waving1.c_str(),
                     cf::fit_target_name(o.fit_to), waving2.c_str(), has_static2 ? (" and " + static2).c_str() : "");
         if (!o.score.empty()) {
-            const cf::TrialLoadSettings load = training_load(o);
+            const cf::TrialLoadSettings load = training_load(o, training_captures());
             std::vector<cf::ClothTrial> trials = cf::load_trials(training_captures(), load);
             const std::vector<cf::FittedParameter> parameters = cf::parameters_for(trials, cf::DragModel::nonlinear);
             cf::ClothFitSettings settings = fit_settings();
@@ -565,7 +568,7 @@ int main(int argc, char** argv) {
                 cf::ClothFitRequest request;
                 request.name = fabric + " " + variant;
                 request.captures = training_captures();
-                request.load = training_load(o);
+                request.load = training_load(o, request.captures);
                 request.problem = fit_settings();
                 request.parameters = variant_parameters(variant);
                 request.min_bending_N_m = o.min_bending_N_m;

@@ -20,6 +20,7 @@
 #include <chrono>
 #include <filesystem>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <ctime>
 #include <initializer_list>
@@ -59,7 +60,8 @@ struct FitClothOptions {
     int frames = 50;               // resolved
     int full_weight_frames = 10;
     double half_life_frames = 10.0;
-    double static_weight = 1.0;  // each static drape against one full-weight waving frame
+    double static_weight = 1.0;  // each static drape against one full-weight waving frame, when given
+    bool static_weight_given = false;  // else cloth_fit::default_static_weight
     double min_bending_N_m = 0.0;  // a floor on the fitted bending (0: its range)
     std::vector<std::string> hold;  // parameters left out of the fit
     std::string start;             // a preset to refine (empty: the middle of the ranges)
@@ -96,7 +98,8 @@ cloth_fit::ClothFitRequest make_request(const FitClothOptions& options, const cl
     request.load.waving_frames = options.frames;
     request.load.full_weight_frames = options.full_weight_frames;
     request.load.half_life_frames = options.half_life_frames;
-    request.load.static_weight = options.static_weight;
+    request.load.static_weight =
+        options.static_weight_given ? options.static_weight : cloth_fit::default_static_weight(request.load, request.captures);
     request.min_bending_N_m = options.min_bending_N_m;
     request.held_parameters = options.hold;
     request.problem.swatch = swatch;
@@ -173,6 +176,12 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
             log_message("comparing the footage's angle maps and silhouettes (the thesis's metric)");
             break;
         case cloth_fit::FitTarget::tracks: log_message("comparing the captures' measured 3D points (RMS distance, mm)"); break;
+    }
+    if (request.load.static_weight != 1.0) {
+        char weight[160];
+        std::snprintf(weight, sizeof weight, "each drape weighs %.3g waving frames%s", request.load.static_weight,
+                      options.static_weight_given ? "" : ", as much as a waving test (--static-weight to change)");
+        log_message(weight);
     }
     if (!options.start.empty()) request.start = cloth::material_from_fabric(formats::read_fabric_preset(options.start).parameters);
     if (sharded) return run_shards(options, global, std::move(request));
@@ -468,9 +477,10 @@ const RegisterFitKind registration{FitKind{
                        "--hold stretch_weft_compression_ratio fits without soft compression, and `flowvid diagnose` "
                        "then names compression_softness if the footage needs it");
         app.add_option("--static-weight", options->static_weight,
-                       "weight of each static drape against one full-weight waving frame")
-            ->check(CLI::NonNegativeNumber)
-            ->capture_default_str();
+                       "weight of each static drape against one full-weight waving frame (default 1; a tracks fit "
+                       "of drapes and waving tests: as much as a waving test's frames together, about 15 at 20 "
+                       "frames, so that each test counts alike)")
+            ->check(CLI::NonNegativeNumber);
         app.add_option("--metric", options->metric, "silhouette term: xor (pixel count) or edge (edge distance, eq. 2.6)")
             ->check(CLI::IsMember({"xor", "edge"}))
             ->capture_default_str();
@@ -524,8 +534,10 @@ const RegisterFitKind registration{FitKind{
         app.add_flag("--json", options->json, "print the summary as JSON");
         CLI::Option* variability_runs = app.get_option("--variability-runs");
         CLI::Option* half_life = app.get_option("--half-life-frames");
-        return [options, variability_runs, half_life](const GlobalOptions& global) {
+        CLI::Option* static_weight = app.get_option("--static-weight");
+        return [options, variability_runs, half_life, static_weight](const GlobalOptions& global) {
             options->variability_runs_given = variability_runs->count() > 0;
+            options->static_weight_given = static_weight->count() > 0;
             if (const std::optional<int> count = resolve_waving_frame_count(options->frame_selection, options->captures))
                 options->frames = *count;
             if (options->frames < 2) throw UsageError("", "", "a fit needs at least 2 waving frames", "give --frame-count 2 or more");

@@ -116,6 +116,7 @@ py::object fit_cloth(const std::vector<std::string>& captures, const std::string
         request.load.waving_frames = cloth_fit::kTracksWavingFrames;
         request.load.half_life_frames = cloth_fit::kTracksHalfLifeFrames;
     }
+    request.load.static_weight = cloth_fit::default_static_weight(request.load, request.captures);
     const std::optional<optim::SearchMethod> method = optim::search_method_from_name(search);
     if (!method) throw Error("<options>", "search", "unknown search '" + search + "'", "use cmaes or annealing");
     request.search = *method;

@@ -12,6 +12,7 @@
 #include <ctime>
 #include <limits>
 #include <numbers>
+#include <numeric>
 #include <stdexcept>
 
 namespace flowvid::cloth_fit {
@@ -285,6 +286,18 @@ double tracks_rms_mm(const ClothTrial& trial, double weighted_error) {
     return weights > 0.0 ? std::sqrt(std::max(0.0, weighted_error) / weights) : 0.0;
 }
 
+double balanced_static_weight(const TrialLoadSettings& load) {
+    const std::vector<double> weights =
+        video::decaying_frame_weights(std::max(load.waving_frames, 1), load.full_weight_frames, load.half_life_frames);
+    return std::accumulate(weights.begin(), weights.end(), 0.0);
+}
+
+double default_static_weight(const TrialLoadSettings& load, const std::vector<formats::Capture>& captures) {
+    const auto is_static = [](const formats::Capture& c) { return c.kind == "cloth.static"; };
+    const bool mixed = std::any_of(captures.begin(), captures.end(), is_static) && !std::all_of(captures.begin(), captures.end(), is_static);
+    return load.target == FitTarget::tracks && mixed ? balanced_static_weight(load) : 1.0;
+}
+
 ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& settings) {
     if (settings.target == FitTarget::tracks) return load_tracks_trial(capture, settings);
     if (settings.target == FitTarget::scan) return load_scan_trial(capture, settings);
@@ -544,7 +557,8 @@ Eigen::VectorXd scanned_first_frame(const ClothTrial& trial, const cloth::Swatch
 }  // namespace
 
 Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::ClothMaterial& material,
-                                     const ClothFitSettings& settings, double* chosen_bow) {
+                                     const ClothFitSettings& settings, double* chosen_bow, Eigen::VectorXd* measured_start) {
+    if (measured_start) measured_start->resize(0);
     cloth::SwatchExperiment equilibrium_only = trial.experiment;
     equilibrium_only.frame_count = 1;
     for (cloth::PinTrajectory& pin : equilibrium_only.pins) pin.positions_m.resize(std::min<std::size_t>(pin.positions_m.size(), 1));
@@ -621,6 +635,10 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
             best_error = error;
             best = run.simulation.frames.front();
             if (chosen_bow) *chosen_bow = candidate.bow;
+            if (measured_start) {
+                if (candidate.measured && !trial.scan) *measured_start = options.initial_positions;
+                else measured_start->resize(0);
+            }
         }
     }
     return best;
@@ -651,8 +669,18 @@ ClothFitProblem::ClothFitProblem(std::vector<ClothTrial> trials, std::vector<Fit
     m_space = optim::ParameterSpace(space);
     m_warm_starts.resize(m_trials.size());
     if (m_settings.warm_start)
-        for (std::size_t i = 0; i < m_trials.size(); ++i)
-            m_warm_starts[i] = matching_equilibrium(m_trials[i], m_settings.base, m_settings);
+        for (std::size_t i = 0; i < m_trials.size(); ++i) {
+            // A trial whose first frame was measured in 3D starts every
+            // simulation's equilibrium solve there, so that each fabric
+            // settles into the equilibrium nearest what was seen -- the one
+            // its prediction starts from. The base fabric's own equilibrium
+            // from there is a different fold (silk static-1: the fitted
+            // fabric settled from it 8.6 mm from the truth, from the measured
+            // shape 5.5 mm), and the fit would tune the wrong drape.
+            Eigen::VectorXd measured;
+            m_warm_starts[i] = matching_equilibrium(m_trials[i], m_settings.base, m_settings, nullptr, &measured);
+            if (m_settings.warm_start_from_measurement && measured.size() > 0) m_warm_starts[i] = std::move(measured);
+        }
 }
 
 cloth::ClothMaterial ClothFitProblem::material(const Eigen::VectorXd& values) const {

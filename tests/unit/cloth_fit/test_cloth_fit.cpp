@@ -5,7 +5,12 @@
 // Halton start + annealing, to within 10 %, with the error at the optimum at
 // the noise floor.
 
+#include "flowvid/cloth/material.hpp"
+#include "flowvid/cloth/swatch.hpp"
+#include "flowvid/cloth/swatch_output.hpp"
+#include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/optim/annealing.hpp"
+#include "flowvid/cloth_fit/cloth_eval.hpp"
 #include "flowvid/cloth_fit/cloth_fit.hpp"
 #include "flowvid/cloth_fit/fit_cloth.hpp"
 #include "flowvid/video/stripe_render.hpp"
@@ -301,6 +306,69 @@ TEST(ClothFit, RecoversStretchAndBendFromSynthetic3dTracks) {
     EXPECT_LE(rms, 1.5 * tracks_rms_mm(problem.trials()[0], floor) + 0.2);
     EXPECT_GT(tracks_rms_mm(problem.trials()[0], problem.evaluate(settings.base).total), 5.0 * rms)
         << "the base material must be far off for the recovery to mean anything";
+}
+
+TEST(ClothFit, ATracksFitScoresTheDrapeItsPredictionStartsFrom) {
+    // Hung silk this floppy has many equilibria. A prediction settles a
+    // fabric into the one nearest the measured first frame; the fit must
+    // score that same drape. Settled instead from the base fabric's own
+    // equilibrium, a fabric lands in another fold and the fit tunes a drape
+    // no prediction shows. The measured shape here is the capture's truth,
+    // handed over as tracks in memory as the capacity study does (never to a
+    // footage fit).
+    const formats::Capture drape = capture("cloth-silk-static-1");
+    ClothTrial trial;
+    trial.name = "silk drape";
+    trial.is_static = true;
+    trial.experiment = cloth::experiment_from_capture(drape);
+    trial.experiment.frame_count = 1;
+    for (cloth::PinTrajectory& pin : trial.experiment.pins) pin.positions_m.resize(1);
+    trial.frames.resize(1);
+    trial.frames[0].number = 1;
+    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(drape);
+    TrackReference tracks;
+    tracks.rows = *truth.grid_rows;
+    tracks.cols = *truth.grid_cols;
+    tracks.missing_frame_error_mm2 = 1e5;
+    tracks.positions_m.push_back(cloth::grid_frames_of(truth).front());
+    trial.tracks = tracks;
+
+    ClothFitSettings settings;
+    settings.swatch.simulation.integrator = cloth::Integrator::implicit_euler;
+    settings.candidate_bows = {1.0};  // and the measured shape
+    settings.base = middle_of_ranges(settings.base, capacity_terms(true, DragModel::nonlinear));
+    const cloth::ClothMaterial silk =
+        cloth::material_from_fabric(formats::read_fabric_preset(flowvid::testing::source_path("tests/data/cloth/silk.fabric.json")).parameters);
+
+    const double predicted = assess_trial(trial, silk, settings, std::nullopt, nullptr).frames.at(0).total;
+    const ClothFitProblem problem({trial}, {{"bend_stiffness_N_m", 1e-9, 1e-4, true}}, settings);
+    const double scored = problem.evaluate(silk).trials.at(0).error;
+    settings.warm_start_from_measurement = false;
+    const double from_base = ClothFitProblem({trial}, {{"bend_stiffness_N_m", 1e-9, 1e-4, true}}, settings).evaluate(silk).trials.at(0).error;
+    std::printf("[measured] silk drape, mean square distance: predicted %.1f mm^2, scored by the fit %.1f, settled from the "
+                "base fabric's equilibrium %.1f\n",
+                predicted, scored, from_base);
+    EXPECT_NEAR(scored, predicted, 1e-6 * predicted);
+    EXPECT_GT(std::abs(from_base - predicted), 0.03 * predicted) << "the two starts must differ for the check to mean anything";
+}
+
+TEST(ClothFit, ATracksFitWeighsEachDrapeAsMuchAsAWavingTest) {
+    TrialLoadSettings load;
+    load.target = FitTarget::tracks;
+    load.waving_frames = 20;
+    load.full_weight_frames = 10;
+    load.half_life_frames = 5.0;
+    // Ten frames of weight 1, then 2^(-j/5) for j = 1..10: a geometric sum.
+    const double ratio = std::pow(2.0, -0.2);
+    const double expected = 10.0 + ratio * (1.0 - std::pow(ratio, 10)) / (1.0 - ratio);
+    EXPECT_NEAR(balanced_static_weight(load), expected, 1e-12);
+    const std::vector<formats::Capture> both = {capture("cloth-silk-static-1"), capture("cloth-silk-waving-1")};
+    EXPECT_NEAR(default_static_weight(load, both), expected, 1e-12);
+    EXPECT_EQ(default_static_weight(load, {capture("cloth-silk-static-1")}), 1.0) << "a drape alone has nothing to balance";
+    load.target = FitTarget::scan;
+    EXPECT_EQ(default_static_weight(load, both), 1.0);
+    load.target = FitTarget::footage;
+    EXPECT_EQ(default_static_weight(load, both), 1.0);
 }
 
 namespace {

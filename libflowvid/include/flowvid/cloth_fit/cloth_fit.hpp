@@ -193,6 +193,20 @@ struct TrialLoadSettings {
     video::SilhouetteTerm silhouette_term = video::SilhouetteTerm::pixel_xor;  // prepares edge distances when needed
 };
 
+// The static-drape weight at which a drape counts as much as a waving trial:
+// the sum of the weights of `load`'s waving frames (about 15 for 20 frames
+// halving every 5 after 10).
+double balanced_static_weight(const TrialLoadSettings& load);
+
+// fit cloth's static weight unless one is given: balanced for a tracks fit
+// of drapes and waving tests together -- at one frame against a waving
+// trial's fifteen, the drape was traded for the waving trial's chaotic later
+// frames (silk static-1 fitted 5.8 mm from its tracks, balanced 4.5-4.9;
+// docs/cloth_model.md) -- and 1 otherwise: the scan and angle-map defaults
+// are measured at 1 (docs/cloth_fitting.md), and a drape alone has nothing
+// to balance.
+double default_static_weight(const TrialLoadSettings& load, const std::vector<formats::Capture>& captures);
+
 // Reads a cloth capture's footage (or, for FitTarget::tracks, its tracks)
 // into a trial. Throws what ClothFootage and the capture readers throw
 // (ValidationError naming capture.json fields; "/tracks" for a tracks fit of
@@ -204,6 +218,10 @@ struct ClothFitSettings {
     video::AngleMapMetricSettings metric;
     cloth::ClothMaterial base;                // values of the parameters that are not fitted
     bool warm_start = true;                   // equilibria start from the base material's (computed once)
+    // ... or, for a trial whose first frame is measured in 3D (tracks) and
+    // matches best, from that measured shape itself. (Not a scan's: settling
+    // from its noisy depth took twice the time an evaluation.)
+    bool warm_start_from_measurement = true;
     // Hung cloth has several equilibria (the slack between the pins bows to
     // the front or the back, or folds): the base material's equilibrium is
     // solved from each of these bows and the one whose first frame matches
@@ -306,9 +324,12 @@ ClothTrial simulated_trial(const ClothTrial& trial, const cloth::SwatchRun& run,
 
 // The base material's equilibrium of a trial, from the candidate bow whose
 // first frame matches the trial's footage best (the thesis takes the initial
-// state from the footage, too). Empty when no candidate converged.
+// state from the footage, too). Empty when no candidate converged. With
+// `measured_start`: the measured first frame on the mesh when the winning
+// solve began there (a tracks trial's measured candidate), else empty.
 Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::ClothMaterial& material,
-                                     const ClothFitSettings& settings, double* chosen_bow = nullptr);
+                                     const ClothFitSettings& settings, double* chosen_bow = nullptr,
+                                     Eigen::VectorXd* measured_start = nullptr);
 
 // E_k when a simulation produced no frame k (it blew up): every masked pixel
 // off by pi/2 and the silhouette term as if the swatch were missing.
