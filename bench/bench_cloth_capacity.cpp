@@ -307,38 +307,37 @@ Eigen::MatrixX3d resample(const Eigen::MatrixX3d& grid, int rows, int cols, int 
     return out;
 }
 
-// Blender's cloth with `preset_capture`'s preset on `capture`'s experiment at
-// a grid x grid mesh, started from the truth's first frame and settled for
-// 100 frames with the pins held, then driven by the pins; read back at the
-// truth's grid. Cached by its arguments. Empty on failure (printed).
-std::vector<double> blender_rms(const Options& o, const std::string& capture_name, const std::string& preset_capture,
-                                int grid, const fs::path& scratch) {
-    const ff::Capture capture = ff::read_capture(shared_capture(capture_name));
-    const ff::VertexAnimation truth = *ff::read_capture_truth_positions(capture);
-    const int rows = *truth.grid_rows, cols = *truth.grid_cols;
-    const fc::GridFrames real = fc::grid_frames_of(truth);
+// One Blender run of `preset_capture`'s preset on `capture_name`'s experiment
+// at a grid x grid mesh, `frames` frames after its preroll: from the flat
+// hanging swatch (its pins sliding in, as the captures were made) or, with
+// `start`, from those positions with the pins held. With `vertex_mass` > 0
+// that per-vertex mass instead of the preset's. Cached in the scratch folder
+// by `key`. Empty on failure (printed).
+fc::GridFrames blender_run(const Options& o, const std::string& capture_name, const std::string& preset_capture, int grid,
+                           int frames, const std::optional<Eigen::MatrixX3d>& start, double vertex_mass, const std::string& key,
+                           const fs::path& scratch) {
     const fs::path folder = scratch / "blender";
     fs::create_directories(folder);
-    const std::string key = capture_name + "_" + preset_capture + "_" + std::to_string(grid);
-    const fs::path start = folder / (key + ".start.raw"), positions = folder / (key + ".positions.raw");
-    const int frames = capture.kind == "cloth.static" ? 2 : capture.frames.count;
+    const fs::path start_file = folder / (key + ".start.raw"), positions = folder / (key + ".positions.raw");
     if (!fs::exists(positions)) {
-        const Eigen::MatrixX3d first = resample(real.front(), rows, cols, grid, grid);
-        {
-            std::ofstream out(start, std::ios::binary);
-            for (Eigen::Index i = 0; i < first.rows(); ++i)
-                for (int k = 0; k < 3; ++k) {
-                    const double value = first(i, k);
-                    out.write(reinterpret_cast<const char*>(&value), sizeof value);
-                }
-        }
         std::ostringstream cmd;
         cmd << o.blender << " -b --factory-startup -noaudio -t " << o.threads << " --python \"" << FLOWVID_SOURCE_DIR
             << "/bench/blender_cloth_swatch.py\" -- --capture \"" << shared_capture(capture_name) << "\" --preset-from \""
-            << shared_capture(preset_capture) << "\" --rows " << grid << " --cols " << grid << " --frames " << frames
-            << " --quality 10 --preroll 100 --start-positions \"" << start.string() << "\" --positions-out \""
-            << positions.string() << ".part\" > \"" << (folder / (key + ".log")).string() << "\" 2>&1";
-        std::fprintf(stderr, "  blender: %s at %dx%d with %s's preset\n", capture_name.c_str(), grid, grid, preset_capture.c_str());
+            << shared_capture(preset_capture) << "\" --rows " << grid << " --cols " << grid << " --frames " << frames;
+        if (start) {
+            std::ofstream out(start_file, std::ios::binary);
+            for (Eigen::Index i = 0; i < start->rows(); ++i)
+                for (int k = 0; k < 3; ++k) {
+                    const double value = (*start)(i, k);
+                    out.write(reinterpret_cast<const char*>(&value), sizeof value);
+                }
+            cmd << " --quality 10 --preroll 100 --start-positions \"" << start_file.string() << "\"";
+        } else {
+            cmd << " --quality 5";  // the captures' own quality, preroll and slide
+        }
+        if (vertex_mass > 0.0) cmd << " --vertex-mass " << vertex_mass;
+        cmd << " --positions-out \"" << positions.string() << ".part\" > \"" << (folder / (key + ".log")).string() << "\" 2>&1";
+        std::fprintf(stderr, "  blender: %s\n", key.c_str());
         if (std::system(cmd.str().c_str()) != 0 || !fs::exists(positions.string() + ".part")) {
             std::fprintf(stderr, "  blender run failed (log: %s)\n", (folder / (key + ".log")).string().c_str());
             return {};
@@ -349,16 +348,61 @@ std::vector<double> blender_rms(const Options& o, const std::string& capture_nam
     std::vector<double> values;
     for (double v; in.read(reinterpret_cast<char*>(&v), sizeof v);) values.push_back(v);
     const std::size_t per_frame = static_cast<std::size_t>(3 * grid * grid);
-    if (values.size() < per_frame) return {};
-    fc::GridFrames simulated;
+    fc::GridFrames run;
     for (std::size_t f = 0; f * per_frame + per_frame <= values.size() && static_cast<int>(f) < frames; ++f) {
         Eigen::MatrixX3d g(grid * grid, 3);
         for (int i = 0; i < grid * grid; ++i)
             for (int k = 0; k < 3; ++k) g(i, k) = values[f * per_frame + static_cast<std::size_t>(3 * i + k)];
-        simulated.push_back(resample(g, grid, grid, rows, cols));
+        run.push_back(g);
     }
+    return run;
+}
+
+// Blender's cloth with `preset_capture`'s preset on `capture`'s experiment at
+// a grid x grid mesh, started from the truth's first frame and settled for
+// 100 frames with the pins held, then driven by the pins; its RMS distance to
+// the truth per frame, read back at the truth's grid. Empty on failure.
+std::vector<double> blender_rms(const Options& o, const std::string& capture_name, const std::string& preset_capture,
+                                int grid, const fs::path& scratch) {
+    const ff::Capture capture = ff::read_capture(shared_capture(capture_name));
+    const ff::VertexAnimation truth = *ff::read_capture_truth_positions(capture);
+    const int rows = *truth.grid_rows, cols = *truth.grid_cols;
+    const fc::GridFrames real = fc::grid_frames_of(truth);
+    const int frames = capture.kind == "cloth.static" ? 2 : capture.frames.count;
+    const std::string key = capture_name + "_" + preset_capture + "_" + std::to_string(grid);
+    const fc::GridFrames run =
+        blender_run(o, capture_name, preset_capture, grid, frames, resample(real.front(), rows, cols, grid, grid), 0.0, key, scratch);
+    if (run.empty()) return {};
+    fc::GridFrames simulated;
+    for (const Eigen::MatrixX3d& g : run) simulated.push_back(resample(g, grid, grid, rows, cols));
     const fc::GridFrames compared(real.begin(), real.begin() + static_cast<std::ptrdiff_t>(simulated.size()));
     return fc::rms_distance_per_frame_m(simulated, compared);
+}
+
+// Blender's own drape of `capture_name` with its own preset at a grid x grid
+// mesh, at the 12 x 12 uv points where the drape test compares meshes: from
+// the hanging start (as the captures were made) or from the measured first
+// frame, with the preset's per-vertex mass or with the 24 x 24 swatch's total
+// mass held. How far Blender's fabric itself is from one mesh to another.
+std::optional<Eigen::MatrixX3d> blender_drape_at(const Options& o, const std::string& capture_name, int grid, bool measured_start,
+                                                 bool hold_total_mass, const fs::path& scratch) {
+    const ff::Capture capture = ff::read_capture(shared_capture(capture_name));
+    const ff::VertexAnimation truth = *ff::read_capture_truth_positions(capture);
+    const int rows = *truth.grid_rows, cols = *truth.grid_cols;
+    double vertex_mass = 0.0;
+    if (hold_total_mass) {
+        std::ifstream in(fs::path(shared_capture(capture_name)) / "truth" / "truth.json");
+        const nlohmann::json t = nlohmann::json::parse(in, nullptr, false);
+        const double preset_mass = t.is_object() ? t.value(nlohmann::json::json_pointer("/blender_preset_values/mass"), 0.3) : 0.3;
+        vertex_mass = preset_mass * rows * cols / (static_cast<double>(grid) * grid);
+    }
+    std::optional<Eigen::MatrixX3d> start;
+    if (measured_start) start = resample(fc::grid_frames_of(truth).front(), rows, cols, grid, grid);
+    const std::string key = capture_name + "_drape_" + std::to_string(grid) + (measured_start ? "_measured" : "_hanging") +
+                            (hold_total_mass ? "_held_mass" : "");
+    const fc::GridFrames run = blender_run(o, capture_name, capture_name, grid, 1, start, vertex_mass, key, scratch);
+    if (run.empty()) return std::nullopt;
+    return resample(run.front(), grid, grid, 12, 12);
 }
 
 void print_row(const std::string& label, const Windows& w) {
@@ -729,6 +773,25 @@ int main(int argc, char** argv) {
                     record[fabric]["blender_static"][std::to_string(grid)] = 1e3 * drape_rms.front();
                 }
             }
+            // Blender's own fabric on other meshes, in the drape test's
+            // measure: the bound on how alike a preset fitted to it can be.
+            for (const std::string& drape : has_static2 ? std::vector<std::string>{static1, static2} : std::vector<std::string>{static1})
+                for (const bool measured : {false, true})
+                    for (const bool held : {false, true}) {
+                        std::map<int, std::optional<Eigen::MatrixX3d>> shapes;
+                        for (const int grid : {12, 24, 48}) shapes[grid] = blender_drape_at(o, drape, grid, measured, held, scratch);
+                        auto max_mm = [&](int a, int b) {
+                            return shapes[a] && shapes[b] ? 1e3 * (*shapes[a] - *shapes[b]).rowwise().norm().maxCoeff() : std::nan("");
+                        };
+                        std::printf("|   Blender's own %s drape from the %s, %s: max at the 12x12 uv points 12x12 vs 24x24 %s, "
+                                    "24x24 vs 48x48 %s mm |\n",
+                                    drape.c_str(), measured ? "measured first frame" : "hanging start",
+                                    held ? "total mass held" : "preset mass per vertex", cell(max_mm(12, 24)).c_str(),
+                                    cell(max_mm(24, 48)).c_str());
+                        record[fabric]["blender_resolution"][drape][std::string(measured ? "measured" : "hanging") +
+                                                                    (held ? "_held_mass" : "")] = {
+                            {"max_12_24_mm", max_mm(12, 24)}, {"max_24_48_mm", max_mm(24, 48)}};
+                    }
             const std::string wrong_preset = "cloth-" + other + "-waving-2";
             const std::vector<double> wrong =
                 fs::exists(shared_capture(wrong_preset)) ? blender_rms(o, waving2, wrong_preset, 24, scratch) : std::vector<double>{};
