@@ -49,6 +49,18 @@ cloth::ClothMaterial cotton() {
     return c;
 }
 
+// A static-drape trial of a capture's experiment, its first frame only,
+// with nothing to compare yet.
+ClothTrial drape_trial(const formats::Capture& c, const std::string& name) {
+    ClothTrial trial;
+    trial.name = name;
+    trial.is_static = true;
+    trial.experiment = cloth::experiment_from_capture(c);
+    trial.experiment.frame_count = 1;
+    for (cloth::PinTrajectory& pin : trial.experiment.pins) pin.positions_m.resize(1);
+    return trial;
+}
+
 }  // namespace
 
 TEST(ClothFit, MaterialKeysAndTies) {
@@ -140,12 +152,7 @@ TEST(ClothFit, FailedSimulationsCostTheLargestError) {
 
 TEST(ClothFit, RecoversStretchAndBendFromSyntheticFootage) {
     const formats::Capture c = capture("cloth-cotton-static-1");
-    ClothTrial trial;
-    trial.name = "synthetic static";
-    trial.is_static = true;
-    trial.experiment = cloth::experiment_from_capture(c);
-    trial.experiment.frame_count = 1;
-    for (cloth::PinTrajectory& pin : trial.experiment.pins) pin.positions_m.resize(1);
+    ClothTrial trial = drape_trial(c, "synthetic static");
     trial.camera = *c.camera;
     trial.projector = *c.projector;
     trial.angle_map = AngleMapSettings::for_stripe_period(expected_stripe_period_px(c));
@@ -317,12 +324,7 @@ TEST(ClothFit, ATracksFitScoresTheDrapeItsPredictionStartsFrom) {
     // handed over as tracks in memory as the capacity study does (never to a
     // footage fit).
     const formats::Capture drape = capture("cloth-silk-static-1");
-    ClothTrial trial;
-    trial.name = "silk drape";
-    trial.is_static = true;
-    trial.experiment = cloth::experiment_from_capture(drape);
-    trial.experiment.frame_count = 1;
-    for (cloth::PinTrajectory& pin : trial.experiment.pins) pin.positions_m.resize(1);
+    ClothTrial trial = drape_trial(drape, "silk drape");
     trial.frames.resize(1);
     trial.frames[0].number = 1;
     const formats::VertexAnimation truth = *formats::read_capture_truth_positions(drape);
