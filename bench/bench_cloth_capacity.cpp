@@ -310,11 +310,12 @@ Eigen::MatrixX3d resample(const Eigen::MatrixX3d& grid, int rows, int cols, int 
 // One Blender run of `preset_capture`'s preset on `capture_name`'s experiment
 // at a grid x grid mesh, `frames` frames after its preroll: from the flat
 // hanging swatch (its pins sliding in, as the captures were made) or, with
-// `start`, from those positions with the pins held. With `vertex_mass` > 0
-// that per-vertex mass instead of the preset's. Cached in the scratch folder
-// by `key`. Empty on failure (printed).
+// `start`, from those positions with the pins held. With `mass_of_grid` > 0
+// the swatch weighs what the preset gives it on that grid (the per-vertex
+// mass scaled), else the preset's mass per vertex. Cached in the scratch
+// folder by `key`. Empty on failure (printed).
 fc::GridFrames blender_run(const Options& o, const std::string& capture_name, const std::string& preset_capture, int grid,
-                           int frames, const std::optional<Eigen::MatrixX3d>& start, double vertex_mass, const std::string& key,
+                           int frames, const std::optional<Eigen::MatrixX3d>& start, int mass_of_grid, const std::string& key,
                            const fs::path& scratch) {
     const fs::path folder = scratch / "blender";
     fs::create_directories(folder);
@@ -335,7 +336,7 @@ fc::GridFrames blender_run(const Options& o, const std::string& capture_name, co
         } else {
             cmd << " --quality 5";  // the captures' own quality, preroll and slide
         }
-        if (vertex_mass > 0.0) cmd << " --vertex-mass " << vertex_mass;
+        if (mass_of_grid > 0) cmd << " --mass-of-grid " << mass_of_grid;
         cmd << " --positions-out \"" << positions.string() << ".part\" > \"" << (folder / (key + ".log")).string() << "\" 2>&1";
         std::fprintf(stderr, "  blender: %s\n", key.c_str());
         if (std::system(cmd.str().c_str()) != 0 || !fs::exists(positions.string() + ".part")) {
@@ -371,7 +372,7 @@ std::vector<double> blender_rms(const Options& o, const std::string& capture_nam
     const int frames = capture.kind == "cloth.static" ? 2 : capture.frames.count;
     const std::string key = capture_name + "_" + preset_capture + "_" + std::to_string(grid);
     const fc::GridFrames run =
-        blender_run(o, capture_name, preset_capture, grid, frames, resample(real.front(), rows, cols, grid, grid), 0.0, key, scratch);
+        blender_run(o, capture_name, preset_capture, grid, frames, resample(real.front(), rows, cols, grid, grid), 0, key, scratch);
     if (run.empty()) return {};
     fc::GridFrames simulated;
     for (const Eigen::MatrixX3d& g : run) simulated.push_back(resample(g, grid, grid, rows, cols));
@@ -389,20 +390,19 @@ std::optional<Eigen::MatrixX3d> blender_drape_at(const Options& o, const std::st
     const ff::Capture capture = ff::read_capture(shared_capture(capture_name));
     const ff::VertexAnimation truth = *ff::read_capture_truth_positions(capture);
     const int rows = *truth.grid_rows, cols = *truth.grid_cols;
-    double vertex_mass = 0.0;
-    if (hold_total_mass) {
-        std::ifstream in(fs::path(shared_capture(capture_name)) / "truth" / "truth.json");
-        const nlohmann::json t = nlohmann::json::parse(in, nullptr, false);
-        const double preset_mass = t.is_object() ? t.value(nlohmann::json::json_pointer("/blender_preset_values/mass"), 0.3) : 0.3;
-        vertex_mass = preset_mass * rows * cols / (static_cast<double>(grid) * grid);
-    }
     std::optional<Eigen::MatrixX3d> start;
     if (measured_start) start = resample(fc::grid_frames_of(truth).front(), rows, cols, grid, grid);
     const std::string key = capture_name + "_drape_" + std::to_string(grid) + (measured_start ? "_measured" : "_hanging") +
                             (hold_total_mass ? "_held_mass" : "");
-    const fc::GridFrames run = blender_run(o, capture_name, capture_name, grid, 1, start, vertex_mass, key, scratch);
+    const fc::GridFrames run = blender_run(o, capture_name, capture_name, grid, 1, start, hold_total_mass ? rows : 0, key, scratch);
     if (run.empty()) return std::nullopt;
     return resample(run.front(), grid, grid, 12, 12);
+}
+
+// Largest distance (mm) between two meshes' drapes sampled at the same uv
+// points; NaN when either run failed.
+double max_distance_mm(const std::optional<Eigen::MatrixX3d>& a, const std::optional<Eigen::MatrixX3d>& b) {
+    return a && b ? 1e3 * (*a - *b).rowwise().norm().maxCoeff() : std::nan("");
 }
 
 void print_row(const std::string& label, const Windows& w) {
@@ -526,8 +526,9 @@ int main(int argc, char** argv) {
         std::printf("\n### %s: fit %s + %s to %s, predict %s%s\n\n", fabric.c_str(), static1.c_str(), waving1.c_str(),
                     cf::fit_target_name(o.fit_to), waving2.c_str(), has_static2 ? (" and " + static2).c_str() : "");
         if (!o.score.empty()) {
-            const cf::TrialLoadSettings load = training_load(o, training_captures());
-            std::vector<cf::ClothTrial> trials = cf::load_trials(training_captures(), load);
+            const std::vector<ff::Capture> captures = training_captures();
+            const cf::TrialLoadSettings load = training_load(o, captures);
+            std::vector<cf::ClothTrial> trials = cf::load_trials(captures, load);
             const std::vector<cf::FittedParameter> parameters = cf::parameters_for(trials, cf::DragModel::nonlinear);
             cf::ClothFitSettings settings = fit_settings();
             settings.base = cf::middle_of_ranges(settings.base, parameters);  // as the fit's (its warm start)
@@ -749,9 +750,7 @@ int main(int argc, char** argv) {
             for (const std::string& drape : has_static2 ? std::vector<std::string>{static1, static2} : std::vector<std::string>{static1}) {
                 std::map<int, std::optional<Eigen::MatrixX3d>> shapes;
                 for (const int rows : {12, 24, 48}) shapes[rows] = equilibrium_drape_at(drape, *last_fitted, rows);
-                auto max_mm = [&](int a, int b) {
-                    return shapes[a] && shapes[b] ? 1e3 * (*shapes[a] - *shapes[b]).rowwise().norm().maxCoeff() : std::nan("");
-                };
+                auto max_mm = [&](int a, int b) { return max_distance_mm(shapes[a], shapes[b]); };
                 std::printf("|   resolution, %s drape from its equilibrium: max at the 12x12 uv points 12x12 vs 24x24 %s, "
                             "24x24 vs 48x48 %s mm |\n",
                             drape.c_str(), cell(max_mm(12, 24)).c_str(), cell(max_mm(24, 48)).c_str());
@@ -780,9 +779,7 @@ int main(int argc, char** argv) {
                     for (const bool held : {false, true}) {
                         std::map<int, std::optional<Eigen::MatrixX3d>> shapes;
                         for (const int grid : {12, 24, 48}) shapes[grid] = blender_drape_at(o, drape, grid, measured, held, scratch);
-                        auto max_mm = [&](int a, int b) {
-                            return shapes[a] && shapes[b] ? 1e3 * (*shapes[a] - *shapes[b]).rowwise().norm().maxCoeff() : std::nan("");
-                        };
+                        auto max_mm = [&](int a, int b) { return max_distance_mm(shapes[a], shapes[b]); };
                         std::printf("|   Blender's own %s drape from the %s, %s: max at the 12x12 uv points 12x12 vs 24x24 %s, "
                                     "24x24 vs 48x48 %s mm |\n",
                                     drape.c_str(), measured ? "measured first frame" : "hanging start",
