@@ -19,7 +19,7 @@
 //                                [--evaluations 400[,800]] [--threads 2] [--seed 1]
 //                                [--scratch DIR] [--json FILE]
 //                                [--blender PATH | --no-blender] [--blender-grids 12,24,48] [--no-resolution]
-//                                [--nested-from EARLIER.json] [--min-bending N_m] [--fit-to tracks|scan|footage]
+//                                [--nested-from EARLIER.json] [--min-bending N_m] [--fit-to tracks|scan|footage] [--resolution-of PRESET]
 //                                [--search annealing|cmaes]
 //
 // --fit-to scan or footage fits the footage alone (the shared captures, not
@@ -97,6 +97,9 @@ struct Options {
     // Folds much finer than the mesh make a drape mesh-dependent; a floor
     // trades reach for a preset that is the same fabric on any mesh.
     double min_bending_N_m = 0.0;
+    // A preset whose mesh agreement to check instead of the last fitted one
+    // (with --variants "" no fit runs; one fabric at a time).
+    std::string resolution_of;
     // A scan fit's background band (px from the footage's outline; 0: off).
     double outside_band_px = cf::ScanOutsideBand{}.max_px;
     // Presets to score on the fit's own training objective instead of
@@ -405,6 +408,23 @@ double max_distance_mm(const std::optional<Eigen::MatrixX3d>& a, const std::opti
     return a && b ? 1e3 * (*a - *b).rowwise().norm().maxCoeff() : std::nan("");
 }
 
+// Root mean square of the same distances (the captures README's measure of
+// Blender's own mesh dependence); NaN when either run failed.
+double rms_distance_mm(const std::optional<Eigen::MatrixX3d>& a, const std::optional<Eigen::MatrixX3d>& b) {
+    return a && b ? 1e3 * std::sqrt((*a - *b).rowwise().squaredNorm().mean()) : std::nan("");
+}
+
+// One drape on three meshes, compared at the same uv points: printed after
+// `label` and recorded under `record` (max and RMS, mm).
+void report_mesh_agreement(const std::string& label, std::map<int, std::optional<Eigen::MatrixX3d>>& shapes, nlohmann::json& record) {
+    auto max_mm = [&](int a, int b) { return max_distance_mm(shapes[a], shapes[b]); };
+    auto rms_mm = [&](int a, int b) { return rms_distance_mm(shapes[a], shapes[b]); };
+    std::printf("|   %s: at the 12x12 uv points, max / RMS, 12x12 vs 24x24 %s / %s, 24x24 vs 48x48 %s / %s mm |\n", label.c_str(),
+                cell(max_mm(12, 24)).c_str(), cell(rms_mm(12, 24)).c_str(), cell(max_mm(24, 48)).c_str(), cell(rms_mm(24, 48)).c_str());
+    record = {{"max_12_24_mm", max_mm(12, 24)}, {"max_24_48_mm", max_mm(24, 48)},
+              {"rms_12_24_mm", rms_mm(12, 24)}, {"rms_24_48_mm", rms_mm(24, 48)}};
+}
+
 void print_row(const std::string& label, const Windows& w) {
     std::printf("| %-46s | %s | %s | %s | %s | %s |\n", label.c_str(), cell(w.frame1).c_str(), cell(w.f1_10).c_str(),
                 cell(w.f11_25).c_str(), cell(w.f26_end).c_str(), cell(w.all).c_str());
@@ -440,6 +460,7 @@ int main(int argc, char** argv) {
         else if (a == "--half-life") o.half_life_frames = std::atof(value().c_str());
         else if (a == "--static-weight") o.static_weight = std::atof(value().c_str());
         else if (a == "--min-bending") o.min_bending_N_m = std::atof(value().c_str());
+        else if (a == "--resolution-of") o.resolution_of = value();
         else if (a == "--outside-band") o.outside_band_px = std::atof(value().c_str());
         else if (a == "--score") o.score = split(value());
         else if (a == "--budget-seconds") o.budget_seconds = std::atof(value().c_str());
@@ -472,6 +493,8 @@ int main(int argc, char** argv) {
                         "   as the waving trial's frames together, as fit cloth's; predictions always cover the whole\n"
                         "   held-out trial)\n"
                         "  [--min-bending N_m] (a floor on the fitted bending stiffness; default: the fit's range)\n"
+                        "  [--resolution-of PRESET] (check this preset on 12x12, 24x24, 48x48 instead of the last fit;\n"
+                        "    with --variants \"\" nothing is fitted)\n"
                         "  [--outside-band 16] (scan fits: background pixels this near the swatch's outline count\n"
                         "   against a simulation covering them; 0: off)\n"
                         "  [--budget-seconds 600] (each fit also ends at this wall-clock time, as fit cloth's)\n"
@@ -723,6 +746,8 @@ int main(int argc, char** argv) {
                     ff::write_file_atomically(o.json, [&](std::ostream& out) { out << record.dump(2) << '\n'; });
             }
         }
+        if (!o.resolution_of.empty())
+            last_fitted = fc::material_from_fabric(ff::read_fabric_preset(o.resolution_of).parameters);
         if (last_fitted && o.check_resolution) {
             // The fitted fabric must be the same fabric on other meshes: its
             // held-out prediction at 12 x 12 and 48 x 48 against 24 x 24.
@@ -748,13 +773,17 @@ int main(int argc, char** argv) {
             // shape: the drape test's comparison (max distance at the 12 x 12
             // uv points; it allows 20 mm between 12x12 and 24x24).
             for (const std::string& drape : has_static2 ? std::vector<std::string>{static1, static2} : std::vector<std::string>{static1}) {
-                std::map<int, std::optional<Eigen::MatrixX3d>> shapes;
-                for (const int rows : {12, 24, 48}) shapes[rows] = equilibrium_drape_at(drape, *last_fitted, rows);
-                auto max_mm = [&](int a, int b) { return max_distance_mm(shapes[a], shapes[b]); };
-                std::printf("|   resolution, %s drape from its equilibrium: max at the 12x12 uv points 12x12 vs 24x24 %s, "
-                            "24x24 vs 48x48 %s mm |\n",
-                            drape.c_str(), cell(max_mm(12, 24)).c_str(), cell(max_mm(24, 48)).c_str());
-                record[fabric]["resolution_equilibrium"][drape] = {{"max_12_24_mm", max_mm(12, 24)}, {"max_24_48_mm", max_mm(24, 48)}};
+                std::map<int, std::optional<Eigen::MatrixX3d>> hanging, measured;
+                for (const int rows : {12, 24, 48}) {
+                    hanging[rows] = equilibrium_drape_at(drape, *last_fitted, rows);
+                    // From the drape's measured shape, as a prediction starts.
+                    const fc::GridFrames run = predict_at(copies[drape], *last_fitted, rows, o.threads);
+                    if (!run.empty()) measured[rows] = resample(run.front(), 24, 24, 12, 12);
+                }
+                report_mesh_agreement("resolution, " + drape + " drape from the hanging start", hanging,
+                                      record[fabric]["resolution_equilibrium"][drape]);
+                report_mesh_agreement("resolution, " + drape + " drape from its measured first frame", measured,
+                                      record[fabric]["resolution_measured"][drape]);
             }
         }
         if (o.run_blender) {
@@ -779,15 +808,12 @@ int main(int argc, char** argv) {
                     for (const bool held : {false, true}) {
                         std::map<int, std::optional<Eigen::MatrixX3d>> shapes;
                         for (const int grid : {12, 24, 48}) shapes[grid] = blender_drape_at(o, drape, grid, measured, held, scratch);
-                        auto max_mm = [&](int a, int b) { return max_distance_mm(shapes[a], shapes[b]); };
-                        std::printf("|   Blender's own %s drape from the %s, %s: max at the 12x12 uv points 12x12 vs 24x24 %s, "
-                                    "24x24 vs 48x48 %s mm |\n",
-                                    drape.c_str(), measured ? "measured first frame" : "hanging start",
-                                    held ? "total mass held" : "preset mass per vertex", cell(max_mm(12, 24)).c_str(),
-                                    cell(max_mm(24, 48)).c_str());
-                        record[fabric]["blender_resolution"][drape][std::string(measured ? "measured" : "hanging") +
-                                                                    (held ? "_held_mass" : "")] = {
-                            {"max_12_24_mm", max_mm(12, 24)}, {"max_24_48_mm", max_mm(24, 48)}};
+                        report_mesh_agreement("Blender's own " + drape + " drape from the " +
+                                                  (measured ? "measured first frame" : "hanging start") + ", " +
+                                                  (held ? "total mass held" : "preset mass per vertex"),
+                                              shapes,
+                                              record[fabric]["blender_resolution"][drape][std::string(measured ? "measured" : "hanging") +
+                                                                                         (held ? "_held_mass" : "")]);
                     }
             const std::string wrong_preset = "cloth-" + other + "-waving-2";
             const std::vector<double> wrong =
