@@ -48,6 +48,26 @@ bool have_capture(const std::string& name) {
     return std::filesystem::exists(ft::shared_path("captures/" + name + "/capture.json"));
 }
 
+// An equilibrium checked independently of the solver's own bookkeeping: the
+// largest net force on a free vertex as a fraction of its weight, and the
+// vertical force the pins hold (their reactions).
+struct EquilibriumCheck {
+    double worst_residual_over_weight = 0.0;
+    double pin_reaction_up_N = 0.0;
+};
+
+EquilibriumCheck check_equilibrium(fc::ClothModel& model, const fc::Swatch& s, const Eigen::VectorXd& x) {
+    Eigen::VectorXd f;
+    model.evaluate(x, Eigen::VectorXd::Zero(x.size()), 0.0, fc::ForceTerm::all, f);
+    EquilibriumCheck check;
+    for (int i = 0; i < model.vertex_count(); ++i)
+        if (!s.pinned[static_cast<size_t>(i)])
+            check.worst_residual_over_weight =
+                std::max(check.worst_residual_over_weight, f.segment<3>(3 * i).norm() / (model.vertex_masses_kg()(i) * 9.81));
+    for (const fc::PinnedVertex& p : s.pins) check.pin_reaction_up_N -= f(3 * p.vertex + 2);
+    return check;
+}
+
 }  // namespace
 
 TEST(ClothSwatch, StaticEquilibriumHasNoResidualForce) {
@@ -61,18 +81,10 @@ TEST(ClothSwatch, StaticEquilibriumHasNoResidualForce) {
     std::printf("[ measured ] equilibrium: %d Newton iterations, max residual %.3g N = %.3g of a vertex weight\n",
                 r.iterations, r.max_residual_force_N, r.max_residual_over_weight);
     ASSERT_TRUE(r.converged) << r.reason;
-    // Check independently of the solver's own bookkeeping.
-    Eigen::VectorXd f;
-    model.evaluate(x, Eigen::VectorXd::Zero(x.size()), 0.0, fc::ForceTerm::all, f);
-    double worst = 0.0;
-    for (int i = 0; i < model.vertex_count(); ++i)
-        if (!s.pinned[static_cast<size_t>(i)])
-            worst = std::max(worst, f.segment<3>(3 * i).norm() / (model.vertex_masses_kg()(i) * 9.81));
-    EXPECT_LT(worst, 1e-8);
+    const EquilibriumCheck check = check_equilibrium(model, s, x);
+    EXPECT_LT(check.worst_residual_over_weight, 1e-8);
     // The pins hold the weight: their reactions sum to m g.
-    Eigen::Vector3d reaction = Eigen::Vector3d::Zero();
-    for (const fc::PinnedVertex& p : s.pins) reaction -= f.segment<3>(3 * p.vertex);
-    EXPECT_NEAR(reaction.z(), model.total_mass_kg() * 9.81, 1e-6 * model.total_mass_kg() * 9.81);
+    EXPECT_NEAR(check.pin_reaction_up_N, model.total_mass_kg() * 9.81, 1e-6 * model.total_mass_kg() * 9.81);
     for (const fc::PinnedVertex& p : s.pins) EXPECT_EQ((x.segment<3>(3 * p.vertex) - p.path.position(0.0)).norm(), 0.0);
 }
 
@@ -92,16 +104,9 @@ TEST(ClothSwatch, ASoftFittedFabricDrapesFromTheFlatStart) {
                 r.max_residual_over_weight);
     ASSERT_TRUE(r.converged) << r.reason;
     EXPECT_GT(r.iterations, 400);  // the case this test is for
-    Eigen::VectorXd f;
-    model.evaluate(x, Eigen::VectorXd::Zero(x.size()), 0.0, fc::ForceTerm::all, f);
-    double worst = 0.0;
-    for (int i = 0; i < model.vertex_count(); ++i)
-        if (!s.pinned[static_cast<size_t>(i)])
-            worst = std::max(worst, f.segment<3>(3 * i).norm() / (model.vertex_masses_kg()(i) * 9.81));
-    EXPECT_LT(worst, 1e-6);  // the solver's rounding-limit stop allows 100x its 1e-8
-    Eigen::Vector3d reaction = Eigen::Vector3d::Zero();
-    for (const fc::PinnedVertex& p : s.pins) reaction -= f.segment<3>(3 * p.vertex);
-    EXPECT_NEAR(reaction.z(), model.total_mass_kg() * 9.81, 1e-5 * model.total_mass_kg() * 9.81);
+    const EquilibriumCheck check = check_equilibrium(model, s, x);
+    EXPECT_LT(check.worst_residual_over_weight, 1e-6);  // the solver's rounding-limit stop allows 100x its 1e-8
+    EXPECT_NEAR(check.pin_reaction_up_N, model.total_mass_kg() * 9.81, 1e-5 * model.total_mass_kg() * 9.81);
 }
 
 TEST(ClothSwatch, StaticDrapeConvergesWithResolution) {
