@@ -769,9 +769,11 @@ int main(int argc, char** argv) {
             };
             compare(12, 24);
             compare(24, 48);
-            // The drape as a user's simulation makes it, from no measured
-            // shape: the drape test's comparison (max distance at the 12 x 12
-            // uv points; it allows 20 mm between 12x12 and 24x24).
+            // Each drape as a user's simulation makes it (from the hanging
+            // start, no measured shape) and as a prediction starts (from the
+            // measured shape), in the drape test's comparison: distances at
+            // the 12 x 12 uv points; it allows 20 mm max between 12x12 and
+            // 24x24.
             for (const std::string& drape : has_static2 ? std::vector<std::string>{static1, static2} : std::vector<std::string>{static1}) {
                 std::map<int, std::optional<Eigen::MatrixX3d>> hanging, measured;
                 for (const int rows : {12, 24, 48}) {
