@@ -45,8 +45,6 @@ def parse_args():
     p.add_argument("--preset-from", default="",
                    help="optional: another capture whose truth/truth.json preset values to use (a wrong fabric on "
                         "this capture's experiment)")
-    p.add_argument("--vertex-mass", type=float, default=0.0,
-                   help="Blender's per-vertex mass (0: the preset's); to hold the total mass across grids")
     p.add_argument("--mass-of-grid", type=int, default=0,
                    help="scale the preset's per-vertex mass so that the swatch weighs what it does on an N x N grid "
                         "(e.g. 24: the captures' total mass on any mesh); 0: the preset's mass per vertex")
@@ -142,7 +140,7 @@ def main():
     cloth = obj.modifiers.new("cloth", "CLOTH")
     s = cloth.settings
     s.quality = args.quality
-    s.mass = args.vertex_mass if args.vertex_mass > 0 else preset.get("mass", 0.3)
+    s.mass = preset.get("mass", 0.3)
     if args.mass_of_grid > 0:
         s.mass *= args.mass_of_grid ** 2 / (rows * cols)
     s.tension_stiffness = preset.get("tension_stiffness", 15.0)
