@@ -20,7 +20,7 @@
 //                                [--scratch DIR] [--json FILE]
 //                                [--blender PATH | --no-blender] [--blender-grids 12,24,48] [--no-resolution]
 //                                [--nested-from EARLIER.json] [--min-bending N_m] [--fit-to tracks|scan|footage] [--resolution-of PRESET]
-//                                [--search annealing|cmaes]
+//                                [--search annealing|cmaes] [--second-drape-mesh RxC|none]
 //
 // --fit-to scan or footage fits the footage alone (the shared captures, not
 // the scratch copies) and scores its predictions the same way: how close
@@ -97,6 +97,10 @@ struct Options {
     // Folds much finer than the mesh make a drape mesh-dependent; a floor
     // trades reach for a preset that is the same fabric on any mesh.
     double min_bending_N_m = 0.0;
+    // Each static drape also fitted on this mesh (ClothFitSettings'
+    // second drape mesh; 0: none).
+    int second_drape_rows = 0;
+    int second_drape_cols = 0;
     // A preset whose mesh agreement to check instead of the last fitted one
     // (with --variants "" no fit runs; one fabric at a time).
     std::string resolution_of;
@@ -461,6 +465,12 @@ int main(int argc, char** argv) {
         else if (a == "--static-weight") o.static_weight = std::atof(value().c_str());
         else if (a == "--min-bending") o.min_bending_N_m = std::atof(value().c_str());
         else if (a == "--resolution-of") o.resolution_of = value();
+        else if (a == "--second-drape-mesh") {
+            const std::string mesh = value();
+            if (mesh == "none") o.second_drape_rows = o.second_drape_cols = 0;
+            else if (std::sscanf(mesh.c_str(), "%dx%d", &o.second_drape_rows, &o.second_drape_cols) != 2)
+                return usage("--second-drape-mesh takes RxC or none");
+        }
         else if (a == "--outside-band") o.outside_band_px = std::atof(value().c_str());
         else if (a == "--score") o.score = split(value());
         else if (a == "--budget-seconds") o.budget_seconds = std::atof(value().c_str());
@@ -638,6 +648,8 @@ int main(int argc, char** argv) {
                 request.captures = training_captures();
                 request.load = training_load(o, request.captures);
                 request.problem = fit_settings();
+                request.problem.second_drape_rows = o.second_drape_rows;
+                request.problem.second_drape_cols = o.second_drape_cols;
                 request.parameters = variant_parameters(variant);
                 request.min_bending_N_m = o.min_bending_N_m;
                 request.search = o.search;

@@ -166,6 +166,25 @@ TEST(CliClothFit, TracksFitFindsTheFabricThatMadeTheTracks) {
     const flowvid::formats::FabricPreset back = flowvid::formats::read_fabric_preset(dir + "/back.fabric.json");
     EXPECT_EQ(back.provenance.metric, "tracks_mean_square_mm2");
 
+    // A second drape mesh: the drape is also fitted on 6x6, whose error the
+    // total carries beside the trial's own (the tracks came from 8x8, so a
+    // 6x6 drape misses them), and the preset says so.
+    const CliResult both = run_flowvid({"fit", "cloth", "--capture", copy, "--fit-to", "tracks", "--out", dir + "/both.fabric.json",
+                                        "--evaluations", "12", "--variability-runs", "0", "--resolution", "8x8",
+                                        "--second-drape-mesh", "6x6", "--json"});
+    ASSERT_EQ(both.exit_code, 0) << both.err;
+    const nlohmann::json both_summary = nlohmann::json::parse(both.out);
+    EXPECT_EQ(both_summary["second_drape_mesh"], "6x6");
+    const double own_mesh = both_summary["trials"][0]["final_error"].get<double>();
+    EXPECT_GT(both_summary["final_error"].get<double>(), own_mesh + 0.01) << "the 6x6 drape's error is in the total";
+    const flowvid::formats::FabricPreset both_preset = flowvid::formats::read_fabric_preset(dir + "/both.fabric.json");
+    EXPECT_EQ(both_preset.provenance.metric_weights.at("second_drape_mesh_rows"), 6.0);
+    const CliResult bad_mesh = run_flowvid({"fit", "cloth", "--capture", copy, "--fit-to", "tracks", "--out",
+                                            dir + "/bad.fabric.json", "--second-drape-mesh", "6 by 6"});
+    EXPECT_NE(bad_mesh.exit_code, 0);
+    EXPECT_NE(bad_mesh.err.find("--second-drape-mesh"), std::string::npos) << bad_mesh.err;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/bad.fabric.json"));
+
     // A capture without tracks is refused for a tracks fit, naming the field and the way out.
     const CliResult none = run_flowvid({"fit", "cloth", "--capture", source, "--fit-to", "tracks", "--out", dir + "/x.fabric.json"});
     EXPECT_EQ(none.exit_code, 3);

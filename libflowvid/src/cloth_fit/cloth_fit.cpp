@@ -681,6 +681,19 @@ ClothFitProblem::ClothFitProblem(std::vector<ClothTrial> trials, std::vector<Fit
             m_warm_starts[i] = matching_equilibrium(m_trials[i], m_settings.base, m_settings, nullptr, &measured);
             if (m_settings.warm_start_from_measurement && measured.size() > 0) m_warm_starts[i] = std::move(measured);
         }
+    m_second_mesh_warm_starts.resize(m_trials.size());
+    if (m_settings.warm_start && m_settings.has_second_drape_mesh()) {
+        ClothFitSettings second = m_settings;
+        second.swatch.rows = m_settings.second_drape_rows;
+        second.swatch.cols = m_settings.second_drape_cols;
+        for (std::size_t i = 0; i < m_trials.size(); ++i) {
+            if (!has_second_mesh(i)) continue;
+            Eigen::VectorXd measured;
+            m_second_mesh_warm_starts[i] = matching_equilibrium(m_trials[i], second.base, second, nullptr, &measured);
+            if (m_settings.warm_start_from_measurement && measured.size() > 0)
+                m_second_mesh_warm_starts[i] = std::move(measured);
+        }
+    }
 }
 
 cloth::ClothMaterial ClothFitProblem::material(const Eigen::VectorXd& values) const {
@@ -701,6 +714,21 @@ cloth::SwatchRun ClothFitProblem::simulate(std::size_t trial, const cloth::Cloth
     cloth::SwatchOptions options = m_settings.swatch;
     options.simulation.threads = std::max(1, threads);
     if (m_warm_starts[trial].size() > 0) options.initial_positions = m_warm_starts[trial];
+    return cloth::simulate_swatch(m_trials[trial].experiment, material, options);
+}
+
+bool ClothFitProblem::has_second_mesh(std::size_t trial) const {
+    return m_settings.has_second_drape_mesh() && m_trials.at(trial).is_static;
+}
+
+cloth::SwatchRun ClothFitProblem::simulate_second_mesh(std::size_t trial, const cloth::ClothMaterial& material,
+                                                       int threads) const {
+    if (!has_second_mesh(trial)) throw std::logic_error("ClothFitProblem::simulate_second_mesh: the trial has no second mesh");
+    cloth::SwatchOptions options = m_settings.swatch;
+    options.rows = m_settings.second_drape_rows;
+    options.cols = m_settings.second_drape_cols;
+    options.simulation.threads = std::max(1, threads);
+    if (m_second_mesh_warm_starts[trial].size() > 0) options.initial_positions = m_second_mesh_warm_starts[trial];
     return cloth::simulate_swatch(m_trials[trial].experiment, material, options);
 }
 
@@ -732,9 +760,14 @@ ClothEvaluation ClothFitProblem::evaluate(const cloth::ClothMaterial& material, 
         e.simulated_frames = usable_frames(run);
         e.frames = compare_run(m_trials[t], run, m_settings.metric);
         for (std::size_t k = 0; k < e.frames.size(); ++k) e.error += m_trials[t].frames[k].weight * e.frames[k].total;
+        if (!has_second_mesh(t)) return;
+        const cloth::SwatchRun second = simulate_second_mesh(t, material, simulation_threads);
+        const std::vector<video::FrameError> frames = compare_run(m_trials[t], second, m_settings.metric);
+        for (std::size_t k = 0; k < frames.size(); ++k) e.second_mesh_error += m_trials[t].frames[k].weight * frames[k].total;
     };
     for_each_trial(threads, one);
-    for (const TrialEvaluation& e : out.trials) out.total += e.error;  // in trial order: thread-independent
+    // In trial order: thread-independent.
+    for (const TrialEvaluation& e : out.trials) out.total += e.error + e.second_mesh_error;
     return out;
 }
 
@@ -771,40 +804,50 @@ void append_scan_residuals(const ClothTrial& trial, const cloth::SwatchRun& run,
 
 }  // namespace
 
+namespace {
+
+// sqrt(w_k / n_k) (simulated - measured) per seen point and axis of a tracks
+// trial, in mm (see ClothFitProblem::residuals).
+void append_track_residuals(const ClothTrial& trial, const cloth::SwatchRun& run, std::vector<double>& out) {
+    const TrackReference& tracks = *trial.tracks;
+    const int usable = usable_frames(run);
+    const cloth::UvSampler sampler(run.swatch.mesh, tracks.rows, tracks.cols);
+    for (std::size_t k = 0; k < trial.frames.size(); ++k) {
+        const Eigen::MatrixX3d& measured = tracks.positions_m[k];
+        long long seen = 0;
+        for (Eigen::Index i = 0; i < measured.rows(); ++i) seen += measured.row(i).allFinite() ? 1 : 0;
+        if (seen == 0) continue;
+        const double weight = trial.frames[k].weight;
+        const int index = trial.frames[k].number - 1;
+        if (index < 0 || index >= usable) {
+            const double entry = std::sqrt(weight * tracks.missing_frame_error_mm2 / (3.0 * static_cast<double>(seen)));
+            out.insert(out.end(), static_cast<std::size_t>(3 * seen), entry);
+            continue;
+        }
+        const Eigen::MatrixX3d simulated = sampler.sample(run.simulation.frames[static_cast<std::size_t>(index)]);
+        const double scale = 1000.0 * std::sqrt(weight / static_cast<double>(seen));
+        for (Eigen::Index i = 0; i < measured.rows(); ++i) {
+            if (!measured.row(i).allFinite()) continue;
+            for (int c = 0; c < 3; ++c) out.push_back(scale * (simulated(i, c) - measured(i, c)));
+        }
+    }
+}
+
+void append_shape_residuals(const ClothTrial& trial, const cloth::SwatchRun& run, std::vector<double>& out) {
+    if (trial.scan) append_scan_residuals(trial, run, out);
+    else append_track_residuals(trial, run, out);
+}
+
+}  // namespace
+
 Eigen::VectorXd ClothFitProblem::residuals(const cloth::ClothMaterial& material, int threads) const {
     if (!all_measure_shape())
         throw std::logic_error("ClothFitProblem::residuals: only tracks and scan trials have residuals");
     std::vector<std::vector<double>> per_trial(m_trials.size());
     auto one = [&](std::size_t t, int simulation_threads) {
-        const ClothTrial& trial = m_trials[t];
-        const cloth::SwatchRun run = simulate(t, material, simulation_threads);
-        if (trial.scan) {
-            append_scan_residuals(trial, run, per_trial[t]);
-            return;
-        }
-        const TrackReference& tracks = *trial.tracks;
-        const int usable = usable_frames(run);
-        const cloth::UvSampler sampler(run.swatch.mesh, tracks.rows, tracks.cols);
-        std::vector<double>& out = per_trial[t];
-        for (std::size_t k = 0; k < trial.frames.size(); ++k) {
-            const Eigen::MatrixX3d& measured = tracks.positions_m[k];
-            long long seen = 0;
-            for (Eigen::Index i = 0; i < measured.rows(); ++i) seen += measured.row(i).allFinite() ? 1 : 0;
-            if (seen == 0) continue;
-            const double weight = trial.frames[k].weight;
-            const int index = trial.frames[k].number - 1;
-            if (index < 0 || index >= usable) {
-                const double entry = std::sqrt(weight * tracks.missing_frame_error_mm2 / (3.0 * static_cast<double>(seen)));
-                out.insert(out.end(), static_cast<std::size_t>(3 * seen), entry);
-                continue;
-            }
-            const Eigen::MatrixX3d simulated = sampler.sample(run.simulation.frames[static_cast<std::size_t>(index)]);
-            const double scale = 1000.0 * std::sqrt(weight / static_cast<double>(seen));
-            for (Eigen::Index i = 0; i < measured.rows(); ++i) {
-                if (!measured.row(i).allFinite()) continue;
-                for (int c = 0; c < 3; ++c) out.push_back(scale * (simulated(i, c) - measured(i, c)));
-            }
-        }
+        append_shape_residuals(m_trials[t], simulate(t, material, simulation_threads), per_trial[t]);
+        if (has_second_mesh(t))
+            append_shape_residuals(m_trials[t], simulate_second_mesh(t, material, simulation_threads), per_trial[t]);
     };
     for_each_trial(threads, one);
     std::size_t length = 0;
@@ -874,6 +917,11 @@ formats::FabricPreset fitted_preset(const std::string& name, const ClothFitProbl
                                                                                      : "angle_map+silhouette_edge_distance";
         prov.metric_weights["alpha"] = metric.alpha;
         if (metric.planar_weight > 0.0) prov.metric_weights["planar_weight"] = metric.planar_weight;
+    }
+    if (problem.settings().has_second_drape_mesh()) {
+        // Each drape also compared on this mesh, at the same weight.
+        prov.metric_weights["second_drape_mesh_rows"] = problem.settings().second_drape_rows;
+        prov.metric_weights["second_drape_mesh_cols"] = problem.settings().second_drape_cols;
     }
     prov.optimizer = optimizer;
     prov.seed = seed;

@@ -16,6 +16,13 @@ namespace {
 
 const char* metric_name(video::SilhouetteTerm term) { return term == video::SilhouetteTerm::edge_distance ? "edge" : "xor"; }
 
+// "RxC" (2..512 each), as the CLI writes meshes.
+bool parse_mesh(const std::string& text, int& rows, int& cols) {
+    char x = 0, extra = 0;
+    return std::sscanf(text.c_str(), "%d%c%d%c", &rows, &x, &cols, &extra) == 3 && (x == 'x' || x == 'X') && rows >= 2 &&
+           cols >= 2 && rows <= 512 && cols <= 512;
+}
+
 }  // namespace
 
 ClothFitRequest cloth_fit_request_from_shard(const formats::FitShardFile& file) {
@@ -64,15 +71,21 @@ ClothFitRequest cloth_fit_request_from_shard(const formats::FitShardFile& file) 
             from = comma + 1;
         }
     }
+    if (view.has("second-drape-mesh")) {  // written only when set
+        const std::string mesh = view.string("second-drape-mesh").value_or("");
+        int mesh_rows = 0, mesh_cols = 0;
+        if (!parse_mesh(mesh, mesh_rows, mesh_cols))
+            diagnostics.error("/request/options/second-drape-mesh", "\"" + mesh + "\" is not ROWSxCOLS", "run the shard again");
+        request.problem.second_drape_rows = mesh_rows;
+        request.problem.second_drape_cols = mesh_cols;
+    }
     const std::string resolution = view.string("resolution").value_or("24x24");
     const double initial_bow = view.number("initial-bow", formats::NumberRange::closed(-2.0, 2.0)).value_or(1.0);
     view.check_known_keys({"drag", "metric", "fit-to", "seed", "evaluations", "budget-seconds", "frames", "full-weight-frames",
-                           "half-life-frames", "static-weight", "min-bending", "hold", "search", "resolution", "integrator",
+                           "half-life-frames", "static-weight", "min-bending", "second-drape-mesh", "hold", "search", "resolution", "integrator",
                            "initial-bow"});
     int rows = 0, cols = 0;
-    char x = 0, extra = 0;
-    if (std::sscanf(resolution.c_str(), "%d%c%d%c", &rows, &x, &cols, &extra) != 3 || (x != 'x' && x != 'X') || rows < 2 ||
-        cols < 2 || rows > 512 || cols > 512)
+    if (!parse_mesh(resolution, rows, cols))
         diagnostics.error("/request/options/resolution", "\"" + resolution + "\" is not ROWSxCOLS", "run the shard again");
     diagnostics.throw_if_errors();
     request.problem.swatch =
@@ -97,6 +110,9 @@ nlohmann::json cloth_fit_result_options(const ClothFitRequest& request) {
     if (request.load.target != FitTarget::footage) options["fit-to"] = fit_target_name(request.load.target);
     if (request.load.static_weight != 1.0) options["static-weight"] = request.load.static_weight;
     if (request.min_bending_N_m > 0.0) options["min-bending"] = request.min_bending_N_m;
+    if (request.problem.has_second_drape_mesh())
+        options["second-drape-mesh"] =
+            std::to_string(request.problem.second_drape_rows) + "x" + std::to_string(request.problem.second_drape_cols);
     if (!request.held_parameters.empty()) {
         std::string held;
         for (const std::string& key : request.held_parameters) held += (held.empty() ? "" : ",") + key;

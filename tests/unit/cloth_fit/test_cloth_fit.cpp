@@ -354,6 +354,58 @@ TEST(ClothFit, ATracksFitScoresTheDrapeItsPredictionStartsFrom) {
     EXPECT_GT(std::abs(from_base - predicted), 0.03 * predicted) << "the two starts must differ for the check to mean anything";
 }
 
+TEST(ClothFit, ASecondDrapeMeshScoresTheDrapeOnThatMeshToo) {
+    // A fit that sees one mesh can pick a fabric whose drape holds on that
+    // mesh alone. With a second drape mesh, each static drape is also
+    // simulated on it and compared with the same measurements: its error
+    // must be what a prediction on that mesh scores, counted in the total
+    // and in the least-squares residuals.
+    const formats::Capture drape = capture("cloth-silk-static-1");
+    ClothTrial trial = drape_trial(drape, "silk drape");
+    trial.is_static = true;
+    trial.frames.resize(1);
+    trial.frames[0].number = 1;
+    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(drape);
+    TrackReference tracks;
+    tracks.rows = *truth.grid_rows;
+    tracks.cols = *truth.grid_cols;
+    tracks.missing_frame_error_mm2 = 1e5;
+    tracks.positions_m.push_back(cloth::grid_frames_of(truth).front());
+    trial.tracks = tracks;
+
+    ClothFitSettings settings;
+    settings.swatch.simulation.integrator = cloth::Integrator::implicit_euler;
+    settings.swatch.rows = settings.swatch.cols = 16;
+    settings.candidate_bows = {1.0};  // and the measured shape
+    settings.base = middle_of_ranges(settings.base, capacity_terms(true, DragModel::nonlinear));
+    const cloth::ClothMaterial silk =
+        cloth::material_from_fabric(formats::read_fabric_preset(flowvid::testing::source_path("tests/data/cloth/silk.fabric.json")).parameters);
+    const std::vector<FittedParameter> bending = {{"bend_stiffness_N_m", 1e-9, 1e-4, true}};
+
+    ClothFitSettings coarse = settings;
+    coarse.swatch.rows = coarse.swatch.cols = 8;
+    const double on_coarse_mesh = assess_trial(trial, silk, coarse, std::nullopt, nullptr).frames.at(0).total;
+    const double on_fit_mesh = assess_trial(trial, silk, settings, std::nullopt, nullptr).frames.at(0).total;
+
+    settings.second_drape_rows = settings.second_drape_cols = 8;
+    const ClothFitProblem problem({trial}, bending, settings);
+    const ClothEvaluation evaluation = problem.evaluate(silk);
+    const TrialEvaluation& scored = evaluation.trials.at(0);
+    std::printf("[measured] silk drape on 16x16 / 8x8 meshes, mean square distance: %.1f / %.1f mm^2\n", scored.error,
+                scored.second_mesh_error);
+    EXPECT_NEAR(scored.error, on_fit_mesh, 1e-6 * on_fit_mesh);
+    EXPECT_NEAR(scored.second_mesh_error, on_coarse_mesh, 1e-6 * on_coarse_mesh);
+    EXPECT_GT(std::abs(on_coarse_mesh - on_fit_mesh), 0.03 * on_fit_mesh) << "the two meshes must differ for the check to mean anything";
+    EXPECT_NEAR(evaluation.total, scored.error + scored.second_mesh_error, 1e-12 * evaluation.total);
+    const Eigen::VectorXd r = problem.residuals(silk);
+    EXPECT_NEAR(r.squaredNorm(), evaluation.total, 1e-9 * evaluation.total);
+    EXPECT_EQ(r.size(), 2 * 3 * tracks.rows * tracks.cols) << "both meshes' entries, every point seen";
+
+    // Waving trials keep one mesh: their cost is the fit's.
+    trial.is_static = false;
+    EXPECT_FALSE(ClothFitProblem({trial}, bending, settings).has_second_mesh(0));
+}
+
 TEST(ClothFit, ATracksFitWeighsEachDrapeAsMuchAsAWavingTest) {
     TrialLoadSettings load;
     load.target = FitTarget::tracks;

@@ -227,6 +227,16 @@ struct ClothFitSettings {
     // solved from each of these bows and the one whose first frame matches
     // the footage best is the warm start. Empty: swatch.initial_bow only.
     std::vector<double> candidate_bows = {1.0, -1.0, 0.0};
+    // A second mesh for every static drape (rows x cols; 0: none): the drape
+    // is also simulated on it and compared with the same measurements, and
+    // that error is added to the total. A preset must drape alike on any
+    // mesh; a fit that sees one mesh only can choose a nearly stiffless
+    // fabric whose drape holds on that mesh alone (silk fitted on 24x24
+    // settled 40 mm away on 12x12; docs/cloth_model.md). A drape costs a
+    // fraction of a waving test, so the check is cheap.
+    int second_drape_rows = 0;
+    int second_drape_cols = 0;
+    bool has_second_drape_mesh() const { return second_drape_rows >= 2 && second_drape_cols >= 2; }
 };
 
 struct TrialEvaluation {
@@ -235,6 +245,9 @@ struct TrialEvaluation {
     std::vector<video::FrameError> frames;  // per compared frame (a missing frame: the largest error)
     cloth::SimulationReport report;
     int simulated_frames = 0;                 // good frames (before a blow-up)
+    // A static drape's sum_k w_k E_k on ClothFitSettings' second drape mesh
+    // (0 when it has none); counted in ClothEvaluation::total, not in error.
+    double second_mesh_error = 0.0;
 };
 
 struct ClothEvaluation {
@@ -260,6 +273,9 @@ public:
     ClothEvaluation evaluate(const cloth::ClothMaterial& material, int threads = 1) const;
     // The simulated vertex positions of one trial (3*#V per frame, frame 1 first) and its mesh.
     cloth::SwatchRun simulate(std::size_t trial, const cloth::ClothMaterial& material, int threads = 1) const;
+    // Whether a trial is also simulated on the second drape mesh, and that run.
+    bool has_second_mesh(std::size_t trial) const;
+    cloth::SwatchRun simulate_second_mesh(std::size_t trial, const cloth::ClothMaterial& material, int threads = 1) const;
 
     // E(values) for the optimizers; uses the spare threads it is given for
     // trials. Keeps a pointer to this problem, which must outlive it.
@@ -271,7 +287,8 @@ public:
     // measured) in mm, n_k the points seen in frame k; for a scan one entry
     // per sample, sqrt(w_k / n_k) * r in mm. A frame the simulation did not
     // reach spreads its missing-frame error over its entries, so the length
-    // never changes. For the least-squares polish.
+    // never changes. A trial with a second drape mesh appends that run's
+    // entries after its own. For the least-squares polish.
     Eigen::VectorXd residuals(const cloth::ClothMaterial& material, int threads = 1) const;
     bool all_measure_shape() const;
 
@@ -292,6 +309,7 @@ private:
     ClothFitSettings m_settings;
     optim::ParameterSpace m_space;
     std::vector<Eigen::VectorXd> m_warm_starts;  // per trial, empty when none
+    std::vector<Eigen::VectorXd> m_second_mesh_warm_starts;  // the same on the second drape mesh
 };
 
 // A fabric preset of a fitted material: every value from `material`; each
