@@ -489,7 +489,11 @@ const RegisterFitKind registration{FitKind{
                        "12x12 and 24x24 instead of 40 (cotton's: 22 instead of 19), at a cost in accuracy "
                        "(docs/cloth_model.md)")
             ->check([](const std::string& text) {
-                return text == "none" || parse_grid(text, "--second-drape-mesh") ? std::string() : std::string("expected RxC, e.g. 12x12, or none");
+                int rows = 0, cols = 0;
+                char x = 0, extra = 0;
+                const bool mesh = std::sscanf(text.c_str(), "%d%c%d%c", &rows, &x, &cols, &extra) == 3 &&
+                                  (x == 'x' || x == 'X') && rows >= 2 && cols >= 2 && rows <= 512 && cols <= 512;
+                return text == "none" || mesh ? std::string() : std::string("expected RxC (2..512 each), e.g. 12x12, or none");
             })
             ->capture_default_str();
         app.add_option("--hold", options->hold,

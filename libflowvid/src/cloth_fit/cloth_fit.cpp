@@ -711,10 +711,18 @@ Eigen::VectorXd ClothFitProblem::values_of(const cloth::ClothMaterial& material)
 }
 
 cloth::SwatchRun ClothFitProblem::simulate(std::size_t trial, const cloth::ClothMaterial& material, int threads) const {
-    cloth::SwatchOptions options = m_settings.swatch;
+    cloth::SwatchOptions options = evaluation_swatch_options();
     options.simulation.threads = std::max(1, threads);
     if (m_warm_starts[trial].size() > 0) options.initial_positions = m_warm_starts[trial];
     return cloth::simulate_swatch(m_trials[trial].experiment, material, options);
+}
+
+cloth::SwatchOptions ClothFitProblem::evaluation_swatch_options() const {
+    cloth::SwatchOptions options = m_settings.swatch;
+    if (m_settings.evaluation_equilibrium_iterations > 0)
+        options.equilibrium.max_iterations =
+            std::min(options.equilibrium.max_iterations, m_settings.evaluation_equilibrium_iterations);
+    return options;
 }
 
 bool ClothFitProblem::has_second_mesh(std::size_t trial) const {
@@ -724,7 +732,7 @@ bool ClothFitProblem::has_second_mesh(std::size_t trial) const {
 cloth::SwatchRun ClothFitProblem::simulate_second_mesh(std::size_t trial, const cloth::ClothMaterial& material,
                                                        int threads) const {
     if (!has_second_mesh(trial)) throw std::logic_error("ClothFitProblem::simulate_second_mesh: the trial has no second mesh");
-    cloth::SwatchOptions options = m_settings.swatch;
+    cloth::SwatchOptions options = evaluation_swatch_options();
     options.rows = m_settings.second_drape_rows;
     options.cols = m_settings.second_drape_cols;
     options.simulation.threads = std::max(1, threads);
@@ -801,10 +809,6 @@ void append_scan_residuals(const ClothTrial& trial, const cloth::SwatchRun& run,
         for (const double r : scan_residuals_m(scan, k, rendered)) out.push_back(scale * r);
     }
 }
-
-}  // namespace
-
-namespace {
 
 // sqrt(w_k / n_k) (simulated - measured) per seen point and axis of a tracks
 // trial, in mm (see ClothFitProblem::residuals).

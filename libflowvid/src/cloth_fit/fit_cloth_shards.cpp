@@ -82,8 +82,8 @@ ClothFitRequest cloth_fit_request_from_shard(const formats::FitShardFile& file) 
     const std::string resolution = view.string("resolution").value_or("24x24");
     const double initial_bow = view.number("initial-bow", formats::NumberRange::closed(-2.0, 2.0)).value_or(1.0);
     view.check_known_keys({"drag", "metric", "fit-to", "seed", "evaluations", "budget-seconds", "frames", "full-weight-frames",
-                           "half-life-frames", "static-weight", "min-bending", "second-drape-mesh", "hold", "search", "resolution", "integrator",
-                           "initial-bow"});
+                           "half-life-frames", "static-weight", "min-bending", "second-drape-mesh", "hold", "search",
+                           "resolution", "integrator", "initial-bow"});
     int rows = 0, cols = 0;
     if (!parse_mesh(resolution, rows, cols))
         diagnostics.error("/request/options/resolution", "\"" + resolution + "\" is not ROWSxCOLS", "run the shard again");

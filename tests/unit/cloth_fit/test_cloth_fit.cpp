@@ -406,6 +406,46 @@ TEST(ClothFit, ASecondDrapeMeshScoresTheDrapeOnThatMeshToo) {
     EXPECT_FALSE(ClothFitProblem({trial}, bending, settings).has_second_mesh(0));
 }
 
+TEST(ClothFit, AFitCutsAFarOffCandidatesEquilibriumShortButAPredictionDoesNot) {
+    // A fit's candidates settle from a nearby warm start, so one that needs
+    // more than the fit's 400 Newton iterations is far off and scores as a
+    // failed run instead of costing the search seconds. A prediction of the
+    // same fabric must still get its full solve. Here the "far" start is the
+    // flat hanging swatch (no warm start), from which this soft silk needs
+    // more than 400 iterations.
+    const formats::Capture drape = capture("cloth-silk-static-1");
+    ClothTrial trial = drape_trial(drape, "silk drape");
+    trial.frames.resize(1);
+    trial.frames[0].number = 1;
+    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(drape);
+    TrackReference tracks;
+    tracks.rows = *truth.grid_rows;
+    tracks.cols = *truth.grid_cols;
+    tracks.missing_frame_error_mm2 = 1e5;
+    tracks.positions_m.push_back(cloth::grid_frames_of(truth).front());
+    trial.tracks = tracks;
+    const cloth::ClothMaterial silk =
+        cloth::material_from_fabric(formats::read_fabric_preset(flowvid::testing::source_path("tests/data/cloth/silk.fabric.json")).parameters);
+    const std::vector<FittedParameter> bending = {{"bend_stiffness_N_m", 1e-9, 1e-4, true}};
+    ClothFitSettings settings;
+    settings.swatch.simulation.integrator = cloth::Integrator::implicit_euler;
+    settings.warm_start = false;
+
+    settings.evaluation_equilibrium_iterations = 0;  // the simulator's own limit
+    const cloth::SwatchRun full = ClothFitProblem({trial}, bending, settings).simulate(0, silk);
+    std::printf("[measured] silk drape from the flat start: %d Newton iterations\n", full.equilibrium.iterations);
+    ASSERT_TRUE(full.equilibrium.converged) << full.equilibrium.reason;
+    ASSERT_GT(full.equilibrium.iterations, 400) << "the case this test is for";
+
+    settings.evaluation_equilibrium_iterations = 400;  // the default
+    const ClothFitProblem problem({trial}, bending, settings);
+    const TrialEvaluation cut = problem.evaluate(silk).trials.at(0);
+    EXPECT_EQ(cut.simulated_frames, 0);
+    EXPECT_DOUBLE_EQ(cut.error, tracks.missing_frame_error_mm2);
+    const double predicted = assess_trial(trial, silk, settings, std::nullopt, nullptr).frames.at(0).total;
+    EXPECT_LT(predicted, 0.1 * tracks.missing_frame_error_mm2) << "the prediction solves to the end";
+}
+
 TEST(ClothFit, ATracksFitWeighsEachDrapeAsMuchAsAWavingTest) {
     TrialLoadSettings load;
     load.target = FitTarget::tracks;

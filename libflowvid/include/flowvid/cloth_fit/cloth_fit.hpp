@@ -232,10 +232,18 @@ struct ClothFitSettings {
     // that error is added to the total. A preset must drape alike on any
     // mesh; a fit that sees one mesh only can choose a nearly stiffless
     // fabric whose drape holds on that mesh alone (silk fitted on 24x24
-    // settled 40 mm away on 12x12; docs/cloth_model.md). A drape costs a
-    // fraction of a waving test, so the check is cheap.
+    // settled 40 mm away on 12x12; docs/cloth_model.md). Costs a drape
+    // simulation on that mesh per evaluation (silk's capacity fit: 7 minutes
+    // instead of 5).
     int second_drape_rows = 0;
     int second_drape_cols = 0;
+    // Newton iterations each candidate's equilibrium may take in a fit (the
+    // swatch options' own limit where lower; the warm starts and the
+    // predictions keep that). Candidates settle from a nearby warm start: one
+    // that needs more is far off, and letting it run to the simulator's 2000
+    // cost a cotton scan fit 25 s per such candidate (179 evaluations in its
+    // 600 s and no variability restarts, instead of about 590 and four).
+    int evaluation_equilibrium_iterations = 400;
     bool has_second_drape_mesh() const { return second_drape_rows >= 2 && second_drape_cols >= 2; }
 };
 
@@ -300,6 +308,8 @@ public:
     void set_warm_start(std::size_t trial, Eigen::VectorXd positions_m) { m_warm_starts.at(trial) = std::move(positions_m); }
 
 private:
+    // The swatch options of a candidate's simulation (the evaluation's iteration limit).
+    cloth::SwatchOptions evaluation_swatch_options() const;
     // Calls run_trial(trial, simulation threads) for every trial, in parallel
     // when they cost alike; each trial writes only its own slot.
     void for_each_trial(int threads, const std::function<void(std::size_t, int)>& run_trial) const;
