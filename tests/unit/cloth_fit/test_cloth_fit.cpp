@@ -61,6 +61,30 @@ ClothTrial drape_trial(const formats::Capture& c, const std::string& name) {
     return trial;
 }
 
+// The silk capture's drape as a one-frame tracks trial whose tracks are the
+// capture's truth, handed over in memory as the capacity study does (never
+// to a footage fit).
+ClothTrial silk_drape_tracks_trial() {
+    const formats::Capture drape = capture("cloth-silk-static-1");
+    ClothTrial trial = drape_trial(drape, "silk drape");
+    trial.frames.resize(1);
+    trial.frames[0].number = 1;
+    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(drape);
+    TrackReference tracks;
+    tracks.rows = *truth.grid_rows;
+    tracks.cols = *truth.grid_cols;
+    tracks.missing_frame_error_mm2 = 1e5;
+    tracks.positions_m.push_back(cloth::grid_frames_of(truth).front());
+    trial.tracks = tracks;
+    return trial;
+}
+
+// A fitted silk (soft bending and weft compression): tests/data/cloth/silk.fabric.json.
+cloth::ClothMaterial fixture_silk() {
+    return cloth::material_from_fabric(
+        formats::read_fabric_preset(flowvid::testing::source_path("tests/data/cloth/silk.fabric.json")).parameters);
+}
+
 }  // namespace
 
 TEST(ClothFit, MaterialKeysAndTies) {
@@ -323,24 +347,13 @@ TEST(ClothFit, ATracksFitScoresTheDrapeItsPredictionStartsFrom) {
     // no prediction shows. The measured shape here is the capture's truth,
     // handed over as tracks in memory as the capacity study does (never to a
     // footage fit).
-    const formats::Capture drape = capture("cloth-silk-static-1");
-    ClothTrial trial = drape_trial(drape, "silk drape");
-    trial.frames.resize(1);
-    trial.frames[0].number = 1;
-    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(drape);
-    TrackReference tracks;
-    tracks.rows = *truth.grid_rows;
-    tracks.cols = *truth.grid_cols;
-    tracks.missing_frame_error_mm2 = 1e5;
-    tracks.positions_m.push_back(cloth::grid_frames_of(truth).front());
-    trial.tracks = tracks;
+    const ClothTrial trial = silk_drape_tracks_trial();
 
     ClothFitSettings settings;
     settings.swatch.simulation.integrator = cloth::Integrator::implicit_euler;
     settings.candidate_bows = {1.0};  // and the measured shape
     settings.base = middle_of_ranges(settings.base, capacity_terms(true, DragModel::nonlinear));
-    const cloth::ClothMaterial silk =
-        cloth::material_from_fabric(formats::read_fabric_preset(flowvid::testing::source_path("tests/data/cloth/silk.fabric.json")).parameters);
+    const cloth::ClothMaterial silk = fixture_silk();
 
     const double predicted = assess_trial(trial, silk, settings, std::nullopt, nullptr).frames.at(0).total;
     const ClothFitProblem problem({trial}, {{"bend_stiffness_N_m", 1e-9, 1e-4, true}}, settings);
@@ -360,26 +373,15 @@ TEST(ClothFit, ASecondDrapeMeshScoresTheDrapeOnThatMeshToo) {
     // simulated on it and compared with the same measurements: its error
     // must be what a prediction on that mesh scores, counted in the total
     // and in the least-squares residuals.
-    const formats::Capture drape = capture("cloth-silk-static-1");
-    ClothTrial trial = drape_trial(drape, "silk drape");
-    trial.is_static = true;
-    trial.frames.resize(1);
-    trial.frames[0].number = 1;
-    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(drape);
-    TrackReference tracks;
-    tracks.rows = *truth.grid_rows;
-    tracks.cols = *truth.grid_cols;
-    tracks.missing_frame_error_mm2 = 1e5;
-    tracks.positions_m.push_back(cloth::grid_frames_of(truth).front());
-    trial.tracks = tracks;
+    ClothTrial trial = silk_drape_tracks_trial();
+    const TrackReference& tracks = *trial.tracks;
 
     ClothFitSettings settings;
     settings.swatch.simulation.integrator = cloth::Integrator::implicit_euler;
     settings.swatch.rows = settings.swatch.cols = 16;
     settings.candidate_bows = {1.0};  // and the measured shape
     settings.base = middle_of_ranges(settings.base, capacity_terms(true, DragModel::nonlinear));
-    const cloth::ClothMaterial silk =
-        cloth::material_from_fabric(formats::read_fabric_preset(flowvid::testing::source_path("tests/data/cloth/silk.fabric.json")).parameters);
+    const cloth::ClothMaterial silk = fixture_silk();
     const std::vector<FittedParameter> bending = {{"bend_stiffness_N_m", 1e-9, 1e-4, true}};
 
     ClothFitSettings coarse = settings;
@@ -413,19 +415,9 @@ TEST(ClothFit, AFitCutsAFarOffCandidatesEquilibriumShortButAPredictionDoesNot) {
     // same fabric must still get its full solve. Here the "far" start is the
     // flat hanging swatch (no warm start), from which this soft silk needs
     // more than 400 iterations.
-    const formats::Capture drape = capture("cloth-silk-static-1");
-    ClothTrial trial = drape_trial(drape, "silk drape");
-    trial.frames.resize(1);
-    trial.frames[0].number = 1;
-    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(drape);
-    TrackReference tracks;
-    tracks.rows = *truth.grid_rows;
-    tracks.cols = *truth.grid_cols;
-    tracks.missing_frame_error_mm2 = 1e5;
-    tracks.positions_m.push_back(cloth::grid_frames_of(truth).front());
-    trial.tracks = tracks;
-    const cloth::ClothMaterial silk =
-        cloth::material_from_fabric(formats::read_fabric_preset(flowvid::testing::source_path("tests/data/cloth/silk.fabric.json")).parameters);
+    const ClothTrial trial = silk_drape_tracks_trial();
+    const TrackReference& tracks = *trial.tracks;
+    const cloth::ClothMaterial silk = fixture_silk();
     const std::vector<FittedParameter> bending = {{"bend_stiffness_N_m", 1e-9, 1e-4, true}};
     ClothFitSettings settings;
     settings.swatch.simulation.integrator = cloth::Integrator::implicit_euler;
