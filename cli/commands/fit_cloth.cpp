@@ -485,7 +485,7 @@ const RegisterFitKind registration{FitKind{
                        "RxC: each static drape is also simulated on this second mesh and compared with the same "
                        "footage or measurements, so that the preset drapes alike on both (a fit that sees one mesh can "
                        "choose a nearly stiffless fabric whose drape holds on that mesh only); costs a drape "
-                       "simulation per evaluation. With 12x12 the silk captures' preset drapes 24 mm (max) apart on "
+                       "simulation per evaluation. With 12x12 the silk captures' tracks-fitted preset drapes 24 mm (max) apart on "
                        "12x12 and 24x24 instead of 40 (cotton's: 22 instead of 19), at a cost in accuracy "
                        "(docs/cloth_model.md)")
             ->check([](const std::string& text) {
