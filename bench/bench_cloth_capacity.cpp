@@ -32,6 +32,7 @@
 // Blender runs are cached in the scratch folder (they take minutes at 48x48).
 
 #include "flowvid/cloth/material.hpp"
+#include "flowvid/cloth/swatch.hpp"
 #include "flowvid/cloth/swatch_output.hpp"
 #include "flowvid/formats/atomic_file.hpp"
 #include "flowvid/formats/capture.hpp"
@@ -47,6 +48,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <tuple>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -466,10 +468,11 @@ int main(int argc, char** argv) {
         else if (a == "--min-bending") o.min_bending_N_m = std::atof(value().c_str());
         else if (a == "--resolution-of") o.resolution_of = value();
         else if (a == "--second-drape-mesh") {
-            const std::string mesh = value();
-            if (mesh == "none") o.second_drape_rows = o.second_drape_cols = 0;
-            else if (std::sscanf(mesh.c_str(), "%dx%d", &o.second_drape_rows, &o.second_drape_cols) != 2)
-                return usage("--second-drape-mesh takes RxC or none");
+            const std::string text = value();
+            const std::optional<std::pair<int, int>> mesh = fc::mesh_size_from_text(text);
+            if (text == "none") o.second_drape_rows = o.second_drape_cols = 0;
+            else if (mesh) std::tie(o.second_drape_rows, o.second_drape_cols) = *mesh;
+            else return usage("--second-drape-mesh takes RxC or none");
         }
         else if (a == "--outside-band") o.outside_band_px = std::atof(value().c_str());
         else if (a == "--score") o.score = split(value());

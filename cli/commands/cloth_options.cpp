@@ -3,9 +3,9 @@
 #include "flowvid/threads.hpp"
 
 #include "flowvid/cloth/material.hpp"
+#include "flowvid/cloth/swatch.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <map>
 #include <thread>
 
@@ -33,11 +33,7 @@ void add_cloth_run_options(CLI::App& app, ClothRunOptions& options) {
 }
 
 std::optional<std::pair<int, int>> parse_grid(const std::string& text, const std::string& option) {
-    int rows = 0, cols = 0;
-    char x = 0, extra = 0;
-    if (std::sscanf(text.c_str(), "%d%c%d%c", &rows, &x, &cols, &extra) == 3 && (x == 'x' || x == 'X') && rows >= 2 &&
-        cols >= 2 && rows <= 512 && cols <= 512)
-        return std::make_pair(rows, cols);
+    if (const auto mesh = cloth::mesh_size_from_text(text)) return mesh;
     log_message("error: " + option + " " + text + ": expected ROWSxCOLS with 2..512 each, e.g. 24x24");
     return std::nullopt;
 }

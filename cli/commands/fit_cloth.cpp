@@ -105,7 +105,7 @@ cloth_fit::ClothFitRequest make_request(const FitClothOptions& options, const cl
     request.held_parameters = options.hold;
     request.problem.swatch = swatch;
     if (options.second_drape_mesh != "none")
-        if (const auto mesh = parse_grid(options.second_drape_mesh, "--second-drape-mesh")) {
+        if (const auto mesh = cloth::mesh_size_from_text(options.second_drape_mesh)) {  // checked by the option
             request.problem.second_drape_rows = mesh->first;
             request.problem.second_drape_cols = mesh->second;
         }
@@ -489,11 +489,8 @@ const RegisterFitKind registration{FitKind{
                        "12x12 and 24x24 instead of 40 (cotton's: 22 instead of 19), at a cost in accuracy "
                        "(docs/cloth_model.md)")
             ->check([](const std::string& text) {
-                int rows = 0, cols = 0;
-                char x = 0, extra = 0;
-                const bool mesh = std::sscanf(text.c_str(), "%d%c%d%c", &rows, &x, &cols, &extra) == 3 &&
-                                  (x == 'x' || x == 'X') && rows >= 2 && cols >= 2 && rows <= 512 && cols <= 512;
-                return text == "none" || mesh ? std::string() : std::string("expected RxC (2..512 each), e.g. 12x12, or none");
+                return text == "none" || cloth::mesh_size_from_text(text) ? std::string()
+                                                                          : std::string("expected RxC (2..512 each), e.g. 12x12, or none");
             })
             ->capture_default_str();
         app.add_option("--hold", options->hold,

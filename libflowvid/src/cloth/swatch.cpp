@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 namespace flowvid::cloth {
@@ -235,6 +236,15 @@ Eigen::VectorXd smooth_normal_jitter(const Swatch& swatch, const Eigen::VectorXd
 }
 
 }  // namespace
+
+std::optional<std::pair<int, int>> mesh_size_from_text(const std::string& text) {
+    int rows = 0, cols = 0;
+    char x = 0, extra = 0;
+    if (std::sscanf(text.c_str(), "%d%c%d%c", &rows, &x, &cols, &extra) == 3 && (x == 'x' || x == 'X') && rows >= 2 &&
+        cols >= 2 && rows <= 512 && cols <= 512)
+        return std::make_pair(rows, cols);
+    return std::nullopt;
+}
 
 SwatchOptions run_swatch_options(int rows, int cols, Integrator integrator, double initial_bow, int threads) {
     SwatchOptions swatch;

@@ -667,33 +667,28 @@ ClothFitProblem::ClothFitProblem(std::vector<ClothTrial> trials, std::vector<Fit
         space.push_back({p.key, p.lower, p.upper, p.log_scale});
     }
     m_space = optim::ParameterSpace(space);
+    // A trial whose first frame was measured in 3D starts every simulation's
+    // equilibrium solve there, so that each fabric settles into the
+    // equilibrium nearest what was seen -- the one its prediction starts
+    // from. The base fabric's own equilibrium from there is a different fold
+    // (silk static-1: the fitted fabric settled from it 8.6 mm from the
+    // truth, from the measured shape 5.5 mm), and the fit would tune the
+    // wrong drape.
+    auto warm_start_of = [this](std::size_t trial, const ClothFitSettings& settings) {
+        Eigen::VectorXd measured;
+        Eigen::VectorXd start = matching_equilibrium(m_trials[trial], settings.base, settings, nullptr, &measured);
+        return settings.warm_start_from_measurement && measured.size() > 0 ? measured : start;
+    };
+    ClothFitSettings on_second_mesh = m_settings;
+    on_second_mesh.swatch.rows = m_settings.second_drape_rows;
+    on_second_mesh.swatch.cols = m_settings.second_drape_cols;
     m_warm_starts.resize(m_trials.size());
+    m_second_mesh_warm_starts.resize(m_trials.size());
     if (m_settings.warm_start)
         for (std::size_t i = 0; i < m_trials.size(); ++i) {
-            // A trial whose first frame was measured in 3D starts every
-            // simulation's equilibrium solve there, so that each fabric
-            // settles into the equilibrium nearest what was seen -- the one
-            // its prediction starts from. The base fabric's own equilibrium
-            // from there is a different fold (silk static-1: the fitted
-            // fabric settled from it 8.6 mm from the truth, from the measured
-            // shape 5.5 mm), and the fit would tune the wrong drape.
-            Eigen::VectorXd measured;
-            m_warm_starts[i] = matching_equilibrium(m_trials[i], m_settings.base, m_settings, nullptr, &measured);
-            if (m_settings.warm_start_from_measurement && measured.size() > 0) m_warm_starts[i] = std::move(measured);
+            m_warm_starts[i] = warm_start_of(i, m_settings);
+            if (has_second_mesh(i)) m_second_mesh_warm_starts[i] = warm_start_of(i, on_second_mesh);
         }
-    m_second_mesh_warm_starts.resize(m_trials.size());
-    if (m_settings.warm_start && m_settings.has_second_drape_mesh()) {
-        ClothFitSettings second = m_settings;
-        second.swatch.rows = m_settings.second_drape_rows;
-        second.swatch.cols = m_settings.second_drape_cols;
-        for (std::size_t i = 0; i < m_trials.size(); ++i) {
-            if (!has_second_mesh(i)) continue;
-            Eigen::VectorXd measured;
-            m_second_mesh_warm_starts[i] = matching_equilibrium(m_trials[i], second.base, second, nullptr, &measured);
-            if (m_settings.warm_start_from_measurement && measured.size() > 0)
-                m_second_mesh_warm_starts[i] = std::move(measured);
-        }
-    }
 }
 
 cloth::ClothMaterial ClothFitProblem::material(const Eigen::VectorXd& values) const {
@@ -711,18 +706,7 @@ Eigen::VectorXd ClothFitProblem::values_of(const cloth::ClothMaterial& material)
 }
 
 cloth::SwatchRun ClothFitProblem::simulate(std::size_t trial, const cloth::ClothMaterial& material, int threads) const {
-    cloth::SwatchOptions options = evaluation_swatch_options();
-    options.simulation.threads = std::max(1, threads);
-    if (m_warm_starts[trial].size() > 0) options.initial_positions = m_warm_starts[trial];
-    return cloth::simulate_swatch(m_trials[trial].experiment, material, options);
-}
-
-cloth::SwatchOptions ClothFitProblem::evaluation_swatch_options() const {
-    cloth::SwatchOptions options = m_settings.swatch;
-    if (m_settings.evaluation_equilibrium_iterations > 0)
-        options.equilibrium.max_iterations =
-            std::min(options.equilibrium.max_iterations, m_settings.evaluation_equilibrium_iterations);
-    return options;
+    return simulate_candidate(trial, material, threads, false);
 }
 
 bool ClothFitProblem::has_second_mesh(std::size_t trial) const {
@@ -732,11 +716,22 @@ bool ClothFitProblem::has_second_mesh(std::size_t trial) const {
 cloth::SwatchRun ClothFitProblem::simulate_second_mesh(std::size_t trial, const cloth::ClothMaterial& material,
                                                        int threads) const {
     if (!has_second_mesh(trial)) throw std::logic_error("ClothFitProblem::simulate_second_mesh: the trial has no second mesh");
-    cloth::SwatchOptions options = evaluation_swatch_options();
-    options.rows = m_settings.second_drape_rows;
-    options.cols = m_settings.second_drape_cols;
+    return simulate_candidate(trial, material, threads, true);
+}
+
+cloth::SwatchRun ClothFitProblem::simulate_candidate(std::size_t trial, const cloth::ClothMaterial& material, int threads,
+                                                     bool second_mesh) const {
+    cloth::SwatchOptions options = m_settings.swatch;
+    if (m_settings.evaluation_equilibrium_iterations > 0)
+        options.equilibrium.max_iterations =
+            std::min(options.equilibrium.max_iterations, m_settings.evaluation_equilibrium_iterations);
+    if (second_mesh) {
+        options.rows = m_settings.second_drape_rows;
+        options.cols = m_settings.second_drape_cols;
+    }
     options.simulation.threads = std::max(1, threads);
-    if (m_second_mesh_warm_starts[trial].size() > 0) options.initial_positions = m_second_mesh_warm_starts[trial];
+    const Eigen::VectorXd& warm = second_mesh ? m_second_mesh_warm_starts[trial] : m_warm_starts[trial];
+    if (warm.size() > 0) options.initial_positions = warm;
     return cloth::simulate_swatch(m_trials[trial].experiment, material, options);
 }
 

@@ -1,12 +1,12 @@
 #include "flowvid/cloth_fit/fit_cloth_shards.hpp"
 
 #include "flowvid/cloth/simulator.hpp"
+#include "flowvid/cloth/swatch.hpp"
 #include "flowvid/formats/json_fields.hpp"
 #include "flowvid/threads.hpp"
 #include "flowvid/version.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <initializer_list>
 #include <limits>
 
@@ -15,13 +15,6 @@ namespace flowvid::cloth_fit {
 namespace {
 
 const char* metric_name(video::SilhouetteTerm term) { return term == video::SilhouetteTerm::edge_distance ? "edge" : "xor"; }
-
-// "RxC" (2..512 each), as the CLI writes meshes.
-bool parse_mesh(const std::string& text, int& rows, int& cols) {
-    char x = 0, extra = 0;
-    return std::sscanf(text.c_str(), "%d%c%d%c", &rows, &x, &cols, &extra) == 3 && (x == 'x' || x == 'X') && rows >= 2 &&
-           cols >= 2 && rows <= 512 && cols <= 512;
-}
 
 }  // namespace
 
@@ -72,24 +65,25 @@ ClothFitRequest cloth_fit_request_from_shard(const formats::FitShardFile& file) 
         }
     }
     if (view.has("second-drape-mesh")) {  // written only when set
-        const std::string mesh = view.string("second-drape-mesh").value_or("");
-        int mesh_rows = 0, mesh_cols = 0;
-        if (!parse_mesh(mesh, mesh_rows, mesh_cols))
-            diagnostics.error("/request/options/second-drape-mesh", "\"" + mesh + "\" is not ROWSxCOLS", "run the shard again");
-        request.problem.second_drape_rows = mesh_rows;
-        request.problem.second_drape_cols = mesh_cols;
+        const std::string text = view.string("second-drape-mesh").value_or("");
+        if (const auto mesh = cloth::mesh_size_from_text(text)) {
+            request.problem.second_drape_rows = mesh->first;
+            request.problem.second_drape_cols = mesh->second;
+        } else {
+            diagnostics.error("/request/options/second-drape-mesh", "\"" + text + "\" is not ROWSxCOLS", "run the shard again");
+        }
     }
     const std::string resolution = view.string("resolution").value_or("24x24");
     const double initial_bow = view.number("initial-bow", formats::NumberRange::closed(-2.0, 2.0)).value_or(1.0);
     view.check_known_keys({"drag", "metric", "fit-to", "seed", "evaluations", "budget-seconds", "frames", "full-weight-frames",
                            "half-life-frames", "static-weight", "min-bending", "second-drape-mesh", "hold", "search",
                            "resolution", "integrator", "initial-bow"});
-    int rows = 0, cols = 0;
-    if (!parse_mesh(resolution, rows, cols))
+    const auto mesh = cloth::mesh_size_from_text(resolution);
+    if (!mesh)
         diagnostics.error("/request/options/resolution", "\"" + resolution + "\" is not ROWSxCOLS", "run the shard again");
     diagnostics.throw_if_errors();
     request.problem.swatch =
-        cloth::run_swatch_options(rows, cols, cloth::integrators_by_short_name().at(integrator), initial_bow, 0);
+        cloth::run_swatch_options(mesh->first, mesh->second, cloth::integrators_by_short_name().at(integrator), initial_bow, 0);
     return request;
 }
 

@@ -10,7 +10,9 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace flowvid::cloth {
@@ -69,6 +71,10 @@ struct SwatchOptions {
 // which fits need), the initial bow and the simulation's threads
 // (flowvid/threads.hpp).
 SwatchOptions run_swatch_options(int rows, int cols, Integrator integrator, double initial_bow, int threads);
+
+// A mesh size written "RxC" (ASCII x or X), rows and cols 2..512 each, as
+// commands and fit shards spell meshes; nullopt for anything else.
+std::optional<std::pair<int, int>> mesh_size_from_text(const std::string& text);
 
 struct Swatch {
     ClothMesh mesh;

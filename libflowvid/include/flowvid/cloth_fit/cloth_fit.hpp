@@ -308,8 +308,10 @@ public:
     void set_warm_start(std::size_t trial, Eigen::VectorXd positions_m) { m_warm_starts.at(trial) = std::move(positions_m); }
 
 private:
-    // The swatch options of a candidate's simulation (the evaluation's iteration limit).
-    cloth::SwatchOptions evaluation_swatch_options() const;
+    // A candidate's run of a trial on the fit's mesh or the second drape
+    // mesh: the evaluation's iteration limit, the matching warm start.
+    cloth::SwatchRun simulate_candidate(std::size_t trial, const cloth::ClothMaterial& material, int threads,
+                                        bool second_mesh) const;
     // Calls run_trial(trial, simulation threads) for every trial, in parallel
     // when they cost alike; each trial writes only its own slot.
     void for_each_trial(int threads, const std::function<void(std::size_t, int)>& run_trial) const;
