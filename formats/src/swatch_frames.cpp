@@ -60,7 +60,9 @@ std::optional<SwatchFramesFile> parse_swatch_frames(const nlohmann::json& docume
     if (const std::optional<JsonView> pinned = root.array("pinned_vertices")) {
         for (std::size_t i = 0; i < pinned->size(); ++i) {
             const JsonView vertex = pinned->element(i);
-            const double last = grid_ok ? static_cast<double>(vertex_count - 1) : std::numeric_limits<double>::max();
+            // Without a valid grid the index is still bounded by the largest grid, so it fits an int.
+            const double largest_grid_last = static_cast<double>(kSwatchFramesMaxGridSide) * kSwatchFramesMaxGridSide - 1.0;
+            const double last = grid_ok ? static_cast<double>(vertex_count - 1) : largest_grid_last;
             const std::optional<double> v = vertex.as_number(NumberRange::closed(0.0, last, "(a vertex r * cols + c of the grid)"));
             if (v && *v == std::floor(*v))
                 out.pinned_vertices.push_back(static_cast<int>(*v));

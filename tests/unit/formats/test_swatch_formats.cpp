@@ -268,6 +268,10 @@ TEST(SwatchFramesFormat, EveryBadFieldIsNamedWithPointerAndFix) {
     d["pinned_vertices"][0] = 2.5;
     refused(d, "/pinned_vertices/0");
     d = frames_json();
+    d["grid"] = {6, 1};  // without a valid grid an index is still bounded by the largest grid
+    d["pinned_vertices"][0] = 4294967295.0;
+    refused(d, "/pinned_vertices/0");
+    d = frames_json();
     d["frames"][3].erase(35);  // rows x cols points per frame
     refused(d, "/frames/3");
     d = frames_json();
