@@ -48,7 +48,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <tuple>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -56,6 +55,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace fc = flowvid::cloth;

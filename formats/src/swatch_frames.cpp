@@ -58,10 +58,10 @@ std::optional<SwatchFramesFile> parse_swatch_frames(const nlohmann::json& docume
     }
     const std::int64_t vertex_count = static_cast<std::int64_t>(out.rows) * out.cols;
     if (const std::optional<JsonView> pinned = root.array("pinned_vertices")) {
+        // Without a valid grid the index is still bounded by the largest grid, so it fits an int.
+        constexpr double largest_grid_last = static_cast<double>(kSwatchFramesMaxGridSide) * kSwatchFramesMaxGridSide - 1.0;
         for (std::size_t i = 0; i < pinned->size(); ++i) {
             const JsonView vertex = pinned->element(i);
-            // Without a valid grid the index is still bounded by the largest grid, so it fits an int.
-            const double largest_grid_last = static_cast<double>(kSwatchFramesMaxGridSide) * kSwatchFramesMaxGridSide - 1.0;
             const double last = grid_ok ? static_cast<double>(vertex_count - 1) : largest_grid_last;
             const std::optional<double> v = vertex.as_number(NumberRange::closed(0.0, last, "(a vertex r * cols + c of the grid)"));
             if (v && *v == std::floor(*v))
