@@ -198,10 +198,11 @@ std::string cell(double v) {
 
 // today: the 9 parameters of the thesis's waving fit; compression: + the
 // two compression ratios; linear-drag: + linear normal drag; hem: + the
-// hem's line density; diagonal: + the diagonal tension fibres; all: every
-// one of them (what fit cloth --fit-to tracks fits: cf::capacity_terms).
+// hem's line density; diagonal: + the diagonal tension fibres and the wider
+// shear range they call for; all: every one of them (what fit cloth
+// --fit-to tracks fits: cf::capacity_terms).
 std::vector<cf::FittedParameter> variant_parameters(const std::string& variant) {
-    std::vector<cf::FittedParameter> p = cf::waving_test_parameters();
+    std::vector<cf::FittedParameter> terms;
     const bool compression = variant == "compression" || variant == "all";
     const bool linear_drag = variant == "linear-drag" || variant == "all";
     const bool hem = variant == "hem" || variant == "all";
@@ -210,13 +211,13 @@ std::vector<cf::FittedParameter> variant_parameters(const std::string& variant) 
         throw std::invalid_argument("unknown variant '" + variant +
                                     "' (known: today, compression, linear-drag, hem, diagonal, all)");
     for (const cf::FittedParameter& term : cf::capacity_terms(true, cf::DragModel::nonlinear)) {
-        const bool wanted = term.key == "hem_line_density_kg_per_m"            ? hem
-                            : term.key == "drag_linear_normal_kg_per_m2_s"     ? linear_drag
-                            : term.key == "diagonal_tension_stiffness_N_per_m" ? diagonal
-                                                                               : compression;
-        if (wanted) p.push_back(term);
+        bool wanted = compression;  // the two compression ratios
+        if (term.key == "hem_line_density_kg_per_m") wanted = hem;
+        if (term.key == "drag_linear_normal_kg_per_m2_s") wanted = linear_drag;
+        if (term.key == "diagonal_tension_stiffness_N_per_m" || term.key == "shear_stiffness_N_per_m") wanted = diagonal;
+        if (wanted) terms.push_back(term);
     }
-    return p;
+    return cf::with_terms(cf::waving_test_parameters(), terms);
 }
 
 // ---- Predictions from the fitted material ----------------------------------

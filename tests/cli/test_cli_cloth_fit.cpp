@@ -131,9 +131,11 @@ TEST(CliClothFit, RecognizeRanksPresetsByTheErrorsEvalReports) {
 TEST(CliClothFit, TracksFitFindsTheFabricThatMadeTheTracks) {
     // Tracks made by our own simulator (the example cotton on an 8 x 8 mesh,
     // measured on a 12 x 12 uv grid) in a copy of the silk drape: a fit to
-    // them at the same mesh must come back to a small fraction of a millimetre
-    // (the start, relaxed from the measured first frame, misses by ~2 mm),
-    // and say it fitted tracks.
+    // them at the same mesh must come back to under a millimetre (the start,
+    // relaxed from the measured first frame, misses by ~7 mm), and say it
+    // fitted tracks. One drape cannot tell the diagonal fibres from shear,
+    // so the fit may reach the drape with another mix of the two (0.8 mm
+    // since the shear range widened; 0.06 before).
     const std::string dir = own_dir("cli_fit_tracks");
     const std::string source = shared_path("captures/cloth-silk-static-1");
     const std::string copy = dir + "/drape";
@@ -162,7 +164,7 @@ TEST(CliClothFit, TracksFitFindsTheFabricThatMadeTheTracks) {
     const double final_rms = summary["trials"][0]["final_rms_mm"].get<double>();
     std::printf("[measured] tracks fit of our own drape: RMS %.3f mm (start %.1f mm)\n", final_rms, start_rms);
     EXPECT_LT(final_rms, 1.0);
-    EXPECT_GT(start_rms, 10.0 * final_rms) << "the start must miss for the check to mean anything";
+    EXPECT_GT(start_rms, 5.0) << "the start must miss for the check to mean anything";
     const flowvid::formats::FabricPreset back = flowvid::formats::read_fabric_preset(dir + "/back.fabric.json");
     EXPECT_EQ(back.provenance.metric, "tracks_mean_square_mm2");
 
@@ -218,7 +220,10 @@ TEST(CliClothFit, ScanFitComparesTheStripesDepthAndSaysSo) {
     EXPECT_EQ(flowvid::formats::read_fabric_preset(dir + "/scan.fabric.json").provenance.metric, "scan_depth_mean_square_mm2");
 
     // eval cloth --compare scan scores the preset the same way: an RMS depth
-    // error whose square is the drape's weighted error (weight 1), near the fit's.
+    // error whose square is the drape's weighted error (weight 1), near the
+    // fit's. It settles the drape as a prediction does, which on this
+    // 16-evaluation fit lands 0.6 mm (the thesis's shear range) to 1.5 mm
+    // (the capacity model's wider one) from the fit's own figure.
     const CliResult eval = run_flowvid({"eval", "cloth", "--preset", dir + "/scan.fabric.json", "--capture",
                                         shared_path("captures/cloth-silk-static-1"), "--compare", "scan", "--resolution",
                                         "12x12", "--floor-members", "0", "--json"});
@@ -227,7 +232,8 @@ TEST(CliClothFit, ScanFitComparesTheStripesDepthAndSaysSo) {
     const double eval_rms = scored["rms_mm"].get<double>();
     std::printf("[measured] eval cloth --compare scan: %.2f mm (the fit's final %.2f mm)\n", eval_rms, final_rms);
     EXPECT_NEAR(eval_rms * eval_rms, scored["weighted_error"].get<double>(), 1e-9 * eval_rms * eval_rms);
-    EXPECT_LT(eval_rms, 14.0);
+    EXPECT_NEAR(eval_rms, final_rms, 2.0);
+    EXPECT_LT(eval_rms, 15.0);
     EXPECT_GT(eval_rms, 1.0);
 }
 

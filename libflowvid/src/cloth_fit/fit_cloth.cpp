@@ -35,7 +35,22 @@ std::vector<FittedParameter> capacity_terms(bool waving, DragModel drag) {
     // The linear-drag model fits kL already.
     if (waving && drag == DragModel::nonlinear) p.push_back({"drag_linear_normal_kg_per_m2_s", 1e-3, 10.0, true});
     p.push_back({"diagonal_tension_stiffness_N_per_m", 1e-1, 1e4, true});
+    // The diagonal fibres carry shear load in tension, so the isotropic
+    // shear may go below the thesis's 5 N/m floor: silk fits 1-4 N/m there.
+    p.push_back({"shear_stiffness_N_per_m", kShearFloorWithDiagonalFibres_N_per_m, 1e4, true});
     return p;
+}
+
+std::vector<FittedParameter> with_terms(std::vector<FittedParameter> parameters, const std::vector<FittedParameter>& terms) {
+    for (const FittedParameter& term : terms) {
+        const auto same_key = std::find_if(parameters.begin(), parameters.end(),
+                                           [&](const FittedParameter& p) { return p.key == term.key; });
+        if (same_key != parameters.end())
+            *same_key = term;
+        else
+            parameters.push_back(term);
+    }
+    return parameters;
 }
 
 std::vector<FittedParameter> parameters_for(const std::vector<ClothTrial>& trials, DragModel drag) {
@@ -45,9 +60,7 @@ std::vector<FittedParameter> parameters_for(const std::vector<ClothTrial>& trial
                                                                  : waving_test_parameters();
     const bool measured_shape = !trials.empty() && std::all_of(trials.begin(), trials.end(),
                                                                [](const ClothTrial& t) { return t.measures_shape(); });
-    if (measured_shape)
-        for (const FittedParameter& term : capacity_terms(any_waving, drag)) p.push_back(term);
-    return p;
+    return measured_shape ? with_terms(std::move(p), capacity_terms(any_waving, drag)) : p;
 }
 
 cloth::ClothMaterial middle_of_ranges(const cloth::ClothMaterial& base, const std::vector<FittedParameter>& parameters) {

@@ -118,6 +118,19 @@ TEST(ClothFit, MaterialKeysAndTies) {
     }
     EXPECT_EQ(with_bending_floor(plain, 1e-3)[2].upper, 1e-2);
     EXPECT_EQ(with_bending_floor(plain, 0.0)[2].lower, plain[2].lower);
+    // The capacity terms add five parameters to the waving set and replace
+    // one range: shear goes below the thesis's floor once the diagonal
+    // fibres are fitted; every other range stays where it was.
+    const std::vector<FittedParameter> capacity = with_terms(plain, capacity_terms(true, DragModel::nonlinear));
+    ASSERT_EQ(capacity.size(), 14u);
+    for (std::size_t i = 0; i < plain.size(); ++i) {
+        EXPECT_EQ(capacity[i].key, plain[i].key);
+        const bool shear = plain[i].key == "shear_stiffness_N_per_m";
+        EXPECT_EQ(capacity[i].lower, shear ? kShearFloorWithDiagonalFibres_N_per_m : plain[i].lower) << plain[i].key;
+        EXPECT_EQ(capacity[i].upper, plain[i].upper) << plain[i].key;
+    }
+    EXPECT_LT(kShearFloorWithDiagonalFibres_N_per_m, plain[1].lower);
+    EXPECT_EQ(capacity.back().key, "diagonal_tension_stiffness_N_per_m");
     // Fit targets by their command-line names, both ways.
     for (const FitTarget target : {FitTarget::footage, FitTarget::scan, FitTarget::tracks})
         EXPECT_EQ(fit_target_from_name(fit_target_name(target)), target);

@@ -33,17 +33,27 @@ const char* drag_model_name(DragModel model);
 // Static-test parameters (6) + kL and kT: the linear-drag comparison fit.
 std::vector<FittedParameter> linear_drag_test_parameters();
 
+// The shear stiffness's floor once the diagonal fibres are fitted (N/m; the
+// thesis's range starts at 5). Measured in docs/cloth_model.md, "The shear
+// range's floor".
+inline constexpr double kShearFloorWithDiagonalFibres_N_per_m = 0.5;
+
 // The terms the model capacity study added (fabric preset 1.1) and their
 // search ranges: the hem and both compression ratios (the drape's shape),
-// with a waving test the linear normal drag, and the diagonal tension
-// fibres (docs/cloth_model.md).
+// with a waving test the linear normal drag, the diagonal tension fibres
+// (docs/cloth_model.md), and the wider shear range the fibres call for
+// (it replaces the thesis's shear range: see with_terms).
 std::vector<FittedParameter> capacity_terms(bool waving, DragModel drag);
+
+// `parameters` with each of `terms` in place of the entry with its key, or
+// appended where there is none.
+std::vector<FittedParameter> with_terms(std::vector<FittedParameter> parameters, const std::vector<FittedParameter>& terms);
 
 // What is fitted for a set of trials: the 6 static-test parameters when all
 // trials are static drapes (drag cannot be seen at rest), else 9 (nonlinear)
-// or 8 (linear drag). Tracks trials also fit capacity_terms(): 10 static, 14
-// (nonlinear) or 12 (linear) with a waving test. Footage fits keep the
-// thesis's set until their search affords the larger one.
+// or 8 (linear drag). Trials that measure the swatch's shape (tracks, or a
+// stripe scan) also fit capacity_terms(): 10 static, 14 (nonlinear) or 12
+// (linear) with a waving test. Angle-map fits keep the thesis's set.
 std::vector<FittedParameter> parameters_for(const std::vector<ClothTrial>& trials, DragModel drag);
 
 // The start guess: `base` with every fitted parameter at the geometric middle
