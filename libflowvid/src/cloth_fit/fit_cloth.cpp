@@ -36,7 +36,7 @@ std::vector<FittedParameter> capacity_terms(bool waving, DragModel drag) {
     if (waving && drag == DragModel::nonlinear) p.push_back({"drag_linear_normal_kg_per_m2_s", 1e-3, 10.0, true});
     p.push_back({"diagonal_tension_stiffness_N_per_m", 1e-1, 1e4, true});
     // The diagonal fibres carry shear load in tension, so the isotropic
-    // shear may go below the thesis's 5 N/m floor: silk fits 1-4 N/m there.
+    // shear may go below the thesis's 5 N/m floor: silk's fits reach 1-6 N/m.
     p.push_back({"shear_stiffness_N_per_m", kShearFloorWithDiagonalFibres_N_per_m, 1e4, true});
     return p;
 }

@@ -35,7 +35,7 @@ std::vector<FittedParameter> linear_drag_test_parameters();
 
 // The shear stiffness's floor once the diagonal fibres are fitted (N/m; the
 // thesis's range starts at 5). Measured in docs/cloth_model.md, "The shear
-// range's floor".
+// floor settled".
 inline constexpr double kShearFloorWithDiagonalFibres_N_per_m = 0.5;
 
 // The terms the model capacity study added (fabric preset 1.1) and their
