@@ -37,7 +37,12 @@ std::vector<FittedParameter> capacity_terms(bool waving, DragModel drag) {
     p.push_back({"diagonal_tension_stiffness_N_per_m", 1e-1, 1e4, true});
     // The diagonal fibres carry shear load in tension, so the isotropic
     // shear may go below the thesis's 5 N/m floor: silk's fits reach 1-6 N/m.
-    p.push_back({"shear_stiffness_N_per_m", kShearFloorWithDiagonalFibres_N_per_m, 1e4, true});
+    // The rest of the thesis's shear range stays as it is.
+    for (FittedParameter shear : static_test_parameters())
+        if (shear.key == "shear_stiffness_N_per_m") {
+            shear.lower = kShearFloorWithDiagonalFibres_N_per_m;
+            p.push_back(shear);
+        }
     return p;
 }
 
