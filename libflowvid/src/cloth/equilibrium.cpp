@@ -6,6 +6,7 @@
 #include <Eigen/SparseCholesky>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -59,6 +60,18 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
     std::vector<Eigen::Triplet<double>> triplets;
     Eigen::VectorXd rhs(free_dofs), step(free_dofs);
     ConjugateGradient cgs;
+    const bool factorised = free_dofs / 3 <= options.factorised_max_free_vertices;
+    // The factorised steps' limit (0: none): a multiple of the mean rest edge.
+    double max_step_m = 0.0;
+    if (factorised && options.factorised_max_step_edges > 0.0 && !model.mesh().triangles.empty()) {
+        const std::vector<Eigen::Vector2d>& uv = model.mesh().material_uv_m;
+        double sum_m = 0.0;
+        for (const std::array<int, 3>& t : model.mesh().triangles)
+            for (std::size_t k = 0; k < 3; ++k)
+                sum_m += (uv[static_cast<std::size_t>(t[k])] - uv[static_cast<std::size_t>(t[(k + 1) % 3])]).norm();
+        max_step_m =
+            options.factorised_max_step_edges * sum_m / (3.0 * static_cast<double>(model.mesh().triangles.size()));
+    }
 
     double energy = model.potential_energy(x, kStaticTerms);
     // Levenberg-Marquardt on the exact Hessian: when -K + shift M is not
@@ -132,27 +145,10 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
 
         Eigen::VectorXd dx = Eigen::VectorXd::Zero(3 * n);
         bool solved = false;
-        // Inexact Gauss-Newton step: CG on the definite Hessian to a loose
-        // tolerance. Far from equilibrium (folds still forming) the steps are
-        // only approximate anyway, and CG is much cheaper than factorising.
-        auto definite_step = [&]() {
-            for (int attempt = 0; attempt < 30; ++attempt) {
-                K.scale(-1.0);
-                for (int i = 0; i < n; ++i)
-                    K.block(K.diagonal_slot(i)).diagonal().array() += shift * model.vertex_masses_kg()(i);
-                dx.setZero();
-                const CgResult cg = cgs.solve(K, f, fixed, dx, options.inexact_newton_tolerance, options.cg_max_iterations);
-                report.cg_iterations += cg.iterations;
-                if (!cg.negative_curvature && dx.allFinite()) return true;
-                shift = shift == 0.0 ? 1e-6 * shift_scale : shift * 10.0;
-                model.evaluate(x, zero_v, 0.0, kStaticTerms, f, &K, nullptr, JacobianMode::definite);
-            }
-            return false;
-        };
-        if (use_exact) {
-            // Exact Newton step (-K + shift M) dx = f, factorised: its pivots
-            // tell whether the Hessian is definite, i.e. whether we are near a
-            // stable minimum.
+        // (-K + shift M) dx = f on the free vertices, factorised: its pivots
+        // tell whether the system is definite (near a stable minimum when K
+        // is exact). False when it is not, dx untouched.
+        auto factorised_step = [&]() {
             triplets.clear();
             K.for_each_block([&](int i, int j, const Eigen::Matrix3d& b) {
                 const int di = dof[static_cast<size_t>(i)], dj = dof[static_cast<size_t>(j)];
@@ -177,16 +173,41 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
                 analyzed_nonzeros = static_cast<size_t>(A.nonZeros());
             }
             solver.factorize(A);
-            bool definite = solver.info() == Eigen::Success && (solver.vectorD().array() > 0.0).all();
-            if (definite) {
-                step = solver.solve(rhs);
-                definite = step.allFinite();
+            if (solver.info() != Eigen::Success || !(solver.vectorD().array() > 0.0).all()) return false;
+            step = solver.solve(rhs);
+            if (!step.allFinite()) return false;
+            for (int i = 0; i < n; ++i)
+                if (dof[static_cast<size_t>(i)] >= 0) dx.segment<3>(3 * i) = step.segment<3>(dof[static_cast<size_t>(i)]);
+            return true;
+        };
+        // Gauss-Newton step on the definite Hessian, shifted until it solves:
+        // factorised on small meshes, else CG to a loose tolerance (far from
+        // equilibrium, folds still forming, the steps are only approximate
+        // anyway).
+        auto definite_step = [&]() {
+            for (int attempt = 0; attempt < 30; ++attempt) {
+                dx.setZero();
+                if (factorised) {
+                    if (factorised_step()) return true;
+                } else {
+                    K.scale(-1.0);
+                    for (int i = 0; i < n; ++i)
+                        K.block(K.diagonal_slot(i)).diagonal().array() += shift * model.vertex_masses_kg()(i);
+                    const CgResult cg =
+                        cgs.solve(K, f, fixed, dx, options.inexact_newton_tolerance, options.cg_max_iterations);
+                    report.cg_iterations += cg.iterations;
+                    if (!cg.negative_curvature && dx.allFinite()) return true;
+                    model.evaluate(x, zero_v, 0.0, kStaticTerms, f, &K, nullptr, JacobianMode::definite);
+                }
+                shift = shift == 0.0 ? 1e-6 * shift_scale : shift * 10.0;
             }
-            if (definite) {
-                for (int i = 0; i < n; ++i)
-                    if (dof[static_cast<size_t>(i)] >= 0) dx.segment<3>(3 * i) = step.segment<3>(dof[static_cast<size_t>(i)]);
-                solved = true;
-            } else {
+            return false;
+        };
+        if (use_exact) {
+            // Exact Newton step, factorised: definite pivots mean we are near
+            // a stable minimum.
+            solved = factorised_step();
+            if (!solved) {
                 // Not yet near a minimum: back to the definite model for a while.
                 use_exact = false;
                 exact_cooldown = 5;
@@ -197,6 +218,17 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
         if (!solved) {
             report.reason = "no positive definite Newton system (iteration " + std::to_string(it) + ")";
             return report;
+        }
+        // A long factorised step may leap into another equilibrium than the
+        // one nearest the start: shorten it to the limit.
+        bool shortened = false;
+        if (max_step_m > 0.0) {
+            double largest_m = 0.0;
+            for (int i = 0; i < n; ++i) largest_m = std::max(largest_m, dx.segment<3>(3 * i).norm());
+            if (largest_m > max_step_m) {
+                dx *= max_step_m / largest_m;
+                shortened = true;
+            }
         }
         const double slope = -f.dot(dx);  // dE/ds at s = 0, negative for a descent direction
         // Backtracking line search on the energy; when energy differences drown
@@ -240,7 +272,7 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
         // Exact Newton once the definite model makes full steps near the
         // equilibrium (not every time: an indefinite factorisation is wasted).
         if (exact_cooldown > 0) --exact_cooldown;
-        if (!use_exact && s == 1.0 && r.max_over_weight < 1.0 && exact_cooldown == 0) use_exact = true;
+        if (!use_exact && s == 1.0 && !shortened && r.max_over_weight < 1.0 && exact_cooldown == 0) use_exact = true;
         x = x_trial;
         // Full steps: trust the quadratic model more; short ones: less.
         shift = s == 1.0 ? shift * 0.1 : shift * 2.0;

@@ -90,23 +90,32 @@ TEST(ClothSwatch, StaticEquilibriumHasNoResidualForce) {
 
 TEST(ClothSwatch, ASoftFittedFabricDrapesFromTheFlatStart) {
     // A fitted silk (bending 7e-7 N m, compression 100x softer than
-    // tension) hung from the flat start folds slowly: the solve needs more
-    // Newton iterations than the 400 it was once allowed, and must still
-    // end at a true equilibrium.
+    // tension) hung from the flat start folds slowly. With CG definite steps
+    // the solve needs more Newton iterations than the 400 it was once
+    // allowed; factorised steps (EquilibriumOptions::factorised_max_free_vertices)
+    // need far fewer. Both must end at a true equilibrium.
     const fc::SwatchExperiment e = hung_by_top_corners(0.2);
     const fc::ClothMaterial m = fc::material_from_fabric(
         flowvid::formats::read_fabric_preset(ft::source_path("tests/data/cloth/silk.fabric.json")).parameters);
     const fc::Swatch s = fc::build_swatch(e, 24, 24);
-    fc::ClothModel model(s.mesh, m);
-    Eigen::VectorXd x = fc::hanging_start(s, e);
-    const fc::EquilibriumReport r = fc::solve_static_equilibrium(model, s.pinned, x);
-    std::printf("[ measured ] soft silk drape: %d Newton iterations, max residual %.3g of a vertex weight\n", r.iterations,
-                r.max_residual_over_weight);
-    ASSERT_TRUE(r.converged) << r.reason;
-    EXPECT_GT(r.iterations, 400);  // the case this test is for
-    const EquilibriumCheck check = check_equilibrium(model, s, x);
-    EXPECT_LT(check.worst_residual_over_weight, 1e-6);  // the solver's rounding-limit stop allows 100x its 1e-8
-    EXPECT_NEAR(check.pin_reaction_up_N, model.total_mass_kg() * 9.81, 1e-5 * model.total_mass_kg() * 9.81);
+    int iterations[2] = {0, 0};
+    for (const bool factorised : {true, false}) {
+        fc::ClothModel model(s.mesh, m);
+        Eigen::VectorXd x = fc::hanging_start(s, e);
+        fc::EquilibriumOptions options;
+        options.factorised_max_free_vertices = factorised ? s.mesh.vertex_count() : 0;
+        const fc::EquilibriumReport r = fc::solve_static_equilibrium(model, s.pinned, x, options);
+        std::printf("[ measured ] soft silk drape, %s definite steps: %d Newton iterations, max residual %.3g of a "
+                    "vertex weight\n",
+                    factorised ? "factorised" : "CG", r.iterations, r.max_residual_over_weight);
+        ASSERT_TRUE(r.converged) << r.reason;
+        iterations[factorised ? 0 : 1] = r.iterations;
+        const EquilibriumCheck check = check_equilibrium(model, s, x);
+        EXPECT_LT(check.worst_residual_over_weight, 1e-6);  // the solver's rounding-limit stop allows 100x its 1e-8
+        EXPECT_NEAR(check.pin_reaction_up_N, model.total_mass_kg() * 9.81, 1e-5 * model.total_mass_kg() * 9.81);
+    }
+    EXPECT_GT(iterations[1], 400);  // the case this test is for (measured 442)
+    EXPECT_LT(iterations[0], iterations[1] / 2);  // measured 180
 }
 
 TEST(ClothSwatch, StaticDrapeConvergesWithResolution) {

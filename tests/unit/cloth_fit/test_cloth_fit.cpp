@@ -229,7 +229,12 @@ TEST(ClothFit, RecoversStretchAndBendFromSyntheticFootage) {
     optim::MinimizeSettings fit;
     fit.threads = 2;
     fit.design_points = 16;
-    fit.annealing.max_evaluations = 120;
+    // 120 evaluations reached the floor (within 10 %) at 1 of 4 annealing
+    // seeds once the equilibrium's definite steps were factorised (the
+    // objective is as rough as before: its candidates settle in other
+    // nearby equilibria than with CG, so the search takes another path);
+    // 160 at all 4 (E 5.89-6.24 against 6.25).
+    fit.annealing.max_evaluations = 160;
     fit.annealing.evaluations_per_stage = 6;
     fit.annealing.fit_schedule_to_budget = true;
     const auto start = std::chrono::steady_clock::now();
@@ -436,6 +441,9 @@ TEST(ClothFit, AFitCutsAFarOffCandidatesEquilibriumShortButAPredictionDoesNot) {
     settings.swatch.simulation.integrator = cloth::Integrator::implicit_euler;
     settings.warm_start = false;
 
+    // CG definite steps: factorised ones (the default on this mesh) settle
+    // this silk from the flat start in fewer than 400 iterations.
+    settings.swatch.equilibrium.factorised_max_free_vertices = 0;
     settings.evaluation_equilibrium_iterations = 0;  // the simulator's own limit
     const cloth::SwatchRun full = ClothFitProblem({trial}, bending, settings).simulate(0, silk);
     std::printf("[measured] silk drape from the flat start: %d Newton iterations\n", full.equilibrium.iterations);

@@ -1,10 +1,10 @@
 #pragma once
 // Static equilibrium: positions where the net force on every free vertex is
 // zero, found by minimising the potential energy with a line-searched Newton
-// method: Gauss-Newton steps (definite Hessian, inexact CG solves, Levenberg
-// shift if needed) while folds form, exact Newton steps (sparse LDL^T, whose
-// pivots also tell that the Hessian is definite) near the minimum for
-// quadratic convergence. Converges to a local minimum near the start: hung
+// method: Gauss-Newton steps (definite Hessian, factorised on meshes up to
+// 40x40 with a step limit, inexact CG solves on larger ones; Levenberg shift
+// if needed) while folds form, exact Newton steps (sparse LDL^T, whose pivots also tell that the Hessian is
+// definite) near the minimum for quadratic convergence. Converges to a local minimum near the start: hung
 // cloth has many, so the start (and SwatchOptions::initial_bow) picks one.
 
 #include "flowvid/cloth/model.hpp"
@@ -26,11 +26,30 @@ struct EquilibriumOptions {
     // the flat start takes 450-500 iterations at 24x24 and 48x48, a few
     // seconds (400 refused its drape). Each iteration lowers the energy.
     int max_iterations = 2000;
-    // Far from equilibrium the steps use the definite (Gauss-Newton) Hessian
-    // solved by CG to this relative tolerance; near it, exact Newton steps
+    // Far from equilibrium the steps use the definite (Gauss-Newton) Hessian,
+    // on meshes above factorised_max_free_vertices solved by CG to this
+    // relative tolerance; near it, exact Newton steps
     // with a sparse LDL^T factorisation give quadratic convergence.
     double inexact_newton_tolerance = 1e-3;
     int cg_max_iterations = 500;
+    // Meshes with up to this many free vertices solve the definite steps by
+    // sparse LDL^T factorisation instead of CG. Soft fabrics make that
+    // system ill-conditioned: CG stops at its iteration cap short of its
+    // tolerance (480 of 500 iterations a step at 48x48), so its steps are
+    // poorer and the solve needs more of them. Factorised, a fitted silk's
+    // solve from the flat start takes 180 Newton iterations instead of 442,
+    // and a fit's candidates settle 1.9x faster at 24x24 and 2.3x at 16x16
+    // (flowvid_bench_equilibrium); a factorisation costs more than CG's
+    // iterations as the mesh grows and breaks even near 40x40. 0: always CG.
+    int factorised_max_free_vertices = 1600;
+    // Factorised steps move no vertex further than this many mean rest edge
+    // lengths (the line search starts from the shortened step). An exact
+    // step can cross into another of a soft drape's many equilibria: without
+    // the limit, the starts settled from the captures' scanned drapes (14, with
+    // fitted presets) ended 1.1 mm further from the truth than CG's on
+    // average; with it, 0.1 mm nearer (nearer in 9 of 14, by -6 to +5 mm).
+    // 0: no limit.
+    double factorised_max_step_edges = 1.0;
     // When set and true, the solve stops at the next iteration, not converged,
     // with EquilibriumReport::cancelled.
     const std::atomic<bool>* cancel = nullptr;
