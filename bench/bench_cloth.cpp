@@ -14,6 +14,8 @@
 #include "flowvid/cloth/swatch.hpp"
 #include "flowvid/formats/capture.hpp"
 
+#include "option_value.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -141,13 +143,7 @@ int main(int argc, char** argv) {
     Options o;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
-        auto next = [&]() -> std::string {
-            if (i + 1 >= argc) {
-                std::fprintf(stderr, "%s needs a value\n", a.c_str());
-                std::exit(2);
-            }
-            return argv[++i];
-        };
+        auto next = [&]() { return flowvid::bench::option_value(argc, argv, i); };
         if (a == "--capture") o.capture = next();
         else if (a == "--blender") o.blender = next();
         else if (a == "--no-blender") o.run_blender = false;

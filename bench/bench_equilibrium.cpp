@@ -36,6 +36,7 @@
 #include "flowvid/cloth_fit/fit_cloth.hpp"
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
+#include "option_value.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -82,13 +83,7 @@ int main(int argc, char** argv) {
     Options o;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
-        auto next = [&]() -> std::string {
-            if (i + 1 >= argc) {
-                std::fprintf(stderr, "%s needs a value\n", a.c_str());
-                std::exit(2);
-            }
-            return argv[++i];
-        };
+        auto next = [&]() { return flowvid::bench::option_value(argc, argv, i); };
         if (a == "--captures") o.captures = split(next());
         else if (a == "--grids") {
             o.grids.clear();
