@@ -43,6 +43,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -130,6 +131,11 @@ int main(int argc, char** argv) {
                 "start, at most 400 Newton iterations\n",
                 o.candidates, static_cast<unsigned long long>(o.seed), trials.size());
 
+    // The starts' fabric (--fabric), read once.
+    std::optional<fc::ClothMaterial> preset;
+    if (!o.fabric.empty())
+        preset = fc::material_from_fabric(flowvid::formats::read_fabric_preset(o.fabric).parameters);
+
     for (const int grid : o.grids) {
         cf::ClothFitSettings settings;
         settings.swatch = fc::run_swatch_options(grid, grid, fc::Integrator::implicit_euler, 1.0, 1);
@@ -149,10 +155,7 @@ int main(int argc, char** argv) {
                     with_solve.swatch.equilibrium.factorised_max_step_edges = o.max_step_edges;
                     const auto start = std::chrono::steady_clock::now();
                     const fc::ClothMaterial fabric =
-                        o.fabric.empty() ? settings.base
-                                         : fc::experiment_material(trials[t].experiment,
-                                                                   fc::material_from_fabric(
-                                                                       flowvid::formats::read_fabric_preset(o.fabric).parameters));
+                        preset ? fc::experiment_material(trials[t].experiment, *preset) : settings.base;
                     const Eigen::VectorXd x = cf::matching_equilibrium(trials[t], fabric, with_solve);
                     seconds[solve] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
                     if (x.size() > 0)
