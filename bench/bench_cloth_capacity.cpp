@@ -222,9 +222,19 @@ std::vector<cf::FittedParameter> variant_parameters(const std::string& variant) 
 
 // ---- Predictions from the fitted material ----------------------------------
 
+// --equilibrium-steps cg: every static solve (fits and predictions) solves
+// its definite steps by CG, as before factorised steps (docs/cloth_model.md,
+// "Factorised definite steps"): which nearby equilibrium a solve finds is
+// the solve path's as much as the start's.
+bool& cg_equilibrium_steps() {
+    static bool cg = false;
+    return cg;
+}
+
 cf::ClothFitSettings fit_settings() {
     cf::ClothFitSettings settings;
     settings.swatch.simulation.integrator = fc::Integrator::implicit_euler;  // fit cloth's default
+    if (cg_equilibrium_steps()) settings.swatch.equilibrium.factorised_max_free_vertices = 0;
     return settings;
 }
 
@@ -468,6 +478,11 @@ int main(int argc, char** argv) {
         else if (a == "--static-weight") o.static_weight = std::atof(value().c_str());
         else if (a == "--min-bending") o.min_bending_N_m = std::atof(value().c_str());
         else if (a == "--resolution-of") o.resolution_of = value();
+        else if (a == "--equilibrium-steps") {
+            const std::string steps = value();
+            if (steps != "cg" && steps != "factorised") return usage("--equilibrium-steps takes cg or factorised");
+            cg_equilibrium_steps() = steps == "cg";
+        }
         else if (a == "--second-drape-mesh") {
             const std::string text = value();
             const std::optional<std::pair<int, int>> mesh = fc::mesh_size_from_text(text);
@@ -509,6 +524,8 @@ int main(int argc, char** argv) {
                         "  [--min-bending N_m] (a floor on the fitted bending stiffness; default: the fit's range)\n"
                         "  [--resolution-of PRESET] (check this preset on 12x12, 24x24, 48x48 instead of the last fit;\n"
                         "    with --variants \"\" nothing is fitted)\n"
+                        "  [--equilibrium-steps factorised|cg] (how every static solve takes its definite steps;\n"
+                        "    cg: as before factorised steps, to compare the two)\n"
                         "  [--outside-band 16] (scan fits: background pixels this near the swatch's outline count\n"
                         "   against a simulation covering them; 0: off)\n"
                         "  [--budget-seconds 600] (each fit also ends at this wall-clock time, as fit cloth's)\n"
