@@ -43,6 +43,8 @@
 #include "fit_curve.hpp"
 #include "flowvid/cloth_fit/fit_cloth.hpp"
 
+#include "option_value.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <chrono>
@@ -65,14 +67,6 @@ namespace optim = flowvid::optim;
 namespace fs = std::filesystem;
 
 namespace {
-
-std::vector<std::string> split(const std::string& text) {
-    std::vector<std::string> out;
-    std::stringstream in(text);
-    for (std::string item; std::getline(in, item, ',');)
-        if (!item.empty()) out.push_back(item);
-    return out;
-}
 
 struct Options {
     std::vector<std::string> fabrics = {"cotton", "silk"};
@@ -459,11 +453,11 @@ int main(int argc, char** argv) {
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto value = [&]() -> std::string { return i + 1 < argc ? argv[++i] : std::string(); };
-        if (a == "--fabrics") o.fabrics = split(value());
-        else if (a == "--variants") o.variants = split(value());
+        if (a == "--fabrics") o.fabrics = flowvid::bench::comma_list(value());
+        else if (a == "--variants") o.variants = flowvid::bench::comma_list(value());
         else if (a == "--evaluations") {
             o.evaluations.clear();
-            for (const std::string& e : split(value())) o.evaluations.push_back(std::atoll(e.c_str()));
+            for (const std::string& e : flowvid::bench::comma_list(value())) o.evaluations.push_back(std::atoll(e.c_str()));
         } else if (a == "--threads") o.threads = std::atoi(value().c_str());
         else if (a == "--seed") o.seed = std::strtoull(value().c_str(), nullptr, 10);
         else if (a == "--scratch") o.scratch = value();
@@ -491,7 +485,7 @@ int main(int argc, char** argv) {
             else return usage("--second-drape-mesh takes RxC or none");
         }
         else if (a == "--outside-band") o.outside_band_px = std::atof(value().c_str());
-        else if (a == "--score") o.score = split(value());
+        else if (a == "--score") o.score = flowvid::bench::comma_list(value());
         else if (a == "--budget-seconds") o.budget_seconds = std::atof(value().c_str());
         else if (a == "--chaos-members") o.chaos_members = std::atoi(value().c_str());
         else if (a == "--score-from-measured-start") o.score_from_measured_start = true;
@@ -510,7 +504,7 @@ int main(int argc, char** argv) {
         }
         else if (a == "--blender-grids") {
             o.blender_grids.clear();
-            for (const std::string& g : split(value())) o.blender_grids.push_back(std::atoi(g.c_str()));
+            for (const std::string& g : flowvid::bench::comma_list(value())) o.blender_grids.push_back(std::atoi(g.c_str()));
         } else if (a == "--help" || a == "-h") {
             std::printf("flowvid_bench_cloth_capacity [--fabrics cotton,silk]\n"
                         "  [--variants today,compression,linear-drag,hem,diagonal,all]\n"

@@ -65,13 +65,6 @@ struct Options {
     std::string fabric;  // the starts' fabric (a preset); empty: the middle of the ranges, as a fit's
 };
 
-std::vector<std::string> split(const std::string& text) {
-    std::vector<std::string> items;
-    std::stringstream list(text);
-    for (std::string item; std::getline(list, item, ',');) items.push_back(item);
-    return items;
-}
-
 struct Totals {
     double seconds = 0.0;
     long long iterations = 0;
@@ -85,10 +78,10 @@ int main(int argc, char** argv) {
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto next = [&]() { return flowvid::bench::option_value(argc, argv, i); };
-        if (a == "--captures") o.captures = split(next());
+        if (a == "--captures") o.captures = flowvid::bench::comma_list(next());
         else if (a == "--grids") {
             o.grids.clear();
-            for (const std::string& g : split(next())) o.grids.push_back(std::atoi(g.c_str()));
+            for (const std::string& g : flowvid::bench::comma_list(next())) o.grids.push_back(std::atoi(g.c_str()));
         } else if (a == "--candidates") o.candidates = std::max(1, std::atoi(next().c_str()));
         else if (a == "--seed") o.seed = static_cast<std::uint64_t>(std::atoll(next().c_str()));
         else if (a == "--starts") o.starts = true;

@@ -17,6 +17,8 @@
 #include "flowvid/video/stripe_render.hpp"
 #include "flowvid/video/stripe_scan.hpp"
 
+#include "option_value.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -33,14 +35,6 @@ namespace ff = flowvid::formats;
 namespace fv = flowvid::video;
 
 namespace {
-
-std::vector<std::string> split(const std::string& s) {
-    std::vector<std::string> parts;
-    std::stringstream in(s);
-    for (std::string part; std::getline(in, part, ',');)
-        if (!part.empty()) parts.push_back(part);
-    return parts;
-}
 
 double percentile(std::vector<double> v, double q) {
     if (v.empty()) return std::nan("");
@@ -63,13 +57,13 @@ int main(int argc, char** argv) {
         const std::string a = argv[i];
         auto value = [&]() -> std::string { return i + 1 < argc ? argv[++i] : std::string(); };
         if (a == "--captures") captures = value();
-        else if (a == "--names") names = split(value());
+        else if (a == "--names") names = flowvid::bench::comma_list(value());
         else if (a == "--frames") max_frames = std::atoi(value().c_str());
         else if (a == "--json") json_path = value();
         else if (a == "--figures") figures = value();
         else if (a == "--figure-frames") {
             figure_frames.clear();
-            for (const std::string& f : split(value())) figure_frames.push_back(std::atoi(f.c_str()));
+            for (const std::string& f : flowvid::bench::comma_list(value())) figure_frames.push_back(std::atoi(f.c_str()));
         }
         else if (a == "--max-step") settings.max_step_rad = std::atof(value().c_str());
         else if (a == "--min-modulation") settings.min_modulation = std::atof(value().c_str());

@@ -3,7 +3,9 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <sstream>
 #include <string>
+#include <vector>
 
 namespace flowvid::bench {
 
@@ -15,6 +17,15 @@ inline std::string option_value(int argc, char** argv, int& i) {
         std::exit(2);
     }
     return argv[++i];
+}
+
+// A comma-separated option value's items, empty ones skipped ("16,24,48").
+inline std::vector<std::string> comma_list(const std::string& text) {
+    std::vector<std::string> items;
+    std::stringstream list(text);
+    for (std::string item; std::getline(list, item, ',');)
+        if (!item.empty()) items.push_back(item);
+    return items;
 }
 
 }  // namespace flowvid::bench
