@@ -23,11 +23,18 @@
 // as `predict cloth` and `eval cloth` pick theirs) instead of the middle of
 // the ranges (as a fit picks its own).
 //
+// --registration-rounds N and --registration-tolerance-mm X set how the
+// starts are registered to the scan (ClothFitSettings::
+// scan_registration_rounds, scan_registration_tolerance_m; 0 rounds: moved
+// onto the scan along the rays and settled). --starts-only skips the
+// candidates' timing.
+//
 // --max-step-edges sets the factorised steps' limit
 // (EquilibriumOptions::factorised_max_step_edges).
 //
 //   flowvid_bench_equilibrium [--captures DIR,DIR] [--grids 16,24,48] [--candidates N] [--seed N]
-//                             [--max-step-edges X] [--starts [--fabric PRESET]]
+//                             [--max-step-edges X] [--starts|--starts-only [--fabric PRESET]
+//                             [--registration-rounds N] [--registration-tolerance-mm X]]
 
 #include "flowvid/cloth/swatch.hpp"
 #include "flowvid/cloth/material.hpp"
@@ -63,6 +70,9 @@ struct Options {
     bool starts = false;
     double max_step_edges = fc::EquilibriumOptions{}.factorised_max_step_edges;
     std::string fabric;  // the starts' fabric (a preset); empty: the middle of the ranges, as a fit's
+    int registration_rounds = cf::ClothFitSettings{}.scan_registration_rounds;
+    double registration_tolerance_m = cf::ClothFitSettings{}.scan_registration_tolerance_m;
+    bool starts_only = false;  // skip the candidates' timing
 };
 
 struct Totals {
@@ -87,8 +97,11 @@ int main(int argc, char** argv) {
         else if (a == "--starts") o.starts = true;
         else if (a == "--fabric") o.fabric = next();
         else if (a == "--max-step-edges") o.max_step_edges = std::atof(next().c_str());
+        else if (a == "--registration-rounds") o.registration_rounds = std::atoi(next().c_str());
+        else if (a == "--registration-tolerance-mm") o.registration_tolerance_m = 1e-3 * std::atof(next().c_str());
+        else if (a == "--starts-only") o.starts = o.starts_only = true;
         else {
-            std::fprintf(stderr, "usage: %s [--captures DIR,DIR] [--grids 16,24,48] [--candidates N] [--seed N] [--max-step-edges X] [--starts [--fabric PRESET]]\n",
+            std::fprintf(stderr, "usage: %s [--captures DIR,DIR] [--grids 16,24,48] [--candidates N] [--seed N] [--max-step-edges X] [--starts|--starts-only [--fabric PRESET] [--registration-rounds N] [--registration-tolerance-mm X]]\n",
                          argv[0]);
             return a == "--help" ? 0 : 2;
         }
@@ -133,6 +146,8 @@ int main(int argc, char** argv) {
         cf::ClothFitSettings settings;
         settings.swatch = fc::run_swatch_options(grid, grid, fc::Integrator::implicit_euler, 1.0, 1);
         settings.base = cf::middle_of_ranges(settings.base, parameters);
+        settings.scan_registration_rounds = o.registration_rounds;
+        settings.scan_registration_tolerance_m = o.registration_tolerance_m;
         if (o.starts) {
             for (std::size_t t = 0; t < trials.size(); ++t) {
                 const auto truth = flowvid::formats::read_capture_truth_positions(captures[t]);
@@ -159,6 +174,7 @@ int main(int argc, char** argv) {
                             grid, grid, trials[t].name.c_str(), rms_mm[0], seconds[0], rms_mm[1], seconds[1]);
             }
         }
+        if (o.starts_only) continue;
         // The warm starts, found once with the default solve, as a fit finds them.
         std::vector<Eigen::VectorXd> warm;
         std::vector<fc::SwatchExperiment> experiments;

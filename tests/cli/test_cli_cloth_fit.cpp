@@ -222,8 +222,13 @@ TEST(CliClothFit, ScanFitComparesTheStripesDepthAndSaysSo) {
     // eval cloth --compare scan scores the preset the same way: an RMS depth
     // error whose square is the drape's weighted error (weight 1), near the
     // fit's. It settles the drape as a prediction does, which on this
-    // 16-evaluation fit lands 0.6 mm (the thesis's shear range) to 1.5 mm
-    // (the capacity model's wider one) from the fit's own figure.
+    // 16-evaluation fit lands 0.6 mm (the thesis's shear range) to 1.7 mm
+    // (the capacity model's wider one, the start registered to the scan)
+    // from the fit's own figure. (Registered, the 12x12 starts are nearer
+    // their truth -- silk static-1 14.2 mm against 19.0 moved along the
+    // rays, flowvid_bench_equilibrium -- but a mesh this coarse scores
+    // about 0.5 mm worse on the scan's depth and outline: 13.8 mm after the
+    // fit against 12.2, and this figure 15.5 against 13.8.)
     const CliResult eval = run_flowvid({"eval", "cloth", "--preset", dir + "/scan.fabric.json", "--capture",
                                         shared_path("captures/cloth-silk-static-1"), "--compare", "scan", "--resolution",
                                         "12x12", "--floor-members", "0", "--json"});
@@ -233,7 +238,7 @@ TEST(CliClothFit, ScanFitComparesTheStripesDepthAndSaysSo) {
     std::printf("[measured] eval cloth --compare scan: %.2f mm (the fit's final %.2f mm)\n", eval_rms, final_rms);
     EXPECT_NEAR(eval_rms * eval_rms, scored["weighted_error"].get<double>(), 1e-9 * eval_rms * eval_rms);
     EXPECT_NEAR(eval_rms, final_rms, 2.0);
-    EXPECT_LT(eval_rms, 15.0);
+    EXPECT_LT(eval_rms, 16.0);
     EXPECT_GT(eval_rms, 1.0);
 }
 

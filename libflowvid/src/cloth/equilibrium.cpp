@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <string>
 
 namespace flowvid::cloth {
@@ -38,6 +39,27 @@ Residual residual(const ClothModel& model, const std::vector<bool>& fixed, const
     return r;
 }
 
+double anchor_energy_J(const std::vector<PlaneAnchor>& anchors, const std::vector<bool>& fixed, const Eigen::VectorXd& x) {
+    double sum = 0.0;
+    for (const PlaneAnchor& a : anchors) {
+        if (fixed[static_cast<size_t>(a.vertex)]) continue;
+        const double gap_m = a.normal.dot(x.segment<3>(3 * a.vertex) - a.point_m);
+        sum += 0.5 * a.stiffness_N_per_m * gap_m * gap_m;
+    }
+    return sum;
+}
+
+// The anchors' forces added to f and their (constant, definite) Jacobians to K.
+void add_anchors(const std::vector<PlaneAnchor>& anchors, const std::vector<bool>& fixed, const Eigen::VectorXd& x,
+                 Eigen::VectorXd& f, BlockSparseMatrix* K) {
+    for (const PlaneAnchor& a : anchors) {
+        if (fixed[static_cast<size_t>(a.vertex)]) continue;
+        const double gap_m = a.normal.dot(x.segment<3>(3 * a.vertex) - a.point_m);
+        f.segment<3>(3 * a.vertex) -= a.stiffness_N_per_m * gap_m * a.normal;
+        if (K) K->block(K->diagonal_slot(a.vertex)) -= a.stiffness_N_per_m * a.normal * a.normal.transpose();
+    }
+}
+
 }  // namespace
 
 EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<bool>& fixed, Eigen::VectorXd& x,
@@ -46,6 +68,10 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
     // Bending memory acts only during a dynamic run: the rest state before it is flat.
     model.reset_rest_fold_angles();
     const int n = model.vertex_count();
+    for (const PlaneAnchor& a : options.anchors)
+        if (a.vertex < 0 || a.vertex >= n)
+            throw std::invalid_argument("solve_static_equilibrium: anchor on vertex " + std::to_string(a.vertex) +
+                                        " of a mesh with " + std::to_string(n));
     std::vector<int> dof(static_cast<size_t>(n), -1);
     int free_dofs = 0;
     for (int i = 0; i < n; ++i)
@@ -73,7 +99,16 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
             options.factorised_max_step_edges * sum_m / (3.0 * static_cast<double>(model.mesh().triangles.size()));
     }
 
-    double energy = model.potential_energy(x, kStaticTerms);
+    // The model's conservative forces, energy and Jacobian with the anchors'.
+    auto evaluate = [&](const Eigen::VectorXd& at, Eigen::VectorXd& forces, BlockSparseMatrix* jacobian,
+                        JacobianMode mode) {
+        model.evaluate(at, zero_v, 0.0, kStaticTerms, forces, jacobian, nullptr, mode);
+        add_anchors(options.anchors, fixed, at, forces, jacobian);
+    };
+    auto energy_of = [&](const Eigen::VectorXd& at) {
+        return model.potential_energy(at, kStaticTerms) + anchor_energy_J(options.anchors, fixed, at);
+    };
+    double energy = energy_of(x);
     // Levenberg-Marquardt on the exact Hessian: when -K + shift M is not
     // positive definite (a saddle, compression) the shift grows until it is;
     // it shrinks after every good step, so the end game is plain Newton.
@@ -90,8 +125,7 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
     double previous_residual = std::numeric_limits<double>::infinity();
 
     for (int it = 0; it <= options.max_iterations; ++it) {
-        model.evaluate(x, zero_v, 0.0, kStaticTerms, f, &K, nullptr,
-                       use_exact ? JacobianMode::exact : JacobianMode::definite);
+        evaluate(x, f, &K, use_exact ? JacobianMode::exact : JacobianMode::definite);
         const Residual r = residual(model, fixed, f);
         report.iterations = it;
         if (options.cancel && options.cancel->load(std::memory_order_relaxed)) {
@@ -197,7 +231,7 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
                         cgs.solve(K, f, fixed, dx, options.inexact_newton_tolerance, options.cg_max_iterations);
                     report.cg_iterations += cg.iterations;
                     if (!cg.negative_curvature && dx.allFinite()) return true;
-                    model.evaluate(x, zero_v, 0.0, kStaticTerms, f, &K, nullptr, JacobianMode::definite);
+                    evaluate(x, f, &K, JacobianMode::definite);
                 }
                 shift = shift == 0.0 ? 1e-6 * shift_scale : shift * 10.0;
             }
@@ -211,7 +245,7 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
                 // Not yet near a minimum: back to the definite model for a while.
                 use_exact = false;
                 exact_cooldown = 5;
-                model.evaluate(x, zero_v, 0.0, kStaticTerms, f, &K, nullptr, JacobianMode::definite);
+                evaluate(x, f, &K, JacobianMode::definite);
             }
         }
         if (!solved) solved = definite_step();
@@ -237,7 +271,7 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
         bool accepted = false;
         for (int ls = 0; ls < 40; ++ls) {
             x_trial = x + s * dx;
-            const double e_trial = model.potential_energy(x_trial, kStaticTerms);
+            const double e_trial = energy_of(x_trial);
             const double tiny = 1e-13 * (std::abs(energy) + 1e-30);
             if (std::isfinite(e_trial) && e_trial <= energy + 1e-4 * s * slope && e_trial - energy < -tiny) {
                 accepted = true;
@@ -245,7 +279,7 @@ EquilibriumReport solve_static_equilibrium(ClothModel& model, const std::vector<
                 break;
             }
             if (std::isfinite(e_trial) && std::abs(e_trial - energy) <= tiny) {
-                model.evaluate(x_trial, zero_v, 0.0, kStaticTerms, f_trial, nullptr, nullptr);
+                evaluate(x_trial, f_trial, nullptr, JacobianMode::definite);
                 if (residual(model, fixed, f_trial).norm < r.norm) {
                     accepted = true;
                     energy = e_trial;

@@ -554,6 +554,47 @@ Eigen::VectorXd scanned_first_frame(const ClothTrial& trial, const cloth::Swatch
     return start;
 }
 
+// Frame 1's scanned surface as a drape of `material`, from `start` (a shape
+// near it on the swatch mesh of `options`): each round pulls every free
+// vertex seen at a scanned pixel towards the plane across its camera ray
+// through the scanned point there (its depth; across the ray the fabric's
+// energy places it) and solves that equilibrium, then the pixels are looked
+// up again. Empty when a solve fails or nothing was seen.
+Eigen::VectorXd registered_to_scan(const ClothTrial& trial, const cloth::SwatchExperiment& experiment,
+                                   const cloth::ClothMaterial& material, cloth::SwatchOptions options,
+                                   Eigen::VectorXd start, int rounds, double tolerance_m) {
+    const ScanReference& scan = *trial.scan;
+    const cloth::Swatch swatch = cloth::build_swatch(experiment, options.rows, options.cols);
+    const int n = swatch.rows * swatch.cols;
+    const cloth::ClothMaterial weighed = cloth::experiment_material(experiment, material);
+    const double vertex_weight_N = weighed.areal_density_kg_per_m2 * experiment.width_m * experiment.height_m / n *
+                                   std::max(options.environment.gravity_m_per_s2.norm(), 1e-6);
+    const Eigen::Vector3d centre = trial.camera.centre_world();
+    Eigen::VectorXd x = std::move(start);
+    for (int round = 0; round < rounds; ++round) {
+        std::vector<cloth::PlaneAnchor> anchors;
+        for (int i = 0; i < n; ++i) {
+            if (swatch.pinned[static_cast<std::size_t>(i)]) continue;
+            const Eigen::Vector2d pixel = trial.camera.project(x.segment<3>(3 * i));
+            if (!pixel.allFinite()) continue;
+            const int px = static_cast<int>(std::lround(pixel.x())), py = static_cast<int>(std::lround(pixel.y()));
+            if (px < 0 || py < 0 || px >= scan.width || py >= scan.height) continue;
+            const Eigen::Vector3f& p = scan.first_frame_points_m[static_cast<std::size_t>(py) * static_cast<std::size_t>(scan.width) +
+                                                                static_cast<std::size_t>(px)];
+            if (!p.allFinite()) continue;
+            const Eigen::Vector3d point = p.cast<double>();
+            anchors.push_back({i, point, (point - centre).normalized(), vertex_weight_N / tolerance_m});
+        }
+        if (anchors.empty()) return {};
+        options.initial_positions = x;
+        options.equilibrium.anchors = std::move(anchors);
+        const cloth::SwatchRun run = cloth::simulate_swatch(experiment, material, options);
+        if (!run.equilibrium.converged || run.simulation.frames.empty()) return {};
+        x = run.simulation.frames.front();
+    }
+    return x;
+}
+
 }  // namespace
 
 Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::ClothMaterial& material,
@@ -593,9 +634,12 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
     const bool choose = !first_frame.frames.empty();
     if (choose && trial.tracks) candidates.push_back({settings.swatch.initial_bow, true});
     // A scan trial: each bow's equilibrium moved onto the scanned first
-    // frame, then settled (once: moving the settled shape onto the scan
-    // again and settling again moved the captures' starts further from
-    // their truth, 3.9-11.1 mm after one round against 4.0-15.9 after two).
+    // frame, registered to it (settings.scan_registration_rounds), then
+    // settled. (Moving a settled shape onto the scan and settling again,
+    // without the registration's anchors, moved the captures' starts
+    // further from their truth: 3.9-11.1 mm after one round, 4.0-15.9 after
+    // two. The settle slides vertices across the rays, which depth alone
+    // cannot see; registered, the fabric's energy places them.)
     const bool scanned = choose && trial.scan && !trial.scan->first_frame_points_m.empty();
     const std::size_t bows = candidates.size();
     if (scanned)
@@ -616,6 +660,12 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
             const cloth::Swatch swatch = cloth::build_swatch(equilibrium_only, options.rows, options.cols);
             options.initial_positions = scanned_first_frame(trial, swatch, from);
             if (options.initial_positions.size() == 0) continue;
+            if (settings.scan_registration_rounds > 0) {
+                options.initial_positions =
+                    registered_to_scan(trial, equilibrium_only, material, options, options.initial_positions,
+                                       settings.scan_registration_rounds, settings.scan_registration_tolerance_m);
+                if (options.initial_positions.size() == 0) continue;
+            }
             run = cloth::simulate_swatch(equilibrium_only, material, options);
         } else {
             if (candidate.measured) {
@@ -686,7 +736,9 @@ ClothFitProblem::ClothFitProblem(std::vector<ClothTrial> trials, std::vector<Fit
     m_second_mesh_warm_starts.resize(m_trials.size());
     if (m_settings.warm_start)
         for (std::size_t i = 0; i < m_trials.size(); ++i) {
+            const auto began = std::chrono::steady_clock::now();
             m_warm_starts[i] = warm_start_of(i, m_settings);
+            m_warm_start_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
             if (has_second_mesh(i)) m_second_mesh_warm_starts[i] = warm_start_of(i, on_second_mesh);
         }
 }

@@ -215,7 +215,9 @@ bool end_fit(const ClothFitRequest& request, const ClothFitProblem& problem, int
 
 // Evaluations' worth of time spent after the search inside the budget: the
 // caller's, and each floor member with its reference run at the floor's
-// substeps over the fit's, + the members' equilibrium searches.
+// substeps over the fit's, + the members' equilibrium solves (a few Newton
+// steps from the nominal run's; the nominal runs' own fold-state searches
+// are timed by the problem's warm starts).
 double evaluations_after_fit(const ClothFitRequest& request) {
     if (request.floor_members <= 0 || request.shard) return request.evaluations_after_fit;
     const int fit_substeps = std::max(1, request.problem.swatch.simulation.implicit_substeps_per_frame);
@@ -274,9 +276,15 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     const int n = first_problem.space().size();
     // The final evaluation comes after the search: keep time for it (it
     // costs about what the start's did) so the whole fit stays in budget.
-    const double budget = request.budget_seconds > 0.0
-                              ? std::max(1.0, request.budget_seconds - (1.5 + evaluations_after_fit(request)) * evaluation_seconds)
-                              : 0.0;
+    // The floors' nominal runs pick their fold states again, one trial after
+    // another, as the problem's warm starts did: keep that time too.
+    const double floor_starts_seconds =
+        request.floor_members > 0 && !request.shard ? first_problem.warm_start_seconds() : 0.0;
+    const auto after_fit_seconds = [&](double evaluation_pace_s) {
+        return (1.5 + evaluations_after_fit(request)) * evaluation_pace_s + floor_starts_seconds;
+    };
+    const double budget =
+        request.budget_seconds > 0.0 ? std::max(1.0, request.budget_seconds - after_fit_seconds(evaluation_seconds)) : 0.0;
     // Variability restarts run one per thread, each evaluating its trials on
     // one thread; a restart costs at least its start, its simplex and a few
     // moves. Reserve that time up front (a budget too small for it keeps
@@ -479,7 +487,7 @@ ClothFitOutcome fit_cloth(const ClothFitRequest& request) {
     if (budget > 0.0) {
         const double latest = std::max(evaluation_seconds, search_pace());
         restart_hint = std::max(restart_hint, latest * static_cast<double>(std::min<std::size_t>(threads, problem->trials().size())));
-        const double left = request.budget_seconds - seconds_since(started) - (1.5 + evaluations_after_fit(request)) * latest;
+        const double left = request.budget_seconds - seconds_since(started) - after_fit_seconds(latest);
         variability_runs = affordable_runs(variability_runs, restart_hint, left);
         outcome.variability_runs_planned = variability_runs;
         restart_budget = std::max(1.0, left) / std::max(1.0, restart_rounds(variability_runs));

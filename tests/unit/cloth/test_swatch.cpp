@@ -88,6 +88,58 @@ TEST(ClothSwatch, StaticEquilibriumHasNoResidualForce) {
     for (const fc::PinnedVertex& p : s.pins) EXPECT_EQ((x.segment<3>(3 * p.vertex) - p.path.position(0.0)).norm(), 0.0);
 }
 
+TEST(ClothSwatch, AnchorsHoldVerticesAcrossTheirPlanesAndLetThemSlideWithin) {
+    // The bottom row pulled towards a vertical plane 3 cm in front of the
+    // pins (its free drape bows further out): at the anchored equilibrium each anchored vertex's fabric and
+    // gravity force must be the anchor's pull exactly (along its normal,
+    // nothing within the plane), every other free vertex must be at rest,
+    // and the pins must hold the whole weight (the normals are horizontal).
+    const fc::SwatchExperiment e = hung_by_top_corners(0.2);
+    fc::ClothMaterial m = plausible_cotton();
+    m.bend_N_m = 1e-5;
+    const fc::Swatch s = fc::build_swatch(e, 16, 16);
+    fc::ClothModel model(s.mesh, m);
+    Eigen::VectorXd x = fc::hanging_start(s, e);
+    ASSERT_TRUE(fc::solve_static_equilibrium(model, s.pinned, x).converged);
+    const double free_y_m = x(3 * 0 + 1);
+    const double stiffness_N_per_m = 20.0;
+    const Eigen::Vector3d normal(0.0, 1.0, 0.0);
+    fc::EquilibriumOptions options;
+    for (int c = 0; c < s.cols; ++c)
+        options.anchors.push_back({c, Eigen::Vector3d(0.0, 0.03, 0.0), normal, stiffness_N_per_m});
+    const fc::EquilibriumReport r = fc::solve_static_equilibrium(model, s.pinned, x, options);
+    ASSERT_TRUE(r.converged) << r.reason;
+    Eigen::VectorXd f;
+    model.evaluate(x, Eigen::VectorXd::Zero(x.size()), 0.0, fc::ForceTerm::all, f);
+    double worst_free = 0.0, worst_across = 0.0, worst_within = 0.0, reaction_up_N = 0.0;
+    for (int i = 0; i < model.vertex_count(); ++i) {
+        if (s.pinned[static_cast<size_t>(i)]) {
+            reaction_up_N -= f(3 * i + 2);
+            continue;
+        }
+        const double weight_N = model.vertex_masses_kg()(i) * 9.81;
+        const Eigen::Vector3d fi = f.segment<3>(3 * i);
+        if (i >= s.cols) {
+            worst_free = std::max(worst_free, fi.norm() / weight_N);
+            continue;
+        }
+        const double pull_N = -stiffness_N_per_m * (x(3 * i + 1) - 0.03);
+        worst_across = std::max(worst_across, std::abs(fi.dot(normal) + pull_N) / weight_N);
+        worst_within = std::max(worst_within, (fi - fi.dot(normal) * normal).norm() / weight_N);
+    }
+    double mean_bottom_y_m = 0.0;
+    for (int c = 0; c < s.cols; ++c) mean_bottom_y_m += x(3 * c + 1) / s.cols;
+    std::printf("[ measured ] anchored drape: bottom row at y = %.1f mm (free %.1f, plane 30); residuals over weight: "
+                "free %.2g, across %.2g, within %.2g\n",
+                1e3 * mean_bottom_y_m, 1e3 * free_y_m, worst_free, worst_across, worst_within);
+    EXPECT_LT(worst_free, 1e-6);
+    EXPECT_LT(worst_across, 1e-6);
+    EXPECT_LT(worst_within, 1e-6);
+    EXPECT_NEAR(reaction_up_N, model.total_mass_kg() * 9.81, 1e-6 * model.total_mass_kg() * 9.81);
+    // Pulled from its free bow (8 cm in front) most of the way to the plane.
+    EXPECT_LT(std::abs(mean_bottom_y_m - 0.03), 0.1 * std::abs(free_y_m - 0.03));
+}
+
 TEST(ClothSwatch, ASoftFittedFabricDrapesFromTheFlatStart) {
     // A fitted silk (bending 7e-7 N m, compression 100x softer than
     // tension) hung from the flat start folds slowly. With CG definite steps

@@ -17,6 +17,17 @@
 
 namespace flowvid::cloth {
 
+// A soft pull of one vertex towards a plane through a measured point, for
+// registering a drape to a measured surface: energy
+// 0.5 stiffness (normal . (x - point))^2, so the vertex slides freely within
+// the plane and the fabric's own energy decides where.
+struct PlaneAnchor {
+    int vertex = -1;
+    Eigen::Vector3d point_m = Eigen::Vector3d::Zero();
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit
+    double stiffness_N_per_m = 0.0;
+};
+
 struct EquilibriumOptions {
     // Converged when every free vertex's net force is below this fraction of
     // its weight m g, or below residual_force_floor_N when that is > 0.
@@ -53,6 +64,9 @@ struct EquilibriumOptions {
     // When set and true, the solve stops at the next iteration, not converged,
     // with EquilibriumReport::cancelled.
     const std::atomic<bool>* cancel = nullptr;
+    // Extra energies minimised with the fabric's (none: the fabric's own
+    // equilibrium). Anchors on fixed vertices are ignored.
+    std::vector<PlaneAnchor> anchors;
 };
 
 struct EquilibriumReport {

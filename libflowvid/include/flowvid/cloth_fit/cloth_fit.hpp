@@ -227,6 +227,16 @@ struct ClothFitSettings {
     // solved from each of these bows and the one whose first frame matches
     // the footage best is the warm start. Empty: swatch.initial_bow only.
     std::vector<double> candidate_bows = {1.0, -1.0, 0.0};
+    // A scan trial's start: rounds of registering the fabric to frame 1's
+    // scanned surface before it settles (0: moved onto the scan along the
+    // camera rays and settled, as before). Each round solves the fabric's
+    // equilibrium with every vertex seen at a scanned pixel pulled towards
+    // the scanned point's depth there (free to slide across the ray), then
+    // looks the pixels up again.
+    int scan_registration_rounds = 3;
+    // How hard the pull is: a vertex this far off the scanned depth feels
+    // its own weight.
+    double scan_registration_tolerance_m = 0.003;
     // A second mesh for every static drape (rows x cols; 0: none): the drape
     // is also simulated on it and compared with the same measurements, and
     // that error is added to the total. A preset must drape alike on any
@@ -306,6 +316,10 @@ public:
     // capacity bench's study of how much the start decides).
     const Eigen::VectorXd& warm_start(std::size_t trial) const { return m_warm_starts.at(trial); }
     void set_warm_start(std::size_t trial, Eigen::VectorXd positions_m) { m_warm_starts.at(trial) = std::move(positions_m); }
+    // Seconds the main mesh's warm starts took to find (one thread, one
+    // trial after another): what picking the fold states costs again later,
+    // e.g. for a floor's nominal runs.
+    double warm_start_seconds() const { return m_warm_start_seconds; }
 
 private:
     // A candidate's run of a trial on the fit's mesh or the second drape
@@ -322,6 +336,7 @@ private:
     optim::ParameterSpace m_space;
     std::vector<Eigen::VectorXd> m_warm_starts;  // per trial, empty when none
     std::vector<Eigen::VectorXd> m_second_mesh_warm_starts;  // the same on the second drape mesh
+    double m_warm_start_seconds = 0.0;
 };
 
 // A fabric preset of a fitted material: every value from `material`; each
