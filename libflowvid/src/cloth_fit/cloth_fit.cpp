@@ -13,6 +13,7 @@
 #include <limits>
 #include <numbers>
 #include <numeric>
+#include <optional>
 #include <stdexcept>
 
 namespace flowvid::cloth_fit {
@@ -491,6 +492,20 @@ Eigen::VectorXd measured_first_frame(const ClothTrial& trial, const cloth::Swatc
     return filled > 0 ? start : Eigen::VectorXd();
 }
 
+// The point frame 1's scan measured at the pixel where the camera sees
+// `world_m`; none when that pixel is outside the image or was not measured.
+std::optional<Eigen::Vector3d> scanned_point_seen_at(const ScanReference& scan, const formats::CameraModel& camera,
+                                                     const Eigen::Vector3d& world_m) {
+    const Eigen::Vector2d pixel = camera.project(world_m);
+    if (!pixel.allFinite()) return std::nullopt;
+    const int px = static_cast<int>(std::lround(pixel.x())), py = static_cast<int>(std::lround(pixel.y()));
+    if (px < 0 || py < 0 || px >= scan.width || py >= scan.height) return std::nullopt;
+    const Eigen::Vector3f& p =
+        scan.first_frame_points_m[static_cast<std::size_t>(py) * static_cast<std::size_t>(scan.width) + static_cast<std::size_t>(px)];
+    if (!p.allFinite()) return std::nullopt;
+    return p.cast<double>();
+}
+
 // A start in the fold state a scan trial's first frame shows: each free
 // vertex of `shape` seen by the camera at a scanned pixel moves to the
 // scanned point there (on the same camera ray, at the measured depth); the
@@ -509,14 +524,9 @@ Eigen::VectorXd scanned_first_frame(const ClothTrial& trial, const cloth::Swatch
             continue;
         }
         const Eigen::Vector3d x = shape.segment<3>(3 * i);
-        const Eigen::Vector2d pixel = trial.camera.project(x);
-        if (!pixel.allFinite()) continue;
-        const int px = static_cast<int>(std::lround(pixel.x())), py = static_cast<int>(std::lround(pixel.y()));
-        if (px < 0 || py < 0 || px >= scan.width || py >= scan.height) continue;
-        const Eigen::Vector3f& p = scan.first_frame_points_m[static_cast<std::size_t>(py) * static_cast<std::size_t>(scan.width) +
-                                                            static_cast<std::size_t>(px)];
-        if (!p.allFinite()) continue;
-        move[static_cast<std::size_t>(i)] = p.cast<double>() - x;
+        const std::optional<Eigen::Vector3d> p = scanned_point_seen_at(scan, trial.camera, x);
+        if (!p) continue;
+        move[static_cast<std::size_t>(i)] = *p - x;
         known[static_cast<std::size_t>(i)] = true;
         ++measured;
     }
@@ -575,15 +585,9 @@ Eigen::VectorXd registered_to_scan(const ClothTrial& trial, const cloth::SwatchE
         std::vector<cloth::PlaneAnchor> anchors;
         for (int i = 0; i < n; ++i) {
             if (swatch.pinned[static_cast<std::size_t>(i)]) continue;
-            const Eigen::Vector2d pixel = trial.camera.project(x.segment<3>(3 * i));
-            if (!pixel.allFinite()) continue;
-            const int px = static_cast<int>(std::lround(pixel.x())), py = static_cast<int>(std::lround(pixel.y()));
-            if (px < 0 || py < 0 || px >= scan.width || py >= scan.height) continue;
-            const Eigen::Vector3f& p = scan.first_frame_points_m[static_cast<std::size_t>(py) * static_cast<std::size_t>(scan.width) +
-                                                                static_cast<std::size_t>(px)];
-            if (!p.allFinite()) continue;
-            const Eigen::Vector3d point = p.cast<double>();
-            anchors.push_back({i, point, (point - centre).normalized(), vertex_weight_N / tolerance_m});
+            const std::optional<Eigen::Vector3d> point = scanned_point_seen_at(scan, trial.camera, x.segment<3>(3 * i));
+            if (!point) continue;
+            anchors.push_back({i, *point, (*point - centre).normalized(), vertex_weight_N / tolerance_m});
         }
         if (anchors.empty()) return {};
         options.initial_positions = x;

@@ -47,6 +47,16 @@ double scan_rms_mm(const ClothTrial& trial, std::size_t frame, const std::vector
     return 1e3 * std::sqrt(sum / static_cast<double>(scan_measured_count(*trial.scan, frame)));
 }
 
+// RMS distance (mm) of a start on the 24x24 swatch mesh from the capture's
+// truth at frame 1 (evaluation only).
+double first_frame_truth_rms_mm(const formats::Capture& c, const ClothTrial& trial, const Eigen::VectorXd& x) {
+    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(c);
+    const cloth::GridFrames real = {cloth::grid_frames_of(truth).front()};
+    const cloth::Swatch swatch = cloth::build_swatch(trial.experiment, 24, 24);
+    const cloth::GridFrames simulated = {cloth::UvSampler(swatch.mesh, 24, 24).sample(x)};
+    return 1e3 * cloth::rms_distance_per_frame_m(simulated, real).front();
+}
+
 }  // namespace
 
 TEST(ClothScanFit, DepthResidualMatchesTriangulationAndIgnoresPeriodSlips) {
@@ -189,13 +199,7 @@ TEST(ClothScanFit, ResidualsMatchTheObjectiveAndTheScannedStartIsNearerTruth) {
     EXPECT_EQ(static_cast<std::size_t>(r.size()), trial.scan->samples[0].size() + trial.scan->outside[0].size());
 
     // Start in the scanned fold state, against the hanging start's equilibria.
-    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(c);
-    const cloth::GridFrames real = {cloth::grid_frames_of(truth).front()};
-    const cloth::Swatch swatch = cloth::build_swatch(trial.experiment, 24, 24);
-    auto truth_rms_mm = [&](const Eigen::VectorXd& x) {
-        const cloth::GridFrames simulated = {cloth::UvSampler(swatch.mesh, 24, 24).sample(x)};
-        return 1e3 * cloth::rms_distance_per_frame_m(simulated, real).front();
-    };
+    auto truth_rms_mm = [&](const Eigen::VectorXd& x) { return first_frame_truth_rms_mm(c, trial, x); };
     const cloth::ClothMaterial with_mass = cloth::experiment_material(trial.experiment, m);
     const Eigen::VectorXd scanned = matching_equilibrium(trial, with_mass, settings);
     ClothTrial unscanned = trial;
@@ -260,13 +264,7 @@ TEST(ClothScanFit, RegisteringTheFabricToTheScanStartsItNearerTheTruth) {
     ClothFitSettings settings;
     settings.swatch.simulation.integrator = cloth::Integrator::implicit_euler;
     settings.base = middle_of_ranges(settings.base, parameters_for({trial}, DragModel::nonlinear));
-    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(c);
-    const cloth::GridFrames real = {cloth::grid_frames_of(truth).front()};
-    const cloth::Swatch swatch = cloth::build_swatch(trial.experiment, 24, 24);
-    auto truth_rms_mm = [&](const Eigen::VectorXd& x) {
-        const cloth::GridFrames simulated = {cloth::UvSampler(swatch.mesh, 24, 24).sample(x)};
-        return 1e3 * cloth::rms_distance_per_frame_m(simulated, real).front();
-    };
+    auto truth_rms_mm = [&](const Eigen::VectorXd& x) { return first_frame_truth_rms_mm(c, trial, x); };
     const Eigen::VectorXd registered = matching_equilibrium(trial, settings.base, settings);
     ClothFitSettings unregistered_settings = settings;
     unregistered_settings.scan_registration_rounds = 0;
