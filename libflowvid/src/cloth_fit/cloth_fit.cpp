@@ -565,16 +565,15 @@ Eigen::VectorXd scanned_first_frame(const ClothTrial& trial, const cloth::Swatch
 }
 
 // Frame 1's scanned surface as a drape of `material`, from `start` (a shape
-// near it on the swatch mesh of `options`): each round pulls every free
+// near it on `swatch`, the mesh of `options`): each round pulls every free
 // vertex seen at a scanned pixel towards the plane across its camera ray
 // through the scanned point there (its depth; across the ray the fabric's
 // energy places it) and solves that equilibrium, then the pixels are looked
 // up again. Empty when a solve fails or nothing was seen.
 Eigen::VectorXd registered_to_scan(const ClothTrial& trial, const cloth::SwatchExperiment& experiment,
-                                   const cloth::ClothMaterial& material, cloth::SwatchOptions options,
-                                   Eigen::VectorXd start, int rounds, double tolerance_m) {
+                                   const cloth::Swatch& swatch, const cloth::ClothMaterial& material,
+                                   cloth::SwatchOptions options, Eigen::VectorXd start, int rounds, double tolerance_m) {
     const ScanReference& scan = *trial.scan;
-    const cloth::Swatch swatch = cloth::build_swatch(experiment, options.rows, options.cols);
     const int n = swatch.rows * swatch.cols;
     const cloth::ClothMaterial weighed = cloth::experiment_material(experiment, material);
     const double vertex_weight_N = weighed.areal_density_kg_per_m2 * experiment.width_m * experiment.height_m / n *
@@ -666,7 +665,7 @@ Eigen::VectorXd matching_equilibrium(const ClothTrial& trial, const cloth::Cloth
             if (options.initial_positions.size() == 0) continue;
             if (settings.scan_registration_rounds > 0) {
                 options.initial_positions =
-                    registered_to_scan(trial, equilibrium_only, material, options, options.initial_positions,
+                    registered_to_scan(trial, equilibrium_only, swatch, material, options, options.initial_positions,
                                        settings.scan_registration_rounds, settings.scan_registration_tolerance_m);
                 if (options.initial_positions.size() == 0) continue;
             }

@@ -90,10 +90,11 @@ TEST(ClothSwatch, StaticEquilibriumHasNoResidualForce) {
 
 TEST(ClothSwatch, AnchorsHoldVerticesAcrossTheirPlanesAndLetThemSlideWithin) {
     // The bottom row pulled towards a vertical plane 3 cm in front of the
-    // pins (its free drape bows further out): at the anchored equilibrium each anchored vertex's fabric and
-    // gravity force must be the anchor's pull exactly (along its normal,
-    // nothing within the plane), every other free vertex must be at rest,
-    // and the pins must hold the whole weight (the normals are horizontal).
+    // pins (its free drape bows further out): at the anchored equilibrium
+    // each anchored vertex's fabric and gravity force must be the anchor's
+    // pull exactly (along its normal, nothing within the plane), every
+    // other free vertex must be at rest, and the pins must hold the whole
+    // weight (the normals are horizontal).
     const fc::SwatchExperiment e = hung_by_top_corners(0.2);
     fc::ClothMaterial m = plausible_cotton();
     m.bend_N_m = 1e-5;

@@ -20,6 +20,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 
 using namespace flowvid;
 using namespace flowvid::video;
@@ -47,14 +48,16 @@ double scan_rms_mm(const ClothTrial& trial, std::size_t frame, const std::vector
     return 1e3 * std::sqrt(sum / static_cast<double>(scan_measured_count(*trial.scan, frame)));
 }
 
-// RMS distance (mm) of a start on the 24x24 swatch mesh from the capture's
-// truth at frame 1 (evaluation only).
-double first_frame_truth_rms_mm(const formats::Capture& c, const ClothTrial& trial, const Eigen::VectorXd& x) {
-    const formats::VertexAnimation truth = *formats::read_capture_truth_positions(c);
-    const cloth::GridFrames real = {cloth::grid_frames_of(truth).front()};
+// The RMS distance (mm) of a start on the 24x24 swatch mesh from the
+// capture's truth at frame 1 (evaluation only); the truth is read once.
+std::function<double(const Eigen::VectorXd&)> first_frame_truth_rms_mm(const formats::Capture& c, const ClothTrial& trial) {
+    const cloth::GridFrames real = {cloth::grid_frames_of(*formats::read_capture_truth_positions(c)).front()};
     const cloth::Swatch swatch = cloth::build_swatch(trial.experiment, 24, 24);
-    const cloth::GridFrames simulated = {cloth::UvSampler(swatch.mesh, 24, 24).sample(x)};
-    return 1e3 * cloth::rms_distance_per_frame_m(simulated, real).front();
+    const cloth::UvSampler sampler(swatch.mesh, 24, 24);
+    return [real, sampler](const Eigen::VectorXd& x) {
+        const cloth::GridFrames simulated = {sampler.sample(x)};
+        return 1e3 * cloth::rms_distance_per_frame_m(simulated, real).front();
+    };
 }
 
 }  // namespace
@@ -199,7 +202,7 @@ TEST(ClothScanFit, ResidualsMatchTheObjectiveAndTheScannedStartIsNearerTruth) {
     EXPECT_EQ(static_cast<std::size_t>(r.size()), trial.scan->samples[0].size() + trial.scan->outside[0].size());
 
     // Start in the scanned fold state, against the hanging start's equilibria.
-    auto truth_rms_mm = [&](const Eigen::VectorXd& x) { return first_frame_truth_rms_mm(c, trial, x); };
+    const auto truth_rms_mm = first_frame_truth_rms_mm(c, trial);
     const cloth::ClothMaterial with_mass = cloth::experiment_material(trial.experiment, m);
     const Eigen::VectorXd scanned = matching_equilibrium(trial, with_mass, settings);
     ClothTrial unscanned = trial;
@@ -264,7 +267,7 @@ TEST(ClothScanFit, RegisteringTheFabricToTheScanStartsItNearerTheTruth) {
     ClothFitSettings settings;
     settings.swatch.simulation.integrator = cloth::Integrator::implicit_euler;
     settings.base = middle_of_ranges(settings.base, parameters_for({trial}, DragModel::nonlinear));
-    auto truth_rms_mm = [&](const Eigen::VectorXd& x) { return first_frame_truth_rms_mm(c, trial, x); };
+    const auto truth_rms_mm = first_frame_truth_rms_mm(c, trial);
     const Eigen::VectorXd registered = matching_equilibrium(trial, settings.base, settings);
     ClothFitSettings unregistered_settings = settings;
     unregistered_settings.scan_registration_rounds = 0;

@@ -65,7 +65,8 @@ struct EquilibriumOptions {
     // with EquilibriumReport::cancelled.
     const std::atomic<bool>* cancel = nullptr;
     // Extra energies minimised with the fabric's (none: the fabric's own
-    // equilibrium). Anchors on fixed vertices are ignored.
+    // equilibrium). Anchors on fixed vertices are ignored; one on a vertex
+    // the mesh does not have throws std::invalid_argument.
     std::vector<PlaneAnchor> anchors;
 };
 

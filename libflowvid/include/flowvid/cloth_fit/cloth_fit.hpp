@@ -235,7 +235,7 @@ struct ClothFitSettings {
     // looks the pixels up again.
     int scan_registration_rounds = 3;
     // How hard the pull is: a vertex this far off the scanned depth feels
-    // its own weight.
+    // the weight of a mean vertex.
     double scan_registration_tolerance_m = 0.003;
     // A second mesh for every static drape (rows x cols; 0: none): the drape
     // is also simulated on it and compared with the same measurements, and
