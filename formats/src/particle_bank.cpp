@@ -8,6 +8,7 @@
 #include <ImathBox.h>
 #include <ImfChannelList.h>
 #include <ImfDoubleAttribute.h>
+#include <ImfFloatAttribute.h>
 #include <ImfFloatVectorAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
@@ -38,6 +39,15 @@ const char* to_string(ParticleDynamics dynamics) {
     return dynamics == ParticleDynamics::stationary ? "stationary" : "non_stationary";
 }
 
+const char* to_string(BankCameraModel model) {
+    switch (model) {
+        case BankCameraModel::still: return "still";
+        case BankCameraModel::translation: return "translation";
+        case BankCameraModel::affine: return "affine";
+    }
+    return "?";
+}
+
 namespace {
 namespace fs = std::filesystem;
 
@@ -64,6 +74,13 @@ constexpr const char* kAttrSourceClip = "flowvid.source_clip";
 constexpr const char* kAttrDynamics = "flowvid.dynamics";
 constexpr const char* kAttrLineIds = "flowvid.line_ids";
 constexpr const char* kAttrLineLengths = "flowvid.line_lengths_px";
+// The camera (1.1): all present, or none.
+constexpr const char* kAttrCameraModel = "flowvid.camera_model";
+constexpr const char* kAttrCameraUntrusted = "flowvid.camera_untrusted";
+constexpr const char* kAttrCameraViewFrame = "flowvid.camera_view_frame";
+constexpr const char* kAttrCameraMaps = "flowvid.camera_first_to_frame_px";
+constexpr const char* kAttrCameraLargestOffset = "flowvid.camera_largest_offset_px";
+constexpr const char* kAttrCameraWorstCorrelation = "flowvid.camera_worst_correlation";
 constexpr const char* kAttrUnits = "flowvid.units";    // informative, both parts
 constexpr const char* kAttrLayout = "flowvid.layout";  // informative, both parts
 
@@ -104,6 +121,9 @@ struct FieldNames {
             return attribute_field(kPatchesPart, std::string(member) == "id" ? kAttrLineIds : kAttrLineLengths) + "[" +
                    std::to_string(index) + "]";
         return "lines[" + std::to_string(index) + "]." + member;
+    }
+    std::string camera(const char* member, const char* attribute) const {
+        return in_file ? attribute_field(kPatchesPart, attribute) : "camera." + std::string(member);
     }
     std::string particle(std::size_t index, const char* member) const {
         const std::string i = std::to_string(index);
@@ -156,6 +176,56 @@ void check_scalars(const ParticleBank& bank, Diagnostics& diag, const FieldNames
                    "the atlas would be " + std::to_string(static_cast<long long>(bank.clip_frame_count) * bank.patch_size_px) +
                        " px wide (limit " + std::to_string(kMaxBankAtlasWidthPx) + ")",
                    "split the clip into several banks");
+}
+
+void check_camera(const ParticleBank& bank, Diagnostics& diag, const FieldNames& names) {
+    if (!bank.camera) return;
+    const BankCamera& camera = *bank.camera;
+    const bool still = camera.model == BankCameraModel::still;
+    const std::string maps = names.camera("first_to_frame", kAttrCameraMaps);
+    if (camera.untrusted && !still)
+        diag.error(names.camera("untrusted", kAttrCameraUntrusted),
+                   "an untrusted estimate with the moving model " + quoted(to_string(camera.model)),
+                   "an untrusted estimate leaves the frames as filmed: write the model \"still\"");
+    if (still && !camera.first_to_frame.empty())
+        diag.error(maps, "a still camera with " + std::to_string(camera.first_to_frame.size()) + " maps",
+                   "write no map for a still camera, or its model (translation or affine)");
+    if (still && camera.view_frame != 0)
+        diag.error(names.camera("view_frame", kAttrCameraViewFrame),
+                   "a still camera's view is frame " + std::to_string(camera.view_frame), "write 0");
+    if (!still && camera.first_to_frame.size() != static_cast<std::size_t>(std::max(bank.clip_frame_count, 0)))
+        diag.error(maps,
+                   std::to_string(camera.first_to_frame.size()) + " maps for " + std::to_string(bank.clip_frame_count) +
+                       " source frames",
+                   "write one map per source frame (6 values each: a11 a12 tx a21 a22 ty)");
+    if (!still && (camera.view_frame < 0 || camera.view_frame >= bank.clip_frame_count))
+        diag.error(names.camera("view_frame", kAttrCameraViewFrame),
+                   "view frame " + std::to_string(camera.view_frame) + " is outside the clip (0.." +
+                       std::to_string(bank.clip_frame_count - 1) + ")",
+                   "count frames from 0 at the clip's first frame");
+    for (std::size_t f = 0; f < camera.first_to_frame.size(); ++f) {
+        const std::array<float, 6>& m = camera.first_to_frame[f];
+        const bool finite = std::all_of(m.begin(), m.end(), [](float v) { return std::isfinite(v); });
+        // The view is carried back to the first frame by the inverse: a
+        // camera's drift keeps the picture's orientation.
+        const double determinant = static_cast<double>(m[0]) * m[4] - static_cast<double>(m[1]) * m[3];
+        if (!finite || !(determinant > 0.0)) {
+            diag.error(maps,
+                       "map of frame " + std::to_string(f) +
+                           (finite ? " flips or collapses the picture (determinant " + std::to_string(determinant) + ")"
+                                   : " is not finite"),
+                       "track the clip again: each map is a drift of the camera (near the identity)");
+            break;
+        }
+    }
+    if (!(std::isfinite(camera.largest_offset_px) && camera.largest_offset_px >= 0.0f))
+        diag.error(names.camera("largest_offset_px", kAttrCameraLargestOffset),
+                   "largest offset " + std::to_string(camera.largest_offset_px) + " px is not a distance",
+                   "write the largest corner drift in pixels (0 or more)");
+    if (!(std::isfinite(camera.worst_correlation) && std::fabs(camera.worst_correlation) <= 1.0f))
+        diag.error(names.camera("worst_correlation", kAttrCameraWorstCorrelation),
+                   "correlation " + std::to_string(camera.worst_correlation) + " is outside -1..1",
+                   "write the estimate's lowest correlation coefficient");
 }
 
 // Reports the first offending value of a list and how many more there are,
@@ -229,6 +299,7 @@ void check_bank(const ParticleBank& bank, Diagnostics& diag, const FieldNames& n
     if (check_scalars_and_lines) {
         check_scalars(bank, diag, names);
         check_lines(bank.lines, diag, names);
+        check_camera(bank, diag, names);
         if (bank.particles.empty())
             diag.error(names.bank("particles", kAttrParticleCount), "the bank holds no particle",
                        "track at least one particle");
@@ -286,6 +357,17 @@ void write_bank_exr(const std::string& temp_path, const ParticleBank& bank) {
     }
     patches.insert(kAttrLineIds, Imf::StringVectorAttribute(ids));
     patches.insert(kAttrLineLengths, Imf::FloatVectorAttribute(lengths));
+    if (bank.camera) {
+        const BankCamera& camera = *bank.camera;
+        patches.insert(kAttrCameraModel, Imf::StringAttribute(to_string(camera.model)));
+        patches.insert(kAttrCameraUntrusted, Imf::IntAttribute(camera.untrusted ? 1 : 0));
+        patches.insert(kAttrCameraViewFrame, Imf::IntAttribute(camera.view_frame));
+        Imf::FloatVector maps;
+        for (const std::array<float, 6>& m : camera.first_to_frame) maps.insert(maps.end(), m.begin(), m.end());
+        patches.insert(kAttrCameraMaps, Imf::FloatVectorAttribute(maps));
+        patches.insert(kAttrCameraLargestOffset, Imf::FloatAttribute(camera.largest_offset_px));
+        patches.insert(kAttrCameraWorstCorrelation, Imf::FloatAttribute(camera.worst_correlation));
+    }
     patches.insert(kAttrUnits, Imf::StringAttribute(kUnitsText));
     patches.insert(kAttrLayout, Imf::StringAttribute(kPatchesLayoutText));
 
@@ -573,10 +655,13 @@ private:
                 check_lines(bank.lines, m_diag, FieldNames{true});
             }
         }
+        bank.camera = read_camera(patches);
         check_unknown_attributes(patches, kPatchesPart,
                                  {kAttrFormat, kAttrVersion, kAttrPatchSize, kAttrFps, kAttrClipWidth, kAttrClipHeight,
                                   kAttrFrameCount, kAttrParticleCount, kAttrLineCount, kAttrSourceClip, kAttrDynamics,
-                                  kAttrLineIds, kAttrLineLengths, kAttrUnits, kAttrLayout},
+                                  kAttrLineIds, kAttrLineLengths, kAttrCameraModel, kAttrCameraUntrusted,
+                                  kAttrCameraViewFrame, kAttrCameraMaps, kAttrCameraLargestOffset,
+                                  kAttrCameraWorstCorrelation, kAttrUnits, kAttrLayout},
                                  m_diag, m_strictness);
         if (m_motion >= 0)
             check_unknown_attributes(file.header(m_motion), kMotionPart, {kAttrUnits, kAttrLayout}, m_diag, m_strictness);
@@ -587,6 +672,7 @@ private:
         bank.clip_width_px = *width;
         bank.clip_height_px = *height;
         check_scalars(bank, m_diag, FieldNames{true});  // the atlas width limit
+        check_camera(bank, m_diag, FieldNames{true});    // its maps against the frame count
         if (m_diag.has_errors()) return std::nullopt;
 
         const long long atlas_width = static_cast<long long>(*frames) * *patch;
@@ -615,6 +701,67 @@ private:
         const long long motion_bytes = static_cast<long long>(*frames) * *particles * 8;
         if (!within_budget(motion_bytes, attribute_field(kPatchesPart, kAttrParticleCount))) return std::nullopt;
         return bank;
+    }
+
+    // The camera of a 1.1 bank: every flowvid.camera_* attribute, or none (a
+    // 1.0 bank, or one written without it). Values are checked later, with
+    // the frame count.
+    std::optional<BankCamera> read_camera(const Imf::Header& patches) {
+        const char* names[] = {kAttrCameraModel, kAttrCameraUntrusted, kAttrCameraViewFrame,
+                               kAttrCameraMaps, kAttrCameraLargestOffset, kAttrCameraWorstCorrelation};
+        std::vector<std::string> missing;
+        for (const char* name : names)
+            if (patches.find(name) == patches.end()) missing.push_back(name);
+        if (missing.size() == std::size(names)) return std::nullopt;
+        for (const std::string& name : missing)
+            m_diag.error(attribute_field(kPatchesPart, name), "missing while other flowvid.camera_* attributes are present",
+                         "write the camera whole (formats/specs/particle_bank.md) or remove every flowvid.camera_* "
+                         "attribute (the drift is then estimated from the clip)");
+        if (!missing.empty()) return std::nullopt;
+        BankCamera camera;
+        bool ok = true;
+        if (const auto* model = find_attribute<Imf::StringAttribute>(patches, kPatchesPart, kAttrCameraModel, "string", m_diag)) {
+            if (model->value() == "still") camera.model = BankCameraModel::still;
+            else if (model->value() == "translation") camera.model = BankCameraModel::translation;
+            else if (model->value() == "affine") camera.model = BankCameraModel::affine;
+            else {
+                m_diag.error(attribute_field(kPatchesPart, kAttrCameraModel), "unknown camera model " + quoted(model->value()),
+                             "use \"still\", \"translation\" or \"affine\"");
+                ok = false;
+            }
+        } else ok = false;
+        if (const auto* untrusted = find_attribute<Imf::IntAttribute>(patches, kPatchesPart, kAttrCameraUntrusted, "int", m_diag)) {
+            if (untrusted->value() != 0 && untrusted->value() != 1) {
+                m_diag.error(attribute_field(kPatchesPart, kAttrCameraUntrusted),
+                             "value " + std::to_string(untrusted->value()) + " is not 0 or 1", "write 1 for an untrusted estimate, else 0");
+                ok = false;
+            }
+            camera.untrusted = untrusted->value() == 1;
+        } else ok = false;
+        if (const auto* view = find_attribute<Imf::IntAttribute>(patches, kPatchesPart, kAttrCameraViewFrame, "int", m_diag))
+            camera.view_frame = view->value();
+        else ok = false;
+        if (const auto* maps = find_attribute<Imf::FloatVectorAttribute>(patches, kPatchesPart, kAttrCameraMaps, "floatvector", m_diag)) {
+            if (maps->value().size() % 6 != 0) {
+                m_diag.error(attribute_field(kPatchesPart, kAttrCameraMaps),
+                             std::to_string(maps->value().size()) + " values are not whole maps of 6",
+                             "write 6 values per source frame: a11 a12 tx a21 a22 ty");
+                ok = false;
+            } else
+                for (std::size_t i = 0; i < maps->value().size(); i += 6) {
+                    std::array<float, 6> m;
+                    std::copy_n(maps->value().begin() + static_cast<std::ptrdiff_t>(i), 6, m.begin());
+                    camera.first_to_frame.push_back(m);
+                }
+        } else ok = false;
+        if (const auto* offset = find_attribute<Imf::FloatAttribute>(patches, kPatchesPart, kAttrCameraLargestOffset, "float", m_diag))
+            camera.largest_offset_px = offset->value();
+        else ok = false;
+        if (const auto* worst = find_attribute<Imf::FloatAttribute>(patches, kPatchesPart, kAttrCameraWorstCorrelation, "float", m_diag))
+            camera.worst_correlation = worst->value();
+        else ok = false;
+        if (!ok) return std::nullopt;
+        return camera;
     }
 
     bool check_format(const Imf::Header& patches) {
@@ -837,6 +984,12 @@ nlohmann::json summarize_particle_bank(const ParticleBank& bank) {
         {"line_count", bank.lines.size()},
         {"particle_count", bank.particles.size()},
     };
+    if (bank.camera)
+        summary["camera"] = {{"model", to_string(bank.camera->model)},
+                             {"untrusted", bank.camera->untrusted},
+                             {"view_frame", bank.camera->view_frame},
+                             {"largest_offset_px", bank.camera->largest_offset_px},
+                             {"worst_correlation", bank.camera->worst_correlation}};
     std::map<std::string, std::size_t> per_line;
     long long total_life = 0;
     int min_life = std::numeric_limits<int>::max(), max_life = 0;

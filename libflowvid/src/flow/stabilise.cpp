@@ -281,20 +281,74 @@ std::vector<std::vector<Eigen::Vector2d>> drawn_input_polylines(const formats::F
     return lines;
 }
 
-ClipFrames read_clip_stabilised(FrameSequence& frames, const formats::FlowLineSet& drawing, CameraMotion& motion,
-                                const Progress& progress, ClipFrames* as_filmed) {
-    const auto part = [&](double from, double to) {
-        return Progress([&progress, from, to](const ProgressReport& r) {
-            return !progress || progress({"read clip", from + (to - from) * r.fraction, r.message});
-        });
-    };
-    ClipFrames seen = ClipFrames::read_all(frames, 0, part(0.0, 0.5));
-    motion = estimate_camera_motion(seen, drawn_input_polylines(drawing), {}, part(0.5, 0.8));
+namespace {
+
+Progress progress_part(const Progress& progress, double from, double to) {
+    return Progress([&progress, from, to](const ProgressReport& r) {
+        return !progress || progress({"read clip", from + (to - from) * r.fraction, r.message});
+    });
+}
+
+ClipFrames resample_into_view(ClipFrames seen, const CameraMotion& motion, const Progress& progress, ClipFrames* as_filmed) {
     if (motion.still()) return seen;
     StabilisedFrames stabilised(seen, motion);
-    ClipFrames out = ClipFrames::read_all(stabilised, 0, part(0.8, 1.0));
+    ClipFrames out = ClipFrames::read_all(stabilised, 0, progress);
     if (as_filmed) *as_filmed = std::move(seen);
     return out;
+}
+
+}  // namespace
+
+ClipFrames read_clip_stabilised(FrameSequence& frames, const formats::FlowLineSet& drawing, CameraMotion& motion,
+                                const Progress& progress, ClipFrames* as_filmed) {
+    ClipFrames seen = ClipFrames::read_all(frames, 0, progress_part(progress, 0.0, 0.5));
+    motion = estimate_camera_motion(seen, drawn_input_polylines(drawing), {}, progress_part(progress, 0.5, 0.8));
+    return resample_into_view(std::move(seen), motion, progress_part(progress, 0.8, 1.0), as_filmed);
+}
+
+ClipFrames read_clip_in_view(FrameSequence& frames, const CameraMotion& motion, const Progress& progress,
+                             ClipFrames* as_filmed) {
+    if (!motion.still() && static_cast<int>(motion.first_to_frame.size()) != frames.count())
+        throw std::invalid_argument("read_clip_in_view: one camera map per frame is needed");
+    ClipFrames seen = ClipFrames::read_all(frames, 0, progress_part(progress, 0.0, 0.7));
+    return resample_into_view(std::move(seen), motion, progress_part(progress, 0.7, 1.0), as_filmed);
+}
+
+formats::BankCamera to_bank_camera(const CameraMotion& motion) {
+    formats::BankCamera camera;
+    switch (motion.model) {
+        case CameraMotion::Model::still: camera.model = formats::BankCameraModel::still; break;
+        case CameraMotion::Model::translation: camera.model = formats::BankCameraModel::translation; break;
+        case CameraMotion::Model::affine: camera.model = formats::BankCameraModel::affine; break;
+    }
+    camera.untrusted = motion.untrusted;
+    camera.view_frame = motion.still() ? 0 : motion.view_frame;
+    if (!motion.still())
+        for (const Eigen::Matrix<double, 2, 3>& m : motion.first_to_frame)
+            camera.first_to_frame.push_back({static_cast<float>(m(0, 0)), static_cast<float>(m(0, 1)), static_cast<float>(m(0, 2)),
+                                             static_cast<float>(m(1, 0)), static_cast<float>(m(1, 1)), static_cast<float>(m(1, 2))});
+    camera.largest_offset_px = static_cast<float>(motion.largest_offset_px);
+    camera.worst_correlation = static_cast<float>(motion.worst_correlation);
+    return camera;
+}
+
+CameraMotion from_bank_camera(const formats::BankCamera& camera) {
+    CameraMotion motion;
+    switch (camera.model) {
+        case formats::BankCameraModel::still: motion.model = CameraMotion::Model::still; break;
+        case formats::BankCameraModel::translation: motion.model = CameraMotion::Model::translation; break;
+        case formats::BankCameraModel::affine: motion.model = CameraMotion::Model::affine; break;
+    }
+    motion.untrusted = camera.untrusted;
+    motion.view_frame = camera.view_frame;
+    for (const std::array<float, 6>& m : camera.first_to_frame) {
+        Eigen::Matrix<double, 2, 3> map;
+        map << m[0], m[1], m[2], m[3], m[4], m[5];
+        motion.first_to_frame.push_back(map);
+    }
+    motion.largest_offset_px = camera.largest_offset_px;
+    motion.worst_correlation = camera.worst_correlation;
+    return motion;
 }
 
 std::string describe(const CameraMotion& motion) {

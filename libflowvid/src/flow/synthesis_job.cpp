@@ -246,10 +246,18 @@ PreparedSynthesis prepare_synthesis(const SynthesisJob& job, const Progress& pro
                                     "give the clip the bank was tracked from (--capture)"}});
         CameraMotion camera;
         bool cancelled = false;  // the reader stops early; what it read is not the clip
-        sources.clip = std::make_shared<const ClipFrames>(read_clip_stabilised(
-            frames, sources.drawing, camera,
-            [&](const ProgressReport& r) { return !(cancelled = progress && !progress(r)); },
-            decided.background_to_choose || job.keep_clip ? &sources.footage : nullptr));
+        const Progress reading = [&](const ProgressReport& r) { return !(cancelled = progress && !progress(r)); };
+        ClipFrames* footage = decided.background_to_choose || job.keep_clip ? &sources.footage : nullptr;
+        // The view the bank was tracked in, when it says (1.1); a 1.0 bank's
+        // drift is estimated again, as its tracking did.
+        const formats::ParticleBank& bank = *sources.bank;
+        const bool stored = bank.camera && (bank.camera->model == formats::BankCameraModel::still ||
+                                            static_cast<int>(bank.camera->first_to_frame.size()) == frames.count());
+        if (stored) {
+            camera = from_bank_camera(*bank.camera);
+            sources.clip = std::make_shared<const ClipFrames>(read_clip_in_view(frames, camera, reading, footage));
+        } else
+            sources.clip = std::make_shared<const ClipFrames>(read_clip_stabilised(frames, sources.drawing, camera, reading, footage));
         if (cancelled) throw Cancelled();
         sources.camera = camera;
         // The lines were drawn on the first frame; the clip is now seen from its central view.

@@ -72,6 +72,9 @@ TrackingOutcome track_clip(FrameSequence& frames, const TrackingJob& job, const 
     say(progress, describe(out.camera));
     StabilisedFrames stabilised(frames, out.camera);
     out.result = track_particles(stabilised, out.lines, settings, progress);
+    // The view it was tracked in goes with the bank: replaying it needs that
+    // view, and the estimate costs a whole read of the clip.
+    out.result.bank.camera = to_bank_camera(out.camera);
     return out;
 }
 

@@ -6,10 +6,16 @@
 // flickering light in the flow.
 
 #include "flowvid/flow/stabilise.hpp"
+#include "flowvid/flow/synthesis_job.hpp"
+#include "flowvid/formats/flowlines.hpp"
+#include "flowvid/formats/particle_bank.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <random>
 
 using namespace flowvid;
@@ -161,4 +167,95 @@ TEST(CameraDrift, AStillCameraWithFlickeringFlowLeavesTheFramesUnchanged) {
     const ClipFrames read = read_clip_stabilised(clip, drawing, read_motion);
     EXPECT_TRUE(read_motion.still());
     EXPECT_EQ(read.count(), 10);
+}
+
+// A bank stores the view it was tracked in (particle bank 1.1): synthesis
+// replays it in exactly that view without estimating the drift again (the
+// estimate reads the whole clip), and a bank without one (1.0) has the drift
+// estimated from the clip, as before.
+TEST(CameraDrift, SynthesisReplaysABankInTheViewItWasTrackedIn) {
+    const std::string dir = flowvid::testing::scratch_dir("drift_bank");
+    std::filesystem::create_directories(dir + "/frames");
+    std::vector<Eigen::Vector2d> shifts;
+    std::vector<RgbImage> frames;
+    for (int i = 0; i < 12; ++i) {
+        shifts.emplace_back(0.45 * i, -0.2 * i + 0.03 * i * i);
+        frames.push_back(scene_frame(shifts.back(), i, 0.0));
+        char name[64];
+        std::snprintf(name, sizeof name, "/frames/%04d.png", i + 1);
+        write_image(dir + name, to_linear(frames.back()));
+    }
+    flowvid::testing::write_text(dir + "/capture.json", R"({
+  "format": "flowvid.capture", "version": 1, "kind": "video.flow", "fps": 25,
+  "frames": {"pattern": "frames/%04d.png", "first": 1, "count": 12},
+  "flowlines": "lines.json",
+  "source": {"origin": "procedural scene of flowvid's tests", "licence": "CC0"}
+})");
+    formats::FlowLineSet drawing;
+    drawing.width = kWidth;
+    drawing.height = kHeight;
+    formats::FlowLine line;
+    line.id = "in-1";
+    line.points = kLine.front();
+    drawing.inputs.push_back(line);
+    formats::write_flowline_set(dir + "/lines.json", drawing);
+
+    // A bank whose stored view is frame 2 with the drift halved: no estimate
+    // of this clip gives that, so a synthesis that shows it read the bank.
+    formats::ParticleBank bank;
+    bank.patch_size_px = 8;
+    bank.fps = 25.0;
+    bank.clip_width_px = kWidth;
+    bank.clip_height_px = kHeight;
+    bank.clip_frame_count = 12;
+    bank.source_clip = dir;
+    bank.lines.push_back({"in-1", static_cast<float>(kHeight - 1)});
+    for (int p = 0; p < 4; ++p) {
+        formats::TrackedParticle particle;
+        particle.line_id = "in-1";
+        particle.start_frame = 2 * p;
+        for (int a = 0; a < 4; ++a) {
+            particle.arc_length_px.push_back(10.0f + 25.0f * a);
+            for (int t = 0; t < 64; ++t) particle.texture_rgba.insert(particle.texture_rgba.end(), {0.6f, 0.7f, 0.8f, 1.0f});
+        }
+        bank.particles.push_back(particle);
+    }
+    formats::BankCamera stored;
+    stored.model = formats::BankCameraModel::translation;
+    stored.view_frame = 2;
+    for (const Eigen::Vector2d& shift : shifts)
+        stored.first_to_frame.push_back({1.0f, 0.0f, static_cast<float>(0.5 * shift.x()), 0.0f, 1.0f, static_cast<float>(0.5 * shift.y())});
+    stored.largest_offset_px = 2.7f;
+    stored.worst_correlation = 0.97f;
+    bank.camera = stored;
+    formats::write_particle_bank(dir + "/bank.exr", bank);
+
+    SynthesisJob job;
+    job.bank_path = dir + "/bank.exr";
+    job.flowlines_path = dir + "/lines.json";
+    job.background = "median";  // the clip is read
+    const PreparedSynthesis replayed = prepare_synthesis(job);
+    ASSERT_TRUE(replayed.camera.has_value());
+    EXPECT_EQ(to_bank_camera(*replayed.camera), stored);  // bit for bit
+    // The drawing is carried into the stored view: frame 2's half drift.
+    EXPECT_NEAR((replayed.drawing.inputs[0].points[0] - kLine.front()[0] - 0.5 * shifts[2]).norm(), 0.0, 1e-6);
+
+    // Without a camera (a 1.0 bank) the drift is estimated: the whole drift,
+    // seen from the middle of its path.
+    bank.camera.reset();
+    formats::write_particle_bank(dir + "/bank.exr", bank);
+    const PreparedSynthesis estimated = prepare_synthesis(job);
+    ASSERT_TRUE(estimated.camera.has_value());
+    EXPECT_FALSE(estimated.camera->still());
+    EXPECT_GE(estimated.camera->view_frame, 5);
+    EXPECT_LE(estimated.camera->view_frame, 6);
+    EXPECT_NEAR(estimated.camera->first_to_frame[11](0, 2), shifts[11].x(), 0.15);
+
+    // A still camera stored with the bank is used as filmed, estimated or not.
+    bank.camera = formats::BankCamera();
+    formats::write_particle_bank(dir + "/bank.exr", bank);
+    const PreparedSynthesis still = prepare_synthesis(job);
+    ASSERT_TRUE(still.camera.has_value());
+    EXPECT_TRUE(still.camera->still());
+    EXPECT_EQ(still.drawing.inputs[0].points, kLine.front());
 }

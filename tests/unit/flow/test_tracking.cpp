@@ -364,6 +364,13 @@ TEST(FlowTrackingJob, TracksAsItsStepsByHandAndSaysWhatItChose) {
     ASSERT_EQ(outcome.lines.size(), lines.size());
     for (std::size_t i = 0; i < lines.size(); ++i) EXPECT_EQ(outcome.lines[i].points, lines[i].points) << lines[i].id;
     EXPECT_EQ(outcome.camera.largest_offset_px, camera.largest_offset_px);
+    // The bank keeps the view it was tracked in (its maps are ECC's floats).
+    ASSERT_TRUE(outcome.result.bank.camera.has_value());
+    EXPECT_EQ(*outcome.result.bank.camera, to_bank_camera(camera));
+    const CameraMotion kept = from_bank_camera(*outcome.result.bank.camera);
+    EXPECT_EQ(kept.view_frame, camera.view_frame);
+    for (std::size_t f = 0; f < camera.first_to_frame.size(); ++f)
+        EXPECT_EQ(kept.first_to_frame[f], camera.first_to_frame[f]) << "frame " << f;
     ASSERT_EQ(outcome.result.bank.particles.size(), by_hand.bank.particles.size());
     for (std::size_t i = 0; i < by_hand.bank.particles.size(); ++i)
         EXPECT_EQ(outcome.result.bank.particles[i].arc_length_px, by_hand.bank.particles[i].arc_length_px) << i;

@@ -5,6 +5,7 @@
 
 #include <ImfChannelList.h>
 #include <ImfDoubleAttribute.h>
+#include <ImfFloatAttribute.h>
 #include <ImfFloatVectorAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
@@ -43,12 +44,27 @@ namespace {
 using flowvid::testing::mentions;
 
 std::string example_path() { return source_path("formats/examples/example.bank.exr"); }
+std::string example_1_0_path() { return source_path("formats/examples/example-1.0.bank.exr"); }
 
-// The recipe of formats/examples/example.bank.exr: two falling-water lines,
+// The camera of the recipe (1.1): drifting right and up by half a pixel a
+// frame and turning slightly, tracked in the view of frame 6.
+BankCamera example_camera(int frames) {
+    BankCamera camera;
+    camera.model = BankCameraModel::affine;
+    camera.view_frame = 6;
+    for (int f = 0; f < frames; ++f)
+        camera.first_to_frame.push_back({1.0f + 0.001f * f, -0.002f * f, 0.5f * f, 0.002f * f, 1.0f + 0.001f * f, -0.25f * f});
+    camera.largest_offset_px = 6.4f;
+    camera.worst_correlation = 0.95f;
+    return camera;
+}
+
+// The recipe of formats/examples/example.bank.exr (and, without its camera,
+// of example-1.0.bank.exr): two falling-water lines,
 // six particles entering every second frame, accelerating like water under
 // gravity (s = 2.25 + 4 t + 0.75 t^2 px), each a soft bright blob that drifts
-// down its patch and turns whiter as it falls. Deterministic, so the kept
-// example can be compared with it forever.
+// down its patch and turns whiter as it falls; a drifting camera.
+// Deterministic, so the kept examples can be compared with it forever.
 ParticleBank make_example_bank() {
     ParticleBank bank;
     bank.patch_size_px = 8;
@@ -80,6 +96,12 @@ ParticleBank make_example_bank() {
         }
         bank.particles.push_back(particle);
     }
+    bank.camera = example_camera(bank.clip_frame_count);
+    return bank;
+}
+
+ParticleBank without_camera(ParticleBank bank) {
+    bank.camera.reset();
     return bank;
 }
 
@@ -244,10 +266,23 @@ TEST(ParticleBank, RegenerateKeptFilesWhenAsked) {
 }
 
 TEST(ParticleBank, ExampleOfVersion1_0LoadsAndMatchesItsRecipe) {
+    // Written by 1.0 and kept as it was: no camera (readers estimate it again).
+    std::vector<Problem> warnings;
+    const ParticleBank old = read_particle_bank(example_1_0_path(), &warnings);
+    EXPECT_TRUE(warnings.empty());
+    EXPECT_FALSE(old.camera.has_value());
+    EXPECT_EQ(old, half_rounded(without_camera(make_example_bank())));
+    EXPECT_TRUE(validate_particle_bank_file(example_1_0_path(), Strictness::strict).empty());
+}
+
+TEST(ParticleBank, ExampleOfVersion1_1LoadsAndMatchesItsRecipe) {
     std::vector<Problem> warnings;
     const ParticleBank bank = read_particle_bank(example_path(), &warnings);
     EXPECT_TRUE(warnings.empty());
     EXPECT_EQ(bank, half_rounded(make_example_bank()));
+    ASSERT_TRUE(bank.camera.has_value());
+    EXPECT_EQ(bank.camera->first_to_frame.size(), 12u);
+    EXPECT_EQ(bank.camera->first_to_frame[11][2], 5.5f);  // floats, bit for bit
     EXPECT_EQ(bank.particles.size(), 6u);
     EXPECT_EQ(bank.particles[5].life_frames(), 2);
     EXPECT_EQ(bank.particles[5].start_frame, 10);
@@ -297,7 +332,10 @@ TEST(ParticleBank, HeaderAndLayoutDescribeTheBank) {
     EXPECT_EQ(patches.name(), "patches");
     EXPECT_EQ(motion.name(), "motion");
     EXPECT_EQ(patches.typedAttribute<Imf::StringAttribute>("flowvid.format").value(), "flowvid.particle_bank");
-    EXPECT_EQ(patches.typedAttribute<Imf::StringAttribute>("flowvid.version").value(), "1.0");
+    EXPECT_EQ(patches.typedAttribute<Imf::StringAttribute>("flowvid.version").value(), "1.1");
+    EXPECT_EQ(patches.typedAttribute<Imf::StringAttribute>("flowvid.camera_model").value(), "affine");
+    EXPECT_EQ(patches.typedAttribute<Imf::IntAttribute>("flowvid.camera_view_frame").value(), 6);
+    EXPECT_EQ(patches.typedAttribute<Imf::FloatVectorAttribute>("flowvid.camera_first_to_frame_px").value().size(), 12u * 6u);
     EXPECT_EQ(patches.typedAttribute<Imf::IntAttribute>("flowvid.patch_size_px").value(), 8);
     EXPECT_EQ(patches.typedAttribute<Imf::IntAttribute>("flowvid.particle_count").value(), 6);
     EXPECT_EQ(patches.typedAttribute<Imf::IntAttribute>("flowvid.clip_frame_count").value(), 12);
@@ -350,7 +388,7 @@ TEST(ParticleBank, OpensInOiiotoolWithTwoNamedSubimages) {
     EXPECT_TRUE(mentions(info, "name: \"patches\"")) << info;
     EXPECT_TRUE(mentions(info, "name: \"motion\"")) << info;
     EXPECT_TRUE(mentions(info, "flowvid.format: \"flowvid.particle_bank\"")) << info;
-    EXPECT_TRUE(mentions(info, "flowvid.version: \"1.0\"")) << info;
+    EXPECT_TRUE(mentions(info, "flowvid.version: \"1.1\"")) << info;
     EXPECT_TRUE(mentions(info, "arc_length_px.V")) << info;
 }
 
@@ -460,8 +498,8 @@ TEST(ParticleBank, WrongFormatAndVersionsAreJudgedByTheirAttribute) {
     EXPECT_TRUE(mentions(messages, v2 + ": part \"patches\" attribute \"flowvid.version\": version 2.0 is not supported"))
         << messages;
 
-    const std::string v11 = edited_bank(dir, "v11.exr", [](RawBank& raw) {
-        raw.headers[0].insert("flowvid.version", Imf::StringAttribute("1.1"));
+    const std::string v11 = edited_bank(dir, "v12.exr", [](RawBank& raw) {
+        raw.headers[0].insert("flowvid.version", Imf::StringAttribute("1.2"));
         raw.headers[0].insert("flowvid.future_thing", Imf::IntAttribute(3));
     });
     std::vector<Problem> warnings;
@@ -469,7 +507,7 @@ TEST(ParticleBank, WrongFormatAndVersionsAreJudgedByTheirAttribute) {
     EXPECT_EQ(bank, half_rounded(make_example_bank()));
     ASSERT_EQ(warnings.size(), 2u);
     EXPECT_EQ(warnings[0].field, "part \"patches\" attribute \"flowvid.version\"");
-    EXPECT_TRUE(mentions(warnings[0].message, "newer than 1.0"));
+    EXPECT_TRUE(mentions(warnings[0].message, "newer than 1.1"));
     EXPECT_EQ(warnings[1].field, "part \"patches\" attribute \"flowvid.future_thing\"");
     // `flowvid validate` is strict: the unknown attribute becomes an error.
     const std::vector<Problem> strict = validate_particle_bank_file(v11, Strictness::strict);
@@ -482,6 +520,92 @@ TEST(ParticleBank, WrongFormatAndVersionsAreJudgedByTheirAttribute) {
         raw.headers[0].insert("flowvid.version", Imf::StringAttribute("one"));
     });
     EXPECT_TRUE(mentions(validation_messages([&] { read_particle_bank(garbled); }), "\"one\" is not MAJOR.MINOR"));
+}
+
+TEST(ParticleBank, TheCameraRoundTripsAndAStillOneHasNoMaps) {
+    const std::string dir = scratch_dir("bank_camera");
+    for (const BankCameraModel model : {BankCameraModel::still, BankCameraModel::translation, BankCameraModel::affine}) {
+        ParticleBank bank = make_example_bank();
+        if (model == BankCameraModel::still) {
+            bank.camera = BankCamera();
+            bank.camera->untrusted = true;  // the firelight case: frames as filmed
+            bank.camera->largest_offset_px = 3.25f;
+            bank.camera->worst_correlation = 0.5f;
+        } else
+            bank.camera->model = model;
+        const std::string path = dir + "/" + to_string(model) + ".bank.exr";
+        write_particle_bank(path, bank);
+        const ParticleBank reread = read_particle_bank(path);
+        EXPECT_EQ(reread, half_rounded(bank)) << to_string(model);
+        EXPECT_TRUE(validate_particle_bank_file(path, Strictness::strict).empty()) << to_string(model);
+    }
+    // A bank written without a camera reads as one (a 1.0 bank's content).
+    write_particle_bank(dir + "/none.bank.exr", without_camera(make_example_bank()));
+    EXPECT_FALSE(read_particle_bank(dir + "/none.bank.exr").camera.has_value());
+    const nlohmann::json summary = summarize_particle_bank(read_particle_bank(example_path()));
+    EXPECT_EQ(summary["camera"]["model"], "affine");
+    EXPECT_EQ(summary["camera"]["view_frame"], 6);
+}
+
+TEST(ParticleBank, ACameraThatCannotBeTheClipsIsRefusedNamingTheAttribute) {
+    const std::string dir = scratch_dir("bank_bad_camera");
+    const auto attribute = [](const std::string& name) { return "part \"patches\" attribute \"flowvid." + name + "\""; };
+    const std::string short_maps = edited_bank(dir, "short.exr", [](RawBank& raw) {
+        std::vector<float> maps = raw.headers[0].typedAttribute<Imf::FloatVectorAttribute>("flowvid.camera_first_to_frame_px").value();
+        maps.resize(maps.size() - 6);
+        raw.headers[0].insert("flowvid.camera_first_to_frame_px", Imf::FloatVectorAttribute(maps));
+    });
+    std::string messages = validation_messages([&] { read_particle_bank(short_maps); });
+    EXPECT_TRUE(mentions(messages, short_maps + ": " + attribute("camera_first_to_frame_px") + ": 11 maps for 12 source frames"))
+        << messages;
+
+    const std::string ragged = edited_bank(dir, "ragged.exr", [](RawBank& raw) {
+        std::vector<float> maps = raw.headers[0].typedAttribute<Imf::FloatVectorAttribute>("flowvid.camera_first_to_frame_px").value();
+        maps.pop_back();
+        raw.headers[0].insert("flowvid.camera_first_to_frame_px", Imf::FloatVectorAttribute(maps));
+    });
+    EXPECT_TRUE(mentions(validation_messages([&] { read_particle_bank(ragged); }), "71 values are not whole maps of 6"));
+
+    const std::string flipped = edited_bank(dir, "flipped.exr", [](RawBank& raw) {
+        std::vector<float> maps = raw.headers[0].typedAttribute<Imf::FloatVectorAttribute>("flowvid.camera_first_to_frame_px").value();
+        maps[3 * 6 + 0] = -1.0f;  // frame 3 mirrored
+        raw.headers[0].insert("flowvid.camera_first_to_frame_px", Imf::FloatVectorAttribute(maps));
+    });
+    messages = validation_messages([&] { read_particle_bank(flipped); });
+    EXPECT_TRUE(mentions(messages, attribute("camera_first_to_frame_px") + ": map of frame 3 flips or collapses")) << messages;
+
+    const std::string partial = edited_bank(dir, "partial.exr", [](RawBank& raw) {
+        raw.headers[0].erase("flowvid.camera_view_frame");
+        raw.headers[0].insert("flowvid.camera_model", Imf::StringAttribute("zoom"));
+    });
+    messages = validation_messages([&] { read_particle_bank(partial); });
+    EXPECT_TRUE(mentions(messages, attribute("camera_view_frame") + ": missing while other flowvid.camera_* attributes are present"))
+        << messages;
+    EXPECT_TRUE(mentions(messages, "remove every flowvid.camera_* attribute")) << messages;
+
+    const std::string model = edited_bank(dir, "model.exr", [](RawBank& raw) {
+        raw.headers[0].insert("flowvid.camera_model", Imf::StringAttribute("zoom"));
+        raw.headers[0].insert("flowvid.camera_view_frame", Imf::IntAttribute(12));
+    });
+    messages = validation_messages([&] { read_particle_bank(model); });
+    EXPECT_TRUE(mentions(messages, attribute("camera_model") + ": unknown camera model \"zoom\"")) << messages;
+
+    const std::string view = edited_bank(dir, "view.exr", [](RawBank& raw) {
+        raw.headers[0].insert("flowvid.camera_view_frame", Imf::IntAttribute(12));
+        raw.headers[0].insert("flowvid.camera_worst_correlation", Imf::FloatAttribute(1.5f));
+    });
+    messages = validation_messages([&] { read_particle_bank(view); });
+    EXPECT_TRUE(mentions(messages, attribute("camera_view_frame") + ": view frame 12 is outside the clip (0..11)")) << messages;
+    EXPECT_TRUE(mentions(messages, attribute("camera_worst_correlation") + ": correlation 1.5")) << messages;
+
+    // The writer names the struct's members.
+    ParticleBank bank = make_example_bank();
+    bank.camera->first_to_frame.pop_back();
+    bank.camera->untrusted = true;
+    messages = validation_messages([&] { write_particle_bank(dir + "/refused.bank.exr", bank); });
+    EXPECT_TRUE(mentions(messages, "camera.first_to_frame: 11 maps for 12 source frames")) << messages;
+    EXPECT_TRUE(mentions(messages, "camera.untrusted: an untrusted estimate with the moving model \"affine\"")) << messages;
+    EXPECT_FALSE(fs::exists(dir + "/refused.bank.exr"));
 }
 
 TEST(ParticleBank, PlainRgbaExrIsNotABank) {
@@ -611,7 +735,7 @@ TEST(ParticleBank, MissingFileIsAnIoErrorNamingIt) {
 TEST(ParticleBank, SummaryReportsCountsLivesAndSpeeds) {
     const nlohmann::json summary = summarize_particle_bank(read_particle_bank(example_path()));
     EXPECT_EQ(summary["format"], "flowvid.particle_bank");
-    EXPECT_EQ(summary["version"], "1.0");
+    EXPECT_EQ(summary["version"], "1.1");
     EXPECT_EQ(summary["particle_count"], 6);
     EXPECT_EQ(summary["line_count"], 2);
     EXPECT_EQ(summary["lines"][0]["id"], "fall_left");

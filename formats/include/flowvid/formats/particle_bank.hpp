@@ -6,20 +6,23 @@
 // them). A multi-part OpenEXR file that any EXR viewer opens: part "patches"
 // is a half RGBA atlas (one row of patches per particle, one column per source
 // frame), part "motion" holds the float32 positions. Format name
-// "flowvid.particle_bank", version 1.0; see formats/specs/particle_bank.md.
+// "flowvid.particle_bank", version 1.1 (1.1 adds the camera's drift); see
+// formats/specs/particle_bank.md.
 
 #include "flowvid/error.hpp"
 #include "flowvid/formats/json_fields.hpp"
 
 #include <nlohmann/json.hpp>
 
+#include <array>
+#include <optional>
 #include <string>
 #include <vector>
 
 namespace flowvid::formats {
 
 inline constexpr const char* kParticleBankFormatName = "flowvid.particle_bank";
-inline constexpr FormatVersion kParticleBankFormatVersion{1, 0};
+inline constexpr FormatVersion kParticleBankFormatVersion{1, 1};
 
 // Limits a reader enforces before allocating, so that a damaged or hostile
 // header cannot make it reserve gigabytes. Besides these, the decoded data
@@ -49,6 +52,32 @@ struct BankFlowLine {
     bool operator==(const BankFlowLine&) const = default;
 };
 
+// How the camera drifted while the clip was filmed, as tracking estimated it
+// (version 1.1). A bank is tracked in one still view of the clip: the input
+// lines, drawn on the first frame, are carried into the view of frame
+// `view_frame` and the particles' positions are measured along them. Every
+// command that replays the bank needs that same view; stored, it is not
+// estimated again (the estimate reads the whole clip).
+enum class BankCameraModel { still, translation, affine };
+
+const char* to_string(BankCameraModel model);
+
+struct BankCamera {
+    BankCameraModel model = BankCameraModel::still;
+    // Still because the background matched the first frame too poorly to
+    // tell (flickering firelight): the frames are used as filmed.
+    bool untrusted = false;
+    // 0-based source frame whose view the bank is in; 0 when still.
+    int view_frame = 0;
+    // One map per source frame (clip_frame_count of them; none when still):
+    // a pixel p of the first frame is the scene point seen at A p + t in
+    // frame f, stored row-major {a11, a12, tx, a21, a22, ty}, pixels.
+    std::vector<std::array<float, 6>> first_to_frame;
+    float largest_offset_px = 0.0f;  // the largest drift of a frame corner from the first frame, px
+    float worst_correlation = 1.0f;  // the estimate's lowest correlation of a frame's background with the first's
+    bool operator==(const BankCamera&) const = default;
+};
+
 // One particle followed along its line for `life_frames()` consecutive frames.
 struct TrackedParticle {
     std::string line_id;  // one of ParticleBank::lines[].id
@@ -76,6 +105,9 @@ struct ParticleBank {
     ParticleDynamics dynamics = ParticleDynamics::stationary;
     std::vector<BankFlowLine> lines;
     std::vector<TrackedParticle> particles;  // in file order (atlas rows)
+    // The view the particles were tracked in (1.1); absent in 1.0 banks, whose
+    // readers estimate the drift from the clip again.
+    std::optional<BankCamera> camera;
 
     bool operator==(const ParticleBank&) const = default;
 };

@@ -17,6 +17,7 @@
 #include "flowvid/progress.hpp"
 #include "flowvid/flow/frames.hpp"
 #include "flowvid/formats/flowlines.hpp"
+#include "flowvid/formats/particle_bank.hpp"
 
 #include <Eigen/Core>
 
@@ -124,6 +125,16 @@ std::vector<std::vector<Eigen::Vector2d>> drawn_input_polylines(const formats::F
 // frames returned are the footage.
 ClipFrames read_clip_stabilised(FrameSequence& frames, const formats::FlowLineSet& drawing, CameraMotion& motion,
                                 const Progress& progress = {}, ClipFrames* as_filmed = nullptr);
+
+// The same, with the drift already known (a bank that stores the view it
+// was tracked in): nothing is estimated.
+ClipFrames read_clip_in_view(FrameSequence& frames, const CameraMotion& motion, const Progress& progress = {},
+                             ClipFrames* as_filmed = nullptr);
+
+// The camera as a particle bank stores it (its maps in float32, as ECC
+// estimates them), and back.
+formats::BankCamera to_bank_camera(const CameraMotion& motion);
+CameraMotion from_bank_camera(const formats::BankCamera& camera);
 
 // A one-line account for logs: "camera still" or "camera drifts up to 10.4 px
 // (translation, ...): tracked and rendered in the view of frame 19, the
