@@ -112,8 +112,9 @@ std::vector<std::vector<Eigen::Vector2d>> polylines_as_drawn(const std::vector<s
                                                              const CameraMotion& motion);
 
 // The drawing's input lines as polylines: what the drift estimate leaves out.
-// track, synth, edit and quality all estimate from the drawn lines (not the
-// densified ones), so that they find the same drift for the same drawing.
+// track estimates from the drawn lines (not the densified ones), and so do
+// synth, edit and quality for a bank that does not store its camera (1.0),
+// so that they find the same drift for the same drawing.
 std::vector<std::vector<Eigen::Vector2d>> drawn_input_polylines(const formats::FlowLineSet& drawing);
 
 // The whole clip in memory as seen from its view frame's camera: read once,
