@@ -47,6 +47,18 @@ RgbImage scene_frame(Eigen::Vector2d shift, int frame, double flicker) {
 
 const std::vector<std::vector<Eigen::Vector2d>> kLine = {{Eigen::Vector2d(80, 0), Eigen::Vector2d(80, kHeight - 1)}};
 
+// The drawing of kLine: one input line, "in-1", on the whole frame.
+formats::FlowLineSet line_drawing() {
+    formats::FlowLineSet drawing;
+    drawing.width = kWidth;
+    drawing.height = kHeight;
+    formats::FlowLine line;
+    line.id = "in-1";
+    line.points = kLine.front();
+    drawing.inputs.push_back(line);
+    return drawing;
+}
+
 CameraMotionSettings small_frame_settings() {
     CameraMotionSettings settings;
     settings.exclude_around_lines_px = 24.0;  // the flow band is 14 px either side of the line
@@ -156,13 +168,7 @@ TEST(CameraDrift, AStillCameraWithFlickeringFlowLeavesTheFramesUnchanged) {
     for (int i = 0; i < 10; ++i) EXPECT_EQ(stabilised.frame(i).rgb, frames[static_cast<std::size_t>(i)].rgb);
 
     // The same through the in-memory reader synth and quality use.
-    formats::FlowLineSet drawing;
-    drawing.width = kWidth;
-    drawing.height = kHeight;
-    formats::FlowLine line;
-    line.id = "in-1";
-    line.points = kLine.front();
-    drawing.inputs.push_back(line);
+    const formats::FlowLineSet drawing = line_drawing();
     CameraMotion read_motion;
     const ClipFrames read = read_clip_stabilised(clip, drawing, read_motion);
     EXPECT_TRUE(read_motion.still());
@@ -191,13 +197,7 @@ TEST(CameraDrift, SynthesisReplaysABankInTheViewItWasTrackedIn) {
   "flowlines": "lines.json",
   "source": {"origin": "procedural scene of flowvid's tests", "licence": "CC0"}
 })");
-    formats::FlowLineSet drawing;
-    drawing.width = kWidth;
-    drawing.height = kHeight;
-    formats::FlowLine line;
-    line.id = "in-1";
-    line.points = kLine.front();
-    drawing.inputs.push_back(line);
+    const formats::FlowLineSet drawing = line_drawing();
     formats::write_flowline_set(dir + "/lines.json", drawing);
 
     // A bank whose stored view is frame 2 with the drift halved: no estimate
