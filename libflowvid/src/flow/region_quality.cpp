@@ -110,6 +110,8 @@ PatchVector cut_patch(const std::vector<float>& g, int width, int x0, int y0, in
 // The clip's patches with a PCA shortlist (32 components, 4 candidates): the
 // nearest patch is the exact nearest of the 4 closest in PCA space.
 class PatchDatabase {
+    static constexpr Eigen::Index kBlockColumns = 4096;
+
 public:
     PatchDatabase(const std::vector<std::vector<float>>& clip, const std::vector<int>& frames, int width, int height,
                   const std::vector<std::uint8_t>& region, const RegionSettings& s)
@@ -132,36 +134,69 @@ public:
             chosen.col(i) = m_raw.col(static_cast<Eigen::Index>(rng.below(static_cast<std::uint64_t>(m_raw.cols())))).cast<double>();
         const Eigen::VectorXd mean = chosen.rowwise().mean();
         chosen.colwise() -= mean;
-        const Eigen::MatrixXd covariance = chosen * chosen.transpose() / std::max<double>(1.0, static_cast<double>(sample - 1));
+        // The lower triangle only (half the products): the solver reads no more.
+        Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(dims, dims);
+        covariance.selfadjointView<Eigen::Lower>().rankUpdate(chosen, 1.0 / std::max<double>(1.0, static_cast<double>(sample - 1)));
         Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver(covariance);
         const int components = std::min(32, dims);
         m_mean = mean.cast<float>();
         m_basis = solver.eigenvectors().rightCols(components).cast<float>();  // ascending order: the last are the largest
+        // Projected a block of patches at a time: one matrix product each
+        // streams the basis once, where a product per patch re-read it.
         m_projected.resize(components, m_raw.cols());
-        for (Eigen::Index j = 0; j < m_raw.cols(); ++j) m_projected.col(j) = m_basis.transpose() * (m_raw.col(j).cast<float>() - m_mean);
+        for (Eigen::Index j0 = 0; j0 < m_raw.cols(); j0 += kBlockColumns) {
+            const Eigen::Index n = std::min(kBlockColumns, m_raw.cols() - j0);
+            Eigen::MatrixXf centred = m_raw.middleCols(j0, n).cast<float>();
+            centred.colwise() -= m_mean;
+            m_projected.middleCols(j0, n).noalias() = m_basis.transpose() * centred;
+        }
         m_projected_norm = m_projected.colwise().squaredNorm().transpose();
     }
 
     bool empty() const { return m_raw.cols() == 0; }
 
-    // RMS grey-level distance to the nearest clip patch, leaving out `exclude_frame` (-1: none).
-    double nearest(const PatchVector& query, int exclude_frame) const {
-        const Eigen::VectorXf q = m_basis.transpose() * (query - m_mean);
-        const Eigen::VectorXf approx = m_projected_norm - 2.0f * (m_projected.transpose() * q);
+    // RMS grey-level distance from each query (a column) to its nearest clip
+    // patch, leaving out the patches of that query's `exclude_frames` entry
+    // (-1: none). The shortlist of each query is its 4 smallest PCA-space
+    // distances (ties: the earlier patch), found in one pass over the clip's
+    // patches for all queries together: the patches stream through memory
+    // once, in blocks, where a pass per query read them once each.
+    std::vector<double> nearest(const Eigen::MatrixXf& queries, const std::vector<int>& exclude_frames) const {
+        const Eigen::Index count = queries.cols();
+        std::vector<double> distances(static_cast<std::size_t>(count), 0.0);
+        if (count == 0) return distances;
+        Eigen::MatrixXf centred = queries;
+        centred.colwise() -= m_mean;
+        const Eigen::MatrixXf projected = m_basis.transpose() * centred;  // components x queries
         constexpr int kShortlist = 4;
-        std::vector<std::pair<float, Eigen::Index>> best;
-        for (Eigen::Index j = 0; j < approx.size(); ++j) {
-            if (m_frame[static_cast<std::size_t>(j)] == exclude_frame) continue;
-            if (best.size() < kShortlist || approx[j] < best.back().first) {
-                best.emplace_back(approx[j], j);
-                std::sort(best.begin(), best.end());
-                if (best.size() > kShortlist) best.pop_back();
+        using Candidate = std::pair<float, Eigen::Index>;
+        std::vector<std::vector<Candidate>> best(static_cast<std::size_t>(count));
+        Eigen::MatrixXf dots;
+        for (Eigen::Index j0 = 0; j0 < m_projected.cols(); j0 += kBlockColumns) {
+            const Eigen::Index n = std::min(kBlockColumns, m_projected.cols() - j0);
+            dots.noalias() = m_projected.middleCols(j0, n).transpose() * projected;  // n x queries
+            for (Eigen::Index q = 0; q < count; ++q) {
+                std::vector<Candidate>& list = best[static_cast<std::size_t>(q)];
+                const int exclude = exclude_frames[static_cast<std::size_t>(q)];
+                for (Eigen::Index k = 0; k < n; ++k) {
+                    const Eigen::Index j = j0 + k;
+                    const float approx = m_projected_norm[j] - 2.0f * dots(k, q);
+                    if (list.size() == kShortlist && !(approx < list.back().first)) continue;
+                    if (m_frame[static_cast<std::size_t>(j)] == exclude) continue;
+                    list.emplace_back(approx, j);
+                    std::sort(list.begin(), list.end());
+                    if (list.size() > kShortlist) list.pop_back();
+                }
             }
         }
-        double nearest = std::numeric_limits<double>::infinity();
-        for (const auto& [_, j] : best)
-            nearest = std::min(nearest, static_cast<double>((m_raw.col(j).cast<float>() - query).squaredNorm()));
-        return std::isfinite(nearest) ? std::sqrt(nearest / static_cast<double>(query.size())) : 0.0;
+        for (Eigen::Index q = 0; q < count; ++q) {
+            double nearest = std::numeric_limits<double>::infinity();
+            for (const auto& [_, j] : best[static_cast<std::size_t>(q)])
+                nearest = std::min(nearest, static_cast<double>((m_raw.col(j).cast<float>() - queries.col(q)).squaredNorm()));
+            distances[static_cast<std::size_t>(q)] =
+                std::isfinite(nearest) ? std::sqrt(nearest / static_cast<double>(queries.rows())) : 0.0;
+        }
+        return distances;
     }
 
 private:
@@ -200,15 +235,19 @@ double mean_patch_distance(const PatchDatabase& db, const std::vector<std::vecto
     }
     if (queries.empty() || db.empty()) return 0.0;
     const std::size_t step = std::max<std::size_t>(1, (queries.size() + s.max_queries - 1) / s.max_queries);
-    double total = 0.0;
-    int n = 0;
-    for (std::size_t i = 0; i < queries.size(); i += step) {
-        const auto& [f, corner] = queries[i];
-        total += db.nearest(cut_patch(sequence[static_cast<std::size_t>(f)], width, corner.first, corner.second, s.patch_px),
-                            leave_own_frame_out ? f : -1);
-        ++n;
+    std::vector<std::size_t> chosen;
+    for (std::size_t i = 0; i < queries.size(); i += step) chosen.push_back(i);
+    Eigen::MatrixXf patches(s.patch_px * s.patch_px, static_cast<Eigen::Index>(chosen.size()));
+    std::vector<int> exclude;
+    for (std::size_t c = 0; c < chosen.size(); ++c) {
+        const auto& [f, corner] = queries[chosen[c]];
+        patches.col(static_cast<Eigen::Index>(c)) =
+            cut_patch(sequence[static_cast<std::size_t>(f)], width, corner.first, corner.second, s.patch_px);
+        exclude.push_back(leave_own_frame_out ? f : -1);
     }
-    return total / n;
+    double total = 0.0;
+    for (double d : db.nearest(patches, exclude)) total += d;
+    return total / static_cast<double>(chosen.size());
 }
 
 }  // namespace
