@@ -176,3 +176,34 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
     }
     EXPECT_EQ(videos, 3) << "garment, loop and edit videos in the page; the DOM: " << dom.substr(0, 400);
 }
+
+// The loop's verdict against the clip's own largest change: below it, equal
+// to it within rounding (a loop that replays the clip's background measures
+// the clip's own largest change again: 1.091076 against 1.091063 on the
+// demo's waterfall), and clearly above it.
+TEST(CliDemo, ALoopAsLargeAsTheClipsOwnLargestChangeIsNotCalledASeam) {
+    struct Case {
+        double ours;
+        const char* ending;
+        const char* box;
+    };
+    for (const Case& c : {Case{1.05, ": no seam stands out from the footage's own changes.", "verdict good"},
+                          Case{1.091076, ": as large as the footage's own largest change (within 0.5 %), so no seam",
+                               "verdict good"},
+                          Case{1.2, ": its worst seam changes more than the footage ever does.", "verdict warn"}}) {
+        const fs::path out = scratch_dir("cli_demo_loop_verdict");
+        write_json(out / "video" / "quality.json",
+                   {{"methods", {{"ours", {{"seam_max_ratio", c.ours}}}, {"loop", {{"seam_max_ratio", 3.78}}}}},
+                    {"clip_reference", {{"seam_max_ratio", 1.0910634777161416}}}});
+        const CliResult result = run_flowvid({"--progress", "none", "demo", "--only", "formats", "--out", out.string()});
+        ASSERT_EQ(result.exit_code, 0) << result.err;
+        const std::string index = std::regex_replace(read_text((out / "index.html").string()), std::regex("&#39;"), "'");
+        const std::size_t sentence = index.find("The loop's largest frame-to-frame change is");
+        ASSERT_NE(sentence, std::string::npos);
+        EXPECT_NE(index.find(c.ending, sentence), std::string::npos) << c.ours << ": " << index.substr(sentence, 300);
+        // The sentence sits in the box its verdict names.
+        EXPECT_NE(index.rfind(c.box, sentence), std::string::npos) << c.ours;
+        EXPECT_EQ(index.rfind("<div class=\"verdict", sentence), index.rfind(std::string("<div class=\"") + c.box, sentence))
+            << c.ours;
+    }
+}
