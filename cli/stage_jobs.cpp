@@ -20,22 +20,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Starts argv with stdout and stderr sent to the files; -1 when it cannot start.
-pid_t start_program(const StageJob& job) {
-    std::vector<std::string> text = job.argv;
-    std::vector<char*> argv;
-    for (std::string& a : text) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, job.stdout_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, job.stderr_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    pid_t child = -1;
-    const int spawned = argv.size() > 1 ? posix_spawnp(&child, argv[0], &actions, nullptr, argv.data(), environ) : ENOENT;
-    posix_spawn_file_actions_destroy(&actions);
-    return spawned == 0 ? child : -1;
-}
-
 int exit_code_of(int status) {
     if (WIFEXITED(status)) return WEXITSTATUS(status);
     if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
@@ -67,6 +51,24 @@ void check_order(const std::vector<StageJob>& jobs) {
 
 }  // namespace
 
+int start_program(const std::vector<std::string>& argv_text, const std::filesystem::path& stdout_file,
+                  const std::filesystem::path& stderr_file, int* error) {
+    std::vector<std::string> text = argv_text;
+    std::vector<char*> argv;
+    for (std::string& a : text) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, stdout_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (!stderr_file.empty())
+        posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, stderr_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    pid_t child = -1;
+    const int spawned = argv.size() > 1 ? posix_spawnp(&child, argv[0], &actions, nullptr, argv.data(), environ) : ENOENT;
+    posix_spawn_file_actions_destroy(&actions);
+    if (error) *error = spawned;
+    return spawned == 0 ? child : -1;
+}
+
 std::vector<StageJobEnd> run_stage_jobs(const std::vector<StageJob>& jobs, int max_parallel, const StageJobEvents& events) {
     check_order(jobs);
     max_parallel = std::max(1, max_parallel);
@@ -85,23 +87,23 @@ std::vector<StageJobEnd> run_stage_jobs(const std::vector<StageJob>& jobs, int m
         ends[i] = {exit_code, std::chrono::duration<double>(Clock::now() - began[i]).count()};
         if (events.ended) events.ended(jobs[i], ends[i]);
     };
+    // The first job in list order that may start now, or jobs.size().
+    const auto next_ready = [&] {
+        std::size_t i = 0;
+        while (i < jobs.size() && (state[i] != State::waiting ||
+                                   !std::all_of(jobs[i].after.begin(), jobs[i].after.end(), has_ended)))
+            ++i;
+        return i;
+    };
     for (;;) {
-        // Start what may start, in list order.
         int running = static_cast<int>(std::count(state.begin(), state.end(), State::running));
-        for (std::size_t i = 0; i < jobs.size() && running < max_parallel; ++i) {
-            if (state[i] != State::waiting ||
-                !std::all_of(jobs[i].after.begin(), jobs[i].after.end(), has_ended))
-                continue;
+        for (std::size_t i; running < max_parallel && (i = next_ready()) < jobs.size();) {
             began[i] = Clock::now();
             state[i] = State::running;
             if (events.started) events.started(jobs[i]);
-            pid[i] = start_program(jobs[i]);
-            if (pid[i] < 0) {
-                finish(i, 127);
-                i = static_cast<std::size_t>(-1);  // an end may release others: look again from the top
-                continue;
-            }
-            ++running;
+            pid[i] = start_program(jobs[i].argv, jobs[i].stdout_file, jobs[i].stderr_file);
+            if (pid[i] < 0) finish(i, 127);  // its end may release its followers: the next search sees them
+            else ++running;
         }
         if (running == 0) break;  // all ended (check_order rules out waiting forever)
         // Wait a tick, then collect whatever ended.

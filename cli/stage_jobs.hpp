@@ -42,6 +42,13 @@ struct StageJobEvents {
 std::vector<StageJobEnd> run_stage_jobs(const std::vector<StageJob>& jobs, int max_parallel,
                                         const StageJobEvents& events = {});
 
+// Starts `argv` (argv[0] looked up on PATH) with its stdout sent to
+// `stdout_file` and its stderr to `stderr_file`, or left as this process's
+// when that is empty. Returns its process id, or -1 with errno's reason in
+// `error` when it cannot start.
+int start_program(const std::vector<std::string>& argv, const std::filesystem::path& stdout_file,
+                  const std::filesystem::path& stderr_file, int* error = nullptr);
+
 // The lines appended to a file since the last call (whole lines only: a
 // line still being written waits for its newline). A missing file has none.
 class FileFollower {

@@ -12,8 +12,6 @@
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/flowlines.hpp"
 
-#include <fcntl.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -30,7 +28,6 @@
 #include <sstream>
 #include <thread>
 
-extern char** environ;
 
 namespace flowvid::cli {
 namespace {
@@ -73,19 +70,12 @@ struct DemoStage {
 // Runs a program after printing its command line (the demo teaches the
 // commands it runs). Its stdout goes to `stdout_file` (a --json summary);
 // its progress and logs pass through to stderr. Returns its exit code.
-int run_program(std::vector<std::string> argv_text, const std::string& shown, const fs::path& stdout_file) {
+int run_program(const std::vector<std::string>& argv, const std::string& shown, const fs::path& stdout_file) {
     std::cout << "$ " << shown << '\n' << std::flush;
-    std::vector<char*> argv;
-    for (std::string& a : argv_text) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, stdout_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    pid_t child = 0;
-    const int spawned = posix_spawnp(&child, argv[0], &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    if (spawned != 0) {
-        log_message("flowvid demo: could not start " + argv_text[0] + ": " + std::strerror(spawned));
+    int error = 0;
+    const pid_t child = start_program(argv, stdout_file, {}, &error);
+    if (child < 0) {
+        log_message("flowvid demo: could not start " + argv[0] + ": " + std::strerror(error));
         return kExitFailure;
     }
     int status = 0;
