@@ -276,8 +276,6 @@ Windows predict(const std::string& tracks_folder, const fc::ClothMaterial& mater
     return windows_of(a.vertex_rms_m);
 }
 
-Eigen::MatrixX3d resample(const Eigen::MatrixX3d& grid, int rows, int cols, int out_rows, int out_cols);
-
 // The material on one capture at a rows x rows mesh, from its measured first
 // frame, read back at the truth's 24 x 24 uv grid (for the resolution check).
 fc::GridFrames predict_at(const std::string& tracks_folder, const fc::ClothMaterial& material, int rows, int threads) {
