@@ -157,7 +157,8 @@ std::string tracks_copy(const std::string& name, const fs::path& scratch, int fi
     const ff::Capture capture = ff::read_capture(source.string());
     std::optional<ff::VertexAnimation> truth = ff::read_capture_truth_positions(capture);
     if (!truth) throw std::runtime_error(name + " has no truth/positions.exr");
-    if (first_frame_through_grid > 0 && truth->grid_rows && truth->grid_cols) {
+    if (first_frame_through_grid > 0) {
+        if (!truth->grid_rows || !truth->grid_cols) throw std::runtime_error(name + "'s truth/positions.exr is not a uv grid");
         const int rows = *truth->grid_rows, cols = *truth->grid_cols, g = first_frame_through_grid;
         Eigen::MatrixX3d first(rows * cols, 3);
         for (int v = 0; v < rows * cols; ++v) first.row(v) = truth->position(0, v).cast<double>().transpose();
@@ -841,15 +842,14 @@ int main(int argc, char** argv) {
                     predict_at(tracks_copy(drape, scratch, 12), *last_fitted, 24, o.threads);
                 if (!coarse_start.empty() && measured[24] && measured[12]) {
                     const std::optional<Eigen::MatrixX3d> held = resample(coarse_start.front(), 24, 24, 12, 12);
+                    const double max_24 = max_distance_mm(held, measured[24]), rms_24 = rms_distance_mm(held, measured[24]);
+                    const double max_12 = max_distance_mm(held, measured[12]), rms_12 = rms_distance_mm(held, measured[12]);
                     std::printf("|   resolution, %s: the 24x24 drape from the measured shape as a 12x12 mesh holds it, at the 12x12 "
                                 "uv points, max / RMS: %s / %s mm from the 24x24 drape from the full shape, %s / %s mm from the "
                                 "12x12 drape |\n",
-                                drape.c_str(), cell(max_distance_mm(held, measured[24])).c_str(),
-                                cell(rms_distance_mm(held, measured[24])).c_str(), cell(max_distance_mm(held, measured[12])).c_str(),
-                                cell(rms_distance_mm(held, measured[12])).c_str());
+                                drape.c_str(), cell(max_24).c_str(), cell(rms_24).c_str(), cell(max_12).c_str(), cell(rms_12).c_str());
                     record[fabric]["resolution_start_through_12"][drape] = {
-                        {"max_vs_24_mm", max_distance_mm(held, measured[24])}, {"rms_vs_24_mm", rms_distance_mm(held, measured[24])},
-                        {"max_vs_12_mm", max_distance_mm(held, measured[12])}, {"rms_vs_12_mm", rms_distance_mm(held, measured[12])}};
+                        {"max_vs_24_mm", max_24}, {"rms_vs_24_mm", rms_24}, {"max_vs_12_mm", max_12}, {"rms_vs_12_mm", rms_12}};
                 }
             }
         }
