@@ -22,8 +22,11 @@
 //                                [--scratch DIR] [--json FILE]
 //                                [--blender PATH | --no-blender] [--blender-grids 12,24,48] [--no-resolution]
 //                                [--nested-from EARLIER.json] [--min-bending N_m] [--fit-to tracks|scan|footage] [--resolution-of PRESET]
-//                                [--search annealing|cmaes] [--second-drape-mesh RxC|none]
+//                                [--search annealing|cmaes] [--second-drape-mesh RxC|none] [--hem-energy]
 //
+// --hem-energy adds, to each drape's mesh agreement, what holding its bottom
+// corners where the measured frame has them costs each mesh, per term of
+// the potential energy (docs/cloth_model.md, "What holds the hem").
 // --fit-to scan or footage fits the footage alone (the shared captures, not
 // the scratch copies) and scores its predictions the same way: how close
 // the footage fit gets to the model's capacity (docs/cloth_fitting.md).
@@ -33,7 +36,9 @@
 //
 // Blender runs are cached in the scratch folder (they take minutes at 48x48).
 
+#include "flowvid/cloth/equilibrium.hpp"
 #include "flowvid/cloth/material.hpp"
+#include "flowvid/cloth/model.hpp"
 #include "flowvid/cloth/swatch.hpp"
 #include "flowvid/cloth/swatch_output.hpp"
 #include "flowvid/formats/atomic_file.hpp"
@@ -102,6 +107,7 @@ struct Options {
     // A preset whose mesh agreement to check instead of the last fitted one
     // (with --variants "" no fit runs; one fabric at a time).
     std::string resolution_of;
+    bool hem_energy = false;
     // A scan fit's background band (px from the footage's outline; 0: off).
     double outside_band_px = cf::ScanOutsideBand{}.max_px;
     // Presets to score on the fit's own training objective instead of
@@ -464,6 +470,62 @@ void report_mesh_agreement(const std::string& label, std::map<int, std::optional
               {"hem_width_mm", {{"12", hem_12}, {"24", hem_24}, {"48", hem_48}}}};
 }
 
+// What holds each mesh's hem where it is: the drape of `material` on
+// `capture_name`'s static experiment from its measured first frame (truth,
+// resampled to the mesh), solved free and again with its two bottom corners
+// held where the measured frame has them. The held drape's potential energy
+// above the free one, per term, is what the mesh asks for the measured hem
+// width: printed and recorded under `record`.
+void report_hem_energy(const std::string& capture_name, const fc::ClothMaterial& material, nlohmann::json& record) {
+    const ff::Capture capture = ff::read_capture(shared_capture(capture_name));
+    fc::SwatchExperiment experiment = fc::experiment_from_capture(capture);
+    experiment.frame_count = 1;
+    for (fc::PinTrajectory& pin : experiment.pins) pin.positions_m.resize(1);
+    const std::optional<ff::VertexAnimation> truth = ff::read_capture_truth_positions(capture);
+    if (!truth || !truth->grid_rows || !truth->grid_cols) return;
+    const int truth_rows = *truth->grid_rows, truth_cols = *truth->grid_cols;
+    Eigen::MatrixX3d first(truth_rows * truth_cols, 3);
+    for (int v = 0; v < truth_rows * truth_cols; ++v) first.row(v) = truth->position(0, v).cast<double>().transpose();
+    const fc::SwatchOptions options = fit_settings().swatch;
+    const fc::ClothMaterial weighed = fc::experiment_material(experiment, material);
+    for (const int rows : {12, 24, 48}) {
+        const fc::Swatch swatch = fc::build_swatch(experiment, rows, rows);
+        const Eigen::MatrixX3d start_grid = resample(first, truth_rows, truth_cols, rows, rows);
+        Eigen::VectorXd start(3 * rows * rows);
+        for (int v = 0; v < rows * rows; ++v) start.segment<3>(3 * v) = start_grid.row(v).transpose();
+        for (const fc::PinnedVertex& p : swatch.pins) start.segment<3>(3 * p.vertex) = p.path.position(0.0);
+        fc::ClothModel model(swatch.mesh, weighed, options.environment);
+        const int left = 0, right = rows - 1;  // the bottom corners (row 0 hangs lowest)
+        const auto hem_mm = [&](const Eigen::VectorXd& x) { return 1e3 * (x.segment<3>(3 * right) - x.segment<3>(3 * left)).norm(); };
+        Eigen::VectorXd free_x = start, held_x = start;
+        std::vector<bool> held = swatch.pinned;
+        held[static_cast<std::size_t>(left)] = held[static_cast<std::size_t>(right)] = true;
+        const bool ok = fc::solve_static_equilibrium(model, swatch.pinned, free_x, options.equilibrium).converged &&
+                        fc::solve_static_equilibrium(model, held, held_x, options.equilibrium).converged;
+        if (!ok) {
+            std::printf("|   hem energy, %s at %dx%d: a static solve did not converge |\n", capture_name.c_str(), rows, rows);
+            continue;
+        }
+        const auto extra_J = [&](unsigned terms) {
+            return model.potential_energy(held_x, terms) - model.potential_energy(free_x, terms);
+        };
+        const double total = model.potential_energy(free_x);
+        std::printf("|   hem energy, %s at %dx%d: hem free %.1f mm, held %.1f mm; held above free %+.2e J (stretch %+.2e, shear %+.2e, "
+                    "bending %+.2e, gravity %+.2e); the free drape's energy %.5e J |\n",
+                    capture_name.c_str(), rows, rows, hem_mm(free_x), hem_mm(held_x), extra_J(fc::ForceTerm::conservative),
+                    extra_J(fc::ForceTerm::stretch), extra_J(fc::ForceTerm::shear), extra_J(fc::ForceTerm::bending),
+                    extra_J(fc::ForceTerm::gravity), total);
+        record[std::to_string(rows)] = {{"hem_free_mm", hem_mm(free_x)},
+                                        {"hem_held_mm", hem_mm(held_x)},
+                                        {"held_above_free_J", extra_J(fc::ForceTerm::conservative)},
+                                        {"stretch_J", extra_J(fc::ForceTerm::stretch)},
+                                        {"shear_J", extra_J(fc::ForceTerm::shear)},
+                                        {"bending_J", extra_J(fc::ForceTerm::bending)},
+                                        {"gravity_J", extra_J(fc::ForceTerm::gravity)},
+                                        {"free_energy_J", total}};
+    }
+}
+
 void print_row(const std::string& label, const Windows& w) {
     std::printf("| %-46s | %s | %s | %s | %s | %s |\n", label.c_str(), cell(w.frame1).c_str(), cell(w.f1_10).c_str(),
                 cell(w.f11_25).c_str(), cell(w.f26_end).c_str(), cell(w.all).c_str());
@@ -500,6 +562,7 @@ int main(int argc, char** argv) {
         else if (a == "--static-weight") o.static_weight = std::atof(value().c_str());
         else if (a == "--min-bending") o.min_bending_N_m = std::atof(value().c_str());
         else if (a == "--resolution-of") o.resolution_of = value();
+        else if (a == "--hem-energy") o.hem_energy = true;
         else if (a == "--equilibrium-steps") {
             const std::string steps = value();
             if (steps != "cg" && steps != "factorised") return usage("--equilibrium-steps takes cg or factorised");
@@ -546,6 +609,8 @@ int main(int argc, char** argv) {
                         "  [--min-bending N_m] (a floor on the fitted bending stiffness; default: the fit's range)\n"
                         "  [--resolution-of PRESET] (check this preset on 12x12, 24x24, 48x48 instead of the last fit;\n"
                         "    with --variants \"\" nothing is fitted)\n"
+                        "  [--hem-energy] (with the mesh check: each mesh's drape with its bottom corners held where the\n"
+                        "    measured frame has them, and what that costs per term of the potential energy)\n"
                         "  [--equilibrium-steps factorised|cg] (how every static solve takes its definite steps;\n"
                         "    cg: as before factorised steps, to compare the two)\n"
                         "  [--outside-band 16] (scan fits: background pixels this near the swatch's outline count\n"
@@ -847,6 +912,7 @@ int main(int argc, char** argv) {
                                       record[fabric]["resolution_equilibrium"][drape]);
                 report_mesh_agreement("resolution, " + drape + " drape from its measured first frame", measured,
                                       record[fabric]["resolution_measured"][drape]);
+                if (o.hem_energy) report_hem_energy(drape, *last_fitted, record[fabric]["hem_energy"][drape]);
                 if (const std::optional<ff::VertexAnimation> shape = ff::read_capture_tracks(ff::read_capture(copies[drape]));
                     shape && shape->grid_cols) {
                     const double width = hem_width_mm(fc::grid_frames_of(*shape).front(), *shape->grid_cols);
