@@ -26,7 +26,7 @@
 //
 // --hem-energy adds, to each drape's mesh agreement, what holding its bottom
 // corners where the measured frame has them costs each mesh, per term of
-// the potential energy (docs/cloth_model.md, "What holds the hem").
+// the potential energy (docs/cloth_model.md, "Folds finer than the grid").
 // --fit-to scan or footage fits the footage alone (the shared captures, not
 // the scratch copies) and scores its predictions the same way: how close
 // the footage fit gets to the model's capacity (docs/cloth_fitting.md).
