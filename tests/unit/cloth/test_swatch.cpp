@@ -203,7 +203,7 @@ TEST(ClothSwatch, TheCapacityTermsKeepADrapeMeshIndependentWhereTheGridResolvesI
     // with the bending of the test above, so that its folds (elastogravity
     // length (B / rho g)^(1/3) = 31 mm) are longer than a 12 x 12 edge (27 mm).
     // Its own bending, 1.65e-8 N m, gives 2.9 mm, finer than every grid here,
-    // and there the meshes disagree by 86 and 43 mm from this start
+    // and there the meshes disagree by 74 and 35 mm from this start
     // (docs/cloth_model.md, "Folds finer than the grid").
     const fc::SwatchExperiment e = hung_by_top_corners(0.2);
     fc::ClothMaterial m;
