@@ -13,7 +13,8 @@ namespace flowvid::cli {
 
 void add_cloth_run_options(CLI::App& app, ClothRunOptions& options) {
     app.add_option("--resolution", options.resolution,
-                   "simulation mesh, RxC vertices (parameters are per area: any resolution shows the same fabric)")
+                   "simulation mesh, RxC vertices (parameters are per area: any mesh whose edges hold the fabric's "
+                   "folds shows the same fabric; simulate says when they do not)")
         ->capture_default_str();
     std::vector<std::string> names;
     for (const auto& [name, value] : cloth::integrators_by_short_name()) names.push_back(name);

@@ -3,14 +3,17 @@
 #include "cli_runner.hpp"
 #include "test_support.hpp"
 
+#include "flowvid/cloth/material.hpp"
 #include "flowvid/cloth/swatch.hpp"
 #include "flowvid/formats/capture.hpp"
+#include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/motion_gltf.hpp"
 #include "flowvid/formats/vertex_animation.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <unistd.h>
@@ -74,6 +77,40 @@ TEST(CliSimulate, PinnedCornersFollowTheCapturesPinsAndFilesAgree) {
         for (int v = 0; v < 169; ++v)
             gltf_vs_vat = std::max(gltf_vs_vat, static_cast<double>((gltf.frames_positions_m[f][v] - vat.position(f, v)).norm()));
     EXPECT_LT(gltf_vs_vat, 1e-5);
+}
+
+TEST(CliSimulate, SaysWhenTheMeshIsTooCoarseForTheFabricsFolds) {
+    // A soft silk folds finer than a 12 x 12 mesh's edges: the drape is then
+    // the mesh's (docs/cloth_model.md, "Folds finer than the grid"), and
+    // simulate says so, with the resolution that holds the folds. The
+    // example cotton (bending 2e-5 N m) folds at about 24 mm: no note.
+    const std::string dir = own_dir("cli_simulate_folds");
+    const std::string capture_dir = shared_path("captures/cloth-silk-static-1");
+    const flowvid::formats::Capture capture = flowvid::formats::read_capture(capture_dir);
+    const flowvid::cloth::SwatchExperiment experiment = flowvid::cloth::experiment_from_capture(capture);
+    for (const std::string preset : {source_path("tests/data/cloth/silk.fabric.json"), source_path("formats/examples/cotton.fabric.json")}) {
+        const CliResult result = run_flowvid({"simulate", "--preset", preset, "--capture", capture_dir, "--vat", dir + "/drape.exr",
+                                              "--frame-count", "1", "--resolution", "12x12", "--json"});
+        ASSERT_EQ(result.exit_code, 0) << result.err;
+        const nlohmann::json summary = nlohmann::json::parse(result.out);
+        const flowvid::cloth::ClothMaterial material = flowvid::cloth::experiment_material(
+            experiment, flowvid::cloth::material_from_fabric(flowvid::formats::read_fabric_preset(preset).parameters));
+        const double fold_m = flowvid::cloth::fold_length_m(material);
+        const double edge_m = std::max(experiment.width_m, experiment.height_m) / 11.0;
+        EXPECT_NEAR(summary["fold_length_mm"].get<double>(), 1e3 * fold_m, 1e-9);
+        EXPECT_NEAR(summary["mesh_edge_mm"].get<double>(), 1e3 * edge_m, 1e-9);
+        const bool holds = edge_m <= flowvid::cloth::kLongestEdgePerFoldLength * fold_m;
+        EXPECT_EQ(summary["mesh_holds_folds"].get<bool>(), holds);
+        EXPECT_EQ(holds, mentions(preset, "cotton")) << 1e3 * fold_m << " mm folds";
+        const int needed = static_cast<int>(std::ceil(std::max(experiment.width_m, experiment.height_m) /
+                                                      (flowvid::cloth::kLongestEdgePerFoldLength * fold_m))) + 1;
+        EXPECT_EQ(mentions(result.err, "so it folds at its own scale and a finer mesh drapes differently"), !holds) << result.err;
+        if (!holds) {
+            EXPECT_TRUE(mentions(result.err, "--resolution " + std::to_string(needed) + "x" + std::to_string(needed))) << result.err;
+            EXPECT_LE(std::max(experiment.width_m, experiment.height_m) / (needed - 1),
+                      flowvid::cloth::kLongestEdgePerFoldLength * fold_m);  // the advice holds the folds
+        }
+    }
 }
 
 TEST(CliSimulate, BadRequestsNameTheProblemAndWriteNothing) {

@@ -53,6 +53,12 @@ formats::FabricParameters fabric_from_material(const ClothMaterial& material) {
     return parameters;
 }
 
+double fold_length_m(const ClothMaterial& material, double gravity_m_per_s2) {
+    const double weight_N_per_m2 = material.areal_density_kg_per_m2 * std::abs(gravity_m_per_s2);
+    if (!(material.bend_N_m > 0.0) || !(weight_N_per_m2 > 0.0)) return 0.0;
+    return std::cbrt(material.bend_N_m / weight_N_per_m2);
+}
+
 std::vector<Problem> check_material(const ClothMaterial& material) {
     std::vector<Problem> problems;
     auto add = [&](const Binding& b, const std::string& message, const std::string& fix) {
