@@ -12,8 +12,6 @@
 #include "flowvid/cloth/swatch_output.hpp"
 #include "flowvid/cloth_fit/cloth_fit.hpp"
 
-#include <algorithm>
-#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -85,19 +83,15 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
 
     // Per-area parameters give the same fabric on any mesh only where the
     // mesh holds its folds; say so when it does not.
-    const double fold_m = cloth::fold_length_m(cloth::experiment_material(experiment, material),
-                                               swatch->environment.gravity_m_per_s2.norm());
-    const double edge_m = std::max(experiment.width_m / (swatch->cols - 1), experiment.height_m / (swatch->rows - 1));
-    const double longest_m = cloth::kLongestEdgePerFoldLength * fold_m;
-    const bool mesh_holds_folds = !(fold_m > 0.0 && edge_m > longest_m);
-    if (!mesh_holds_folds) {
-        const int needed = static_cast<int>(std::ceil(std::max(experiment.width_m, experiment.height_m) / longest_m)) + 1;
-        log_message("note: this fabric folds at about " + html::format_number(1e3 * fold_m, 2) + " mm (its elastogravity length); the " +
-                    std::to_string(swatch->rows) + "x" + std::to_string(swatch->cols) + " mesh's edges are " +
-                    html::format_number(1e3 * edge_m, 3) + " mm, so it folds at its own scale and a finer mesh drapes differently; " +
-                    "edges of at most " + html::format_number(1e3 * longest_m, 2) + " mm (--resolution " + std::to_string(needed) + "x" +
-                    std::to_string(needed) + ") hold the fabric's folds (docs/cloth_model.md, \"Folds finer than the grid\")");
-    }
+    const cloth::MeshFoldCheck folds =
+        cloth::check_mesh_folds(experiment, material, swatch->rows, swatch->cols, swatch->environment.gravity_m_per_s2.norm());
+    if (!folds.holds_folds)
+        log_message("note: this fabric folds at about " + html::format_number(1e3 * folds.fold_length_m, 2) +
+                    " mm (its elastogravity length); the " + std::to_string(swatch->rows) + "x" + std::to_string(swatch->cols) +
+                    " mesh's edges are " + html::format_number(1e3 * folds.edge_m, 3) +
+                    " mm, so it folds at its own scale and a finer mesh drapes differently; edges of at most " +
+                    html::format_number(1e3 * folds.longest_edge_m, 2) + " mm (--resolution " + std::to_string(folds.rows_needed) + "x" +
+                    std::to_string(folds.rows_needed) + ") hold the fabric's folds (docs/cloth_model.md, \"Folds finer than the grid\")");
 
     std::optional<TerminalProgress> progress;
     progress.emplace(global, "simulate");
@@ -129,9 +123,9 @@ int run_simulate(const SimulateOptions& options, const GlobalOptions& global) {
                               {"grid", std::to_string(grid.first) + "x" + std::to_string(grid.second)},
                               {"integrator", cloth::integrator_name(swatch->simulation.integrator)},
                               {"equilibrium_residual_N", run.equilibrium.max_residual_force_N},
-                              {"fold_length_mm", 1e3 * fold_m},
-                              {"mesh_edge_mm", 1e3 * edge_m},
-                              {"mesh_holds_folds", mesh_holds_folds},
+                              {"fold_length_mm", 1e3 * folds.fold_length_m},
+                              {"mesh_edge_mm", 1e3 * folds.edge_m},
+                              {"mesh_holds_folds", folds.holds_folds},
                               {"simulation_seconds", run.simulation.statistics.wall_time_s},
                               {"steps", run.simulation.statistics.steps}};
     if (!options.out.empty()) summary["gltf"] = options.out;

@@ -99,6 +99,20 @@ Swatch build_swatch(const SwatchExperiment& experiment, int rows, int cols);
 // weighs mass_kg (a hem of more than 95 % of it is capped there).
 ClothMaterial experiment_material(const SwatchExperiment& experiment, const ClothMaterial& material);
 
+// Whether a rows x cols mesh of the experiment's swatch holds the fabric's
+// folds (fold_length_m with the experiment's mass, kLongestEdgePerFoldLength);
+// where it does not, the drape is the mesh's own and a finer mesh drapes
+// differently (docs/cloth_model.md, "Folds finer than the grid").
+struct MeshFoldCheck {
+    double fold_length_m = 0.0;     // 0: no bending or no weight
+    double edge_m = 0.0;            // the mesh's longest edge along u or v
+    double longest_edge_m = 0.0;    // the longest edge that holds the folds
+    bool holds_folds = true;
+    int rows_needed = 0;            // a square mesh that holds them (rows = cols)
+};
+MeshFoldCheck check_mesh_folds(const SwatchExperiment& experiment, const ClothMaterial& material, int rows, int cols,
+                               double gravity_m_per_s2 = 9.81);
+
 // A hanging start between the pins' first positions: straight down from the
 // pins, the slack taken up by an out-of-plane bow (scaled by `bow`).
 Eigen::VectorXd hanging_start(const Swatch& swatch, const SwatchExperiment& experiment, double bow = 1.0);
