@@ -108,7 +108,9 @@ def apply_fabric_preset(obj, path, calibrate=False, scene=None, progress=None, m
     similar mesh (mean edge within 25%, same fps) are used when present.
     options go to core.mapping.map_preset (mass_scale, reference_speed_m_per_s, min_quality).
     Returns {"set": settings written, "not_represented": [notes], "source":
-    "formula" | "adapter" | "calibrated", "derived": {...}, "calibration": {...}}."""
+    "formula" | "adapter" | "calibrated", "derived": {...}, "calibration": {...}, "folds": whether the
+    mesh's edges hold the fabric's folds ({"fold_length_m", "edge_m", "longest_edge_m", "holds_folds"}; the
+    first note says what it means when they do not)}."""
     scene = scene or bpy.context.scene
     preset = read_preset(path)
     calibration_report = None
@@ -133,9 +135,20 @@ def apply_fabric_preset(obj, path, calibrate=False, scene=None, progress=None, m
     notes.append("Speed Multiplier (time_scale) set to sqrt(1000)/fps = %.4f so that Blender's cloth falls with "
                  "real gravity" % settings["time_scale"])
     notes.append(presentation.vertex_mass_note(settings, result.derived))
+    folds = check_folds(path, stats)
+    if presentation.fold_note(folds):
+        notes.insert(0, presentation.fold_note(folds))
     set_cloth_settings(obj, settings)
     return {"set": settings, "not_represented": notes, "source": source, "derived": result.derived,
-            "calibration": calibration_report, "preset_name": preset.get("name", "")}
+            "calibration": calibration_report, "preset_name": preset.get("name", ""), "folds": folds}
+
+
+def check_folds(path, stats):
+    """Whether the mesh (its mean edge, stats a MeshStats) holds the preset's folds: the library's rule."""
+    try:
+        return get_backend().check_folds(bpy.path.abspath(path), stats.mean_edge_length_m)
+    except BackendError as error:
+        raise FlowvidError(str(error)) from None
 
 
 # ---- calibration ------------------------------------------------------------------

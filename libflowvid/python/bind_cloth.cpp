@@ -213,6 +213,26 @@ preset's "parameters". Returns {"status", "reason", "equilibrium_converged", "fr
 rows*cols (x, y, z) tuples (vertex r*cols + c, row 0 at v = 0), "pinned_vertices", "wall_time_s"}.
 progress(frame, frame_count) -> bool may cancel (status "cancelled"); initial_positions (rows*cols
 [x, y, z]) starts the equilibrium search there instead of the hanging start.)");
+    cloth_module.def(
+        "check_folds",
+        [](const py::dict& parameters, double edge_m, double gravity_m_per_s2) {
+            if (!(edge_m > 0.0) || !std::isfinite(edge_m))
+                throw Error("<options>", "edge_m", "must be a positive length", "give the mesh's edge in metres");
+            const cloth::FoldCheck check = cloth::check_folds(material_from_dict(parameters), edge_m, gravity_m_per_s2);
+            py::dict result;
+            result["fold_length_m"] = check.fold_length_m;
+            result["edge_m"] = check.edge_m;
+            result["longest_edge_m"] = check.longest_edge_m;
+            result["holds_folds"] = check.holds_folds;
+            return result;
+        },
+        py::arg("parameters"), py::arg("edge_m"), py::arg("gravity_m_per_s2") = 9.81,
+        R"(Whether a mesh with edges edge_m long holds the fabric's folds (cloth::check_folds).
+
+parameters: a fabric preset's "parameters". A hanging fabric folds at about its elastogravity
+length (B / (rho g))^(1/3); a mesh whose edges are longer than 4/3 of it folds at its own scale,
+and a finer mesh drapes differently. Returns {"fold_length_m" (0: no bending or mass),
+"edge_m", "longest_edge_m" (the longest edge that holds the folds), "holds_folds"}.)");
     cloth_module.def("fit", &fit_cloth, py::arg("captures"), py::arg("out") = "", py::arg("name") = "fitted fabric",
                      py::arg("evaluations") = 400, py::arg("budget_seconds") = 0.0, py::arg("seed") = 1,
                      py::arg("rows") = 24, py::arg("cols") = 24, py::arg("integrator") = "implicit",

@@ -222,6 +222,41 @@ def test_export_preset():
         shutil.rmtree(folder, ignore_errors=True)
 
 
+def test_apply_says_when_the_mesh_is_coarser_than_the_folds():
+    """Apply tells the artist when the garment's edges are longer than the fabric's folds hold (the
+    library's rule: 4/3 of (B / rho g)^(1/3)): first among the notes, and as a warning line in the panel.
+    The hand-made test silk folds at 13.7 mm, so 10 mm edges hold its folds (up to 18.2 mm) and 20 mm
+    edges do not."""
+    import flowvid_blender
+    from flowvid_blender import api
+
+    silk = preset_path("silk", fitted=False)
+    with open(silk) as handle:
+        p = json.load(handle)["parameters"]
+    fold_m = (p["bend_stiffness_N_m"]["value"] / (p["areal_density_kg_per_m2"]["value"] * 9.81)) ** (1.0 / 3.0)
+    flowvid_blender.register()
+    try:
+        for spacing_m in (0.010, 0.020):
+            fresh_scene()
+            obj = grid_object("Garment", 9, 7, spacing_m)
+            report = api.apply_fabric_preset(obj, silk)
+            holds = spacing_m <= 4.0 / 3.0 * fold_m
+            assert abs(report["folds"]["fold_length_m"] - fold_m) < 1e-9 * fold_m, report["folds"]
+            assert abs(report["folds"]["edge_m"] - spacing_m) < 1e-6, report["folds"]
+            assert report["folds"]["holds_folds"] == holds, (spacing_m, report["folds"])
+            said = "folds at the mesh's own scale" in report["not_represented"][0]
+            assert said == (not holds), report["not_represented"]
+
+            bpy.context.view_layer.objects.active = obj
+            obj.flowvid.fabric_preset = silk
+            assert bpy.ops.flowvid.apply_fabric_preset() == {"FINISHED"}
+            expected = "" if holds else "Edges too long for its 14 mm folds"
+            assert obj.flowvid.last_warning == expected, obj.flowvid.last_warning
+            print("apply on %.0f mm edges: %s" % (1e3 * spacing_m, obj.flowvid.last_warning or "holds the folds"))
+    finally:
+        flowvid_blender.unregister()
+
+
 def test_register_twice():
     """The add-on registers and unregisters cleanly twice in a row; operators fail with a report, not a
     traceback, when the preset is broken."""

@@ -113,6 +113,39 @@ TEST(CliSimulate, SaysWhenTheMeshIsTooCoarseForTheFabricsFolds) {
     }
 }
 
+TEST(CliSimulate, InfoSaysWhetherAGarmentsEdgesHoldAPresetsFolds) {
+    // What the Blender add-on asks for a garment (its mean edge): the same
+    // rule as simulate's, from the preset alone (no capture's mass). The
+    // test silk folds at (7.452e-7 / (0.08 * 9.81))^(1/3) = 9.83 mm, so
+    // edges up to 13.1 mm hold its folds.
+    const std::string preset = source_path("tests/data/cloth/silk.fabric.json");
+    const flowvid::cloth::ClothMaterial material =
+        flowvid::cloth::material_from_fabric(flowvid::formats::read_fabric_preset(preset).parameters);
+    const double fold_mm = 1e3 * std::cbrt(material.bend_N_m / (material.areal_density_kg_per_m2 * 9.81));
+    for (const double edge_mm : {12.0, 20.0}) {
+        const CliResult result = run_flowvid({"info", "--json", "--mesh-edge-mm", std::to_string(edge_mm), preset});
+        ASSERT_EQ(result.exit_code, 0) << result.err;
+        const nlohmann::json check = nlohmann::json::parse(result.out);
+        EXPECT_EQ(check["kind"], "fold check");
+        EXPECT_NEAR(check["fold_length_mm"].get<double>(), fold_mm, 1e-9);
+        EXPECT_NEAR(check["longest_edge_mm"].get<double>(), 4.0 / 3.0 * fold_mm, 1e-9);
+        EXPECT_NEAR(check["mesh_edge_mm"].get<double>(), edge_mm, 1e-9);
+        EXPECT_EQ(check["mesh_holds_folds"].get<bool>(), edge_mm < 4.0 / 3.0 * fold_mm) << edge_mm;
+
+        const CliResult text = run_flowvid({"info", "--mesh-edge-mm", std::to_string(edge_mm), preset});
+        ASSERT_EQ(text.exit_code, 0) << text.err;
+        EXPECT_EQ(mentions(text.out, "too long: the cloth folds at the mesh's scale"), edge_mm > 4.0 / 3.0 * fold_mm) << text.out;
+    }
+    // Plain info ends with the fold length; the option is for presets only.
+    const CliResult plain = run_flowvid({"info", preset});
+    ASSERT_EQ(plain.exit_code, 0) << plain.err;
+    EXPECT_TRUE(mentions(plain.out, "folds: about 9.83 mm when hung")) << plain.out;
+    const CliResult capture = run_flowvid({"info", "--mesh-edge-mm", "12", shared_path(kWaving)});
+    EXPECT_EQ(capture.exit_code, 2);
+    EXPECT_TRUE(mentions(capture.err, "--mesh-edge-mm")) << capture.err;
+    EXPECT_TRUE(mentions(capture.err, "fabric presets only")) << capture.err;
+}
+
 TEST(CliSimulate, BadRequestsNameTheProblemAndWriteNothing) {
     const std::string dir = own_dir("cli_simulate_bad");
     const std::string preset = source_path("formats/examples/cotton.fabric.json");

@@ -10,7 +10,7 @@ import unittest
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(REPO, "blender_addon"))
 
-from flowvid_blender.core import backend, calibration, mapping  # noqa: E402
+from flowvid_blender.core import backend, calibration, mapping, presentation  # noqa: E402
 
 EXAMPLE = os.path.join(REPO, "formats", "examples", "cotton.fabric.json")
 
@@ -163,6 +163,39 @@ class CliBackendTest(unittest.TestCase):
             path = os.path.join(folder, "drawn.flowlines.json")
             cli.write_flowline_set(path, drawn)
             self.assertEqual(cli.read_flowline_set(path), drawn)
+
+
+@unittest.skipUnless(os.environ.get("FLOWVID_CLI"), "the flowvid tool's path is given by ctest")
+class FoldCheckTest(unittest.TestCase):
+    def test_module_and_tool_say_alike_whether_a_garments_edges_hold_the_folds(self):
+        # Apply's fold note: the library's rule (edges up to 4/3 of the elastogravity length
+        # (B / rho g)^(1/3)) through either backend, and what the artist reads.
+        import flowvid
+
+        silk = os.path.join(REPO, "tests", "data", "cloth", "silk.fabric.json")
+        with open(silk) as handle:
+            p = json.load(handle)["parameters"]
+        fold_m = (p["bend_stiffness_N_m"]["value"] / (p["areal_density_kg_per_m2"]["value"] * 9.81)) ** (1.0 / 3.0)
+        native = backend.NativeBackend(flowvid)
+        cli = backend.CliBackend(os.environ["FLOWVID_CLI"])
+        for edge_m in (0.012, 0.020):
+            checks = [chosen.check_folds(silk, edge_m) for chosen in (native, cli)]
+            for check in checks:
+                self.assertAlmostEqual(check["fold_length_m"], fold_m, places=12)
+                self.assertAlmostEqual(check["longest_edge_m"], 4.0 / 3.0 * fold_m, places=12)
+                self.assertAlmostEqual(check["edge_m"], edge_m, places=12)
+                self.assertEqual(check["holds_folds"], edge_m < 4.0 / 3.0 * fold_m)
+            note, warning = presentation.fold_note(checks[0]), presentation.fold_warning(checks[0])
+            if checks[0]["holds_folds"]:
+                self.assertIsNone(note)
+                self.assertEqual(warning, "")
+            else:
+                self.assertIn("folds at about 9.8 mm", note)
+                self.assertIn("edges average 20 mm", note)
+                self.assertIn("at most 13 mm", note)
+                self.assertEqual(warning, "Edges too long for its 9.8 mm folds")
+        with self.assertRaises(backend.BackendError):
+            native.check_folds(silk, -1.0)
 
 
 @unittest.skipUnless(os.environ.get("FLOWVID_CLI"), "the flowvid tool's path is given by ctest")

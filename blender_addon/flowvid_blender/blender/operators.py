@@ -36,6 +36,7 @@ _SOURCES = {"formula": "formulas", "adapter": "stored calibration", "calibrated"
 def _store_report(obj, report, first=None):
     """What the panel shows after Apply/Calibrate (short) and Details/Info tell (every note)."""
     obj.flowvid.last_status = first or "Applied: %s" % _SOURCES[report["source"]]
+    obj.flowvid.last_warning = presentation.fold_warning(report["folds"]) if report.get("folds") else ""
     obj.flowvid.last_report = "\n".join(report["not_represented"])
 
 

@@ -47,6 +47,8 @@ def draw_fabric(layout, settings):
     row.operator("flowvid.fabric_details", text="Details", icon="INFO")
     if settings.last_status:
         layout.label(text=settings.last_status, icon="CHECKMARK")
+    if settings.last_warning:
+        layout.label(text=settings.last_warning, icon="ERROR")
 
 
 def draw_flow_video(layout, settings):

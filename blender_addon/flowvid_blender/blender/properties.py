@@ -8,6 +8,8 @@ class FlowvidObjectSettings(bpy.types.PropertyGroup):
                                   description="A *.fabric.json fitted by flowvid")
     summary: StringProperty(name="Summary", description="The loaded preset, one 'Label: value' line per entry")
     last_status: StringProperty(name="Last Status", description="What the last Apply or Calibrate did, in a line")
+    last_warning: StringProperty(name="Last Warning", description="What the artist should know about the last "
+                                                                  "Apply, in a line (Details says why), or empty")
     last_report: StringProperty(name="Last Report", description="What Apply/Calibrate set and could not represent, "
                                                                 "one note per line (Details shows them)")
 

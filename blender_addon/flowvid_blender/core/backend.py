@@ -37,6 +37,12 @@ class NativeBackend:
     def write_fabric_preset(self, path, preset):
         self._call(self.module.formats.write_fabric_preset, path, preset)
 
+    def check_folds(self, preset_path, edge_m):
+        """Whether a mesh with edges edge_m long holds the preset's folds: {"fold_length_m", "edge_m",
+        "longest_edge_m", "holds_folds"} (flowvid.cloth.check_folds)."""
+        preset = self.read_fabric_preset(preset_path)
+        return self._call(self.module.cloth.check_folds, preset["parameters"], edge_m)
+
     def write_flowline_set(self, path, flowlines):
         self._call(self.module.flow.write_flowline_set, path, flowlines)
 
@@ -126,6 +132,12 @@ class CliBackend:
 
     def write_fabric_preset(self, path, preset):
         self._write_json(path, preset)
+
+    def check_folds(self, preset_path, edge_m):
+        """As NativeBackend.check_folds, through `flowvid info --json --mesh-edge-mm`."""
+        check = json.loads(self.run("info", "--json", "--mesh-edge-mm", repr(1e3 * edge_m), preset_path))
+        return {"fold_length_m": 1e-3 * check["fold_length_mm"], "edge_m": 1e-3 * check["mesh_edge_mm"],
+                "longest_edge_m": 1e-3 * check["longest_edge_mm"], "holds_folds": check["mesh_holds_folds"]}
 
     def write_flowline_set(self, path, flowlines):
         self._write_json(path, flowlines)

@@ -127,6 +127,23 @@ def vertex_mass_note(settings, derived):
                            _number(settings["mass"] * 1000.0 / s, 4)))
 
 
+def fold_note(check):
+    """What a mesh too coarse for the fabric's folds means for the artist (a backend's check_folds), or None
+    where the mesh holds them."""
+    if check["holds_folds"]:
+        return None
+    return ("This fabric folds at about %s mm when it hangs (its elastogravity length), and this mesh's edges "
+            "average %s mm: the cloth folds at the mesh's own scale, so its drape is the mesh's and changes when "
+            "you subdivide. Edges of at most %s mm show the fabric's own folds."
+            % (_number(1e3 * check["fold_length_m"], 2), _number(1e3 * check["edge_m"], 3),
+               _number(1e3 * check["longest_edge_m"], 2)))
+
+
+def fold_warning(check):
+    """fold_note in a panel's line, or "" where the mesh holds the folds."""
+    return "" if check["holds_folds"] else "Edges too long for its %s mm folds" % _number(1e3 * check["fold_length_m"], 2)
+
+
 def wrap(text, width, measure):
     """Words of `text` in lines no wider than `width` as measure(str) gives widths (a single longer word
     stands alone)."""

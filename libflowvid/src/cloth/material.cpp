@@ -59,6 +59,15 @@ double fold_length_m(const ClothMaterial& material, double gravity_m_per_s2) {
     return std::cbrt(material.bend_N_m / weight_N_per_m2);
 }
 
+FoldCheck check_folds(const ClothMaterial& material, double edge_m, double gravity_m_per_s2) {
+    FoldCheck check;
+    check.fold_length_m = fold_length_m(material, gravity_m_per_s2);
+    check.edge_m = edge_m;
+    check.longest_edge_m = kLongestEdgePerFoldLength * check.fold_length_m;
+    check.holds_folds = !(check.fold_length_m > 0.0 && edge_m > check.longest_edge_m);
+    return check;
+}
+
 std::vector<Problem> check_material(const ClothMaterial& material) {
     std::vector<Problem> problems;
     auto add = [&](const Binding& b, const std::string& message, const std::string& fix) {

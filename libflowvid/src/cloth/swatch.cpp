@@ -138,11 +138,9 @@ ClothMaterial experiment_material(const SwatchExperiment& experiment, const Clot
 
 MeshFoldCheck check_mesh_folds(const SwatchExperiment& experiment, const ClothMaterial& material, int rows, int cols,
                                double gravity_m_per_s2) {
+    const double edge_m = std::max(experiment.width_m / (cols - 1), experiment.height_m / (rows - 1));
     MeshFoldCheck check;
-    check.fold_length_m = fold_length_m(experiment_material(experiment, material), gravity_m_per_s2);
-    check.edge_m = std::max(experiment.width_m / (cols - 1), experiment.height_m / (rows - 1));
-    check.longest_edge_m = kLongestEdgePerFoldLength * check.fold_length_m;
-    check.holds_folds = !(check.fold_length_m > 0.0 && check.edge_m > check.longest_edge_m);
+    static_cast<FoldCheck&>(check) = check_folds(experiment_material(experiment, material), edge_m, gravity_m_per_s2);
     if (check.fold_length_m > 0.0)
         check.rows_needed = static_cast<int>(std::ceil(std::max(experiment.width_m, experiment.height_m) / check.longest_edge_m)) + 1;
     return check;

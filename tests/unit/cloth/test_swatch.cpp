@@ -251,6 +251,41 @@ TEST(ClothSwatch, TheCapacityTermsKeepADrapeMeshIndependentWhereTheGridResolvesI
     }
 }
 
+TEST(ClothSwatch, AMeshHoldsTheFoldsWhileItsEdgesAreAtMostFourThirdsOfTheFoldLength) {
+    // The rule the drape test above measured, for any mesh (a garment's
+    // mean edge): the drape test's cotton folds at (2e-5 / (0.15 * 9.81))^(1/3)
+    // = 23.86 mm, so edges up to 31.82 mm hold its folds.
+    fc::ClothMaterial m;
+    m.areal_density_kg_per_m2 = 0.15;
+    m.bend_N_m = 2e-5;
+    const double fold_m = std::cbrt(2e-5 / (0.15 * 9.81));
+    for (const double edge_m : {0.0310, 0.0325}) {
+        const fc::FoldCheck check = fc::check_folds(m, edge_m);
+        EXPECT_NEAR(check.fold_length_m, fold_m, 1e-12);
+        EXPECT_NEAR(check.longest_edge_m, 4.0 / 3.0 * fold_m, 1e-12);
+        EXPECT_EQ(check.edge_m, edge_m);
+        EXPECT_EQ(check.holds_folds, edge_m < 0.0318) << edge_m;
+    }
+    // Weaker gravity folds longer: the Moon's 1.62 m/s^2 holds them on 32.5 mm edges.
+    EXPECT_TRUE(fc::check_folds(m, 0.0325, 1.62).holds_folds);
+    // Without bending nothing folds at a length of its own: any mesh holds it.
+    m.bend_N_m = 0.0;
+    EXPECT_EQ(fc::check_folds(m, 1.0).fold_length_m, 0.0);
+    EXPECT_TRUE(fc::check_folds(m, 1.0).holds_folds);
+
+    // A swatch's check is the same rule with its longest spacing, and names a
+    // square mesh that holds the folds: the 0.3 x 0.3 m swatch needs edges of
+    // at most 31.82 mm, ceil(0.3 / 0.03182) + 1 = 11 rows.
+    m.bend_N_m = 2e-5;
+    const fc::SwatchExperiment e = hung_by_top_corners(0.2);
+    for (const int rows : {10, 11, 12}) {
+        const fc::MeshFoldCheck swatch = fc::check_mesh_folds(e, m, rows, rows);
+        EXPECT_NEAR(swatch.edge_m, 0.3 / (rows - 1), 1e-15);
+        EXPECT_EQ(swatch.rows_needed, 11);
+        EXPECT_EQ(swatch.holds_folds, rows >= swatch.rows_needed) << rows;
+    }
+}
+
 TEST(ClothSwatch, ExperimentProblemsNameSourceAndField) {
     fc::SwatchExperiment e = hung_by_top_corners(0.2);
     e.source = "capture.json";

@@ -76,6 +76,17 @@ double fold_length_m(const ClothMaterial& material, double gravity_m_per_s2 = 9.
 // test's cotton: 1.14), and disagree by 40-86 mm at 1.9 and above.
 inline constexpr double kLongestEdgePerFoldLength = 4.0 / 3.0;
 
+// Whether a mesh whose edges are edge_m long holds the material's folds
+// (fold_length_m, kLongestEdgePerFoldLength): a garment, a swatch or any
+// mesh, given its edge (the longest along the weave, or a garment's mean).
+struct FoldCheck {
+    double fold_length_m = 0.0;   // 0: no bending or no weight (then any mesh holds them)
+    double edge_m = 0.0;
+    double longest_edge_m = 0.0;  // the longest edge that holds the folds
+    bool holds_folds = true;
+};
+FoldCheck check_folds(const ClothMaterial& material, double edge_m, double gravity_m_per_s2 = 9.81);
+
 // The values of a preset's parameters (uncertainties and ranges are dropped).
 ClothMaterial material_from_fabric(const formats::FabricParameters& parameters);
 // The inverse, with only `value` set: for writing a fitted material as a preset.

@@ -103,12 +103,8 @@ ClothMaterial experiment_material(const SwatchExperiment& experiment, const Clot
 // folds (fold_length_m with the experiment's mass, kLongestEdgePerFoldLength);
 // where it does not, the drape is the mesh's own and a finer mesh drapes
 // differently (docs/cloth_model.md, "Folds finer than the grid").
-struct MeshFoldCheck {
-    double fold_length_m = 0.0;     // 0: no bending or no weight
-    double edge_m = 0.0;            // the mesh's longest edge along u or v
-    double longest_edge_m = 0.0;    // the longest edge that holds the folds
-    bool holds_folds = true;
-    int rows_needed = 0;            // a square mesh that holds them (rows = cols)
+struct MeshFoldCheck : FoldCheck {  // edge_m: the mesh's longest edge along u or v
+    int rows_needed = 0;  // a square mesh that holds them (rows = cols)
 };
 MeshFoldCheck check_mesh_folds(const SwatchExperiment& experiment, const ClothMaterial& material, int rows, int cols,
                                double gravity_m_per_s2 = 9.81);
