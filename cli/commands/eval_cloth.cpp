@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 namespace flowvid::cli {
@@ -366,9 +367,26 @@ int run_recognize(const RecognizeOptions& options, const GlobalOptions& global) 
         char floor_text[48];
         std::snprintf(floor_text, sizeof floor_text, scan ? "  (floor %.2f)" : "  (floor %.1f)",
                       scan ? cloth_fit::tracks_rms_mm(trials[c], floor_error) : floor_error);
-        table << floor_text << '\n';
+        table << floor_text;
+        // Recognised only where the runner-up is further than the floor, in
+        // the units the table shows (RMS mm for the scan): chaos moves each
+        // run's RMS error by up to the floor, so closer than that it could
+        // swap the two, and the footage cannot tell the fabrics apart.
+        const auto shown = [&](double error) { return scan ? cloth_fit::tracks_rms_mm(trials[c], error) : error; };
+        std::optional<double> margin;
+        for (std::size_t p = 0; p < presets.size(); ++p)
+            if (p != best) {
+                const double gap = shown(assessments[p * trials.size() + c].weighted_error) -
+                                   shown(assessments[best * trials.size() + c].weighted_error);
+                margin = margin ? std::min(*margin, gap) : gap;
+            }
+        const bool decided = !margin || *margin > shown(floor_error);
+        table << (decided ? "  recognised: " + std::filesystem::path(options.presets[best]).filename().string()
+                          : std::string("  undecided: the lowest two differ by less than the floor"))
+              << '\n';
         nlohmann::json row = {{"capture", trials[c].name}, {"metric_error", errors}, {"recognized_as", options.presets[best]},
-                              {"floor", floor_error}};
+                              {"floor", floor_error}, {"decided", decided}};
+        row["margin"] = margin ? nlohmann::json(*margin) : nlohmann::json(nullptr);
         if (!vertex.empty()) row["vertex_rms_mm_vs_truth"] = vertex;
         rows.push_back(row);
     }
@@ -386,7 +404,13 @@ const RegisterCommand recognize_registration{Command{
             "errors (mm) against the swatch's shape measured from the footage's projector stripes;\n"
             "each capture is recognised as the preset with the lowest error. With --compare footage\n"
             "the matrix holds weighted angle-map errors instead. With --json, also the RMS vertex error\n"
-            "against captures' ground truth where it exists (evaluation only).\n\n"
+            "against captures' ground truth where it exists (evaluation only).\n"
+            "Beside each capture: the floor, what runs of the lowest preset changed by one part in a\n"
+            "million differ by (chaos alone). Where the runner-up's error is within the floor of the\n"
+            "lowest, the capture is \"undecided\": the footage cannot tell those fabrics apart, and a\n"
+            "longer trial or another experiment is needed (JSON: \"decided\", \"margin\" = the\n"
+            "runner-up's error minus the lowest as the table shows them, RMS mm for the scan, compared\n"
+            "with the floor in the same units; recognized_as stays the lowest).\n\n"
             "Examples:\n"
             "  flowvid recognize --preset cotton.fabric.json --preset silk.fabric.json \\\n"
             "                    --capture ../shared/captures/cloth-cotton-waving-2 --capture ../shared/captures/cloth-silk-waving-2");

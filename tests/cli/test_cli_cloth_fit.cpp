@@ -126,6 +126,39 @@ TEST(CliClothFit, RecognizeRanksPresetsByTheErrorsEvalReports) {
         EXPECT_NEAR(nlohmann::json::parse(eval.out)["captures"][0]["weighted_error"].get<double>(), expected, 1e-9 * expected);
     }
     EXPECT_NE(e_cotton, e_card);
+    // Recognised only beyond the floor, compared as the table shows them
+    // (RMS mm of the scan: the square root of the weighted error per frame,
+    // here one frame): the card drapes far from the cotton, by more than
+    // chaos moves either.
+    const auto rms_mm = [](double weighted_error) { return std::sqrt(weighted_error); };
+    const double margin = std::abs(rms_mm(e_cotton) - rms_mm(e_card));
+    EXPECT_NEAR(row["margin"].get<double>(), margin, 1e-9 * margin);
+    EXPECT_GT(margin, rms_mm(row["floor"].get<double>()));
+    EXPECT_TRUE(row["decided"].get<bool>());
+
+    // Two presets the footage cannot tell apart: the cotton and its twin with
+    // the bending changed by one part in a million (what the floor's own
+    // runs change) are undecided, whichever comes out lower.
+    text = read_text(cotton);
+    char twin_bend[40];
+    std::snprintf(twin_bend, sizeof twin_bend, "%.17g", bend * (1.0 + 1e-6));
+    text.replace(value, end - value, std::string("\"value\": ") + twin_bend);
+    write_text(dir + "/twin.fabric.json", text);
+    const CliResult twins = run_flowvid({"recognize", "--preset", cotton, "--preset", dir + "/twin.fabric.json", "--capture",
+                                         shared_path(kStatic), "--resolution", "12x12", "--json"});
+    ASSERT_EQ(twins.exit_code, 0) << twins.err;
+    const nlohmann::json twin_matrix = nlohmann::json::parse(twins.out);
+    const nlohmann::json& twin_row = twin_matrix["captures"][0];
+    const double twin_margin = std::abs(rms_mm(twin_row["metric_error"][cotton].get<double>()) -
+                                        rms_mm(twin_row["metric_error"][dir + "/twin.fabric.json"].get<double>()));
+    std::printf("[measured] cotton vs card: margin %.4g mm, floor %.4g mm; cotton vs its twin: margin %.4g mm, floor %.4g mm\n",
+                margin, rms_mm(row["floor"].get<double>()), twin_margin, rms_mm(twin_row["floor"].get<double>()));
+    EXPECT_NEAR(twin_row["margin"].get<double>(), twin_margin, 1e-9);
+    EXPECT_LE(twin_margin, rms_mm(twin_row["floor"].get<double>()));
+    EXPECT_FALSE(twin_row["decided"].get<bool>());
+    const CliResult table = run_flowvid({"recognize", "--preset", cotton, "--preset", dir + "/twin.fabric.json", "--capture",
+                                         shared_path(kStatic), "--resolution", "12x12"});
+    EXPECT_TRUE(mentions(table.out, "undecided: the lowest two differ by less than the floor")) << table.out;
 }
 
 TEST(CliClothFit, TracksFitFindsTheFabricThatMadeTheTracks) {
