@@ -136,8 +136,9 @@ def apply_fabric_preset(obj, path, calibrate=False, scene=None, progress=None, m
                  "real gravity" % settings["time_scale"])
     notes.append(presentation.vertex_mass_note(settings, result.derived))
     folds = check_folds(path, stats)
-    if presentation.fold_note(folds):
-        notes.insert(0, presentation.fold_note(folds))
+    fold_note = presentation.fold_note(folds)
+    if fold_note:  # first: the one note that changes what the artist should do
+        notes.insert(0, fold_note)
     set_cloth_settings(obj, settings)
     return {"set": settings, "not_represented": notes, "source": source, "derived": result.derived,
             "calibration": calibration_report, "preset_name": preset.get("name", ""), "folds": folds}

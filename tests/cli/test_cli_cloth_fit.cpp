@@ -111,8 +111,14 @@ TEST(CliClothFit, RecognizeRanksPresetsByTheErrorsEvalReports) {
     text.replace(range, range_end + 1 - range, "\"range\": [0.0, 1.0]");
     write_text(dir + "/card.fabric.json", text);
 
-    const CliResult r = run_flowvid({"recognize", "--preset", cotton, "--preset", dir + "/card.fabric.json", "--capture",
-                                     shared_path(kStatic), "--resolution", "12x12", "--json"});
+    // recognize the cotton against another preset on the drape (12x12), as JSON or as the table.
+    const auto recognize = [&](const std::string& other, bool json) {
+        std::vector<std::string> arguments = {"recognize", "--preset", cotton, "--preset", other, "--capture",
+                                              shared_path(kStatic), "--resolution", "12x12"};
+        if (json) arguments.push_back("--json");
+        return run_flowvid(arguments);
+    };
+    const CliResult r = recognize(dir + "/card.fabric.json", true);
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const nlohmann::json matrix = nlohmann::json::parse(r.out);
     const nlohmann::json& row = matrix["captures"][0];
@@ -144,8 +150,7 @@ TEST(CliClothFit, RecognizeRanksPresetsByTheErrorsEvalReports) {
     std::snprintf(twin_bend, sizeof twin_bend, "%.17g", bend * (1.0 + 1e-6));
     text.replace(value, end - value, std::string("\"value\": ") + twin_bend);
     write_text(dir + "/twin.fabric.json", text);
-    const CliResult twins = run_flowvid({"recognize", "--preset", cotton, "--preset", dir + "/twin.fabric.json", "--capture",
-                                         shared_path(kStatic), "--resolution", "12x12", "--json"});
+    const CliResult twins = recognize(dir + "/twin.fabric.json", true);
     ASSERT_EQ(twins.exit_code, 0) << twins.err;
     const nlohmann::json twin_matrix = nlohmann::json::parse(twins.out);
     const nlohmann::json& twin_row = twin_matrix["captures"][0];
@@ -156,8 +161,7 @@ TEST(CliClothFit, RecognizeRanksPresetsByTheErrorsEvalReports) {
     EXPECT_NEAR(twin_row["margin"].get<double>(), twin_margin, 1e-9);
     EXPECT_LE(twin_margin, rms_mm(twin_row["floor"].get<double>()));
     EXPECT_FALSE(twin_row["decided"].get<bool>());
-    const CliResult table = run_flowvid({"recognize", "--preset", cotton, "--preset", dir + "/twin.fabric.json", "--capture",
-                                         shared_path(kStatic), "--resolution", "12x12"});
+    const CliResult table = recognize(dir + "/twin.fabric.json", false);
     EXPECT_TRUE(mentions(table.out, "undecided: the lowest two differ by less than the floor")) << table.out;
 }
 
