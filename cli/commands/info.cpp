@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 namespace flowvid::cli {
 namespace {
@@ -20,6 +21,21 @@ struct InfoOptions {
     bool json = false;
     double mesh_edge_mm = 0.0;  // 0: not asked
 };
+
+// The mesh a fitted preset was fitted on, checked by the same rule: where it
+// did not hold the folds either, the preset reproduces the filmed drape on
+// meshes like it (docs/cloth_model.md, "Folds finer than the grid").
+std::optional<cloth::FoldCheck> fitted_mesh_folds(const formats::FabricPreset& preset) {
+    if (!preset.provenance.swatch_edge_length_m || !(*preset.provenance.swatch_edge_length_m > 0.0)) return std::nullopt;
+    return cloth::check_folds(cloth::material_from_fabric(preset.parameters), *preset.provenance.swatch_edge_length_m);
+}
+
+std::string fitted_mesh_line(const std::optional<cloth::FoldCheck>& fitted) {
+    if (!fitted || fitted->holds_folds) return "";
+    return "fitted on: a swatch with " + html::format_number(1e3 * fitted->edge_m, 3) +
+           " mm edges, which do not hold them either: meshes with edges near " + html::format_number(1e3 * fitted->edge_m, 3) +
+           " mm reproduce the filmed drape most closely\n";
+}
 
 // What a preset's fold length means for meshes (cloth::check_folds); with
 // an edge, for that mesh. The fold rule is the library's, not restated here.
@@ -47,16 +63,23 @@ int run_info(const InfoOptions& options) {
         const formats::FabricPreset preset = formats::read_fabric_preset(options.path);
         const cloth::FoldCheck folds =
             cloth::check_folds(cloth::material_from_fabric(preset.parameters), 1e-3 * options.mesh_edge_mm);
+        const std::optional<cloth::FoldCheck> fitted = fitted_mesh_folds(preset);
         if (options.json) {
-            const nlohmann::json summary = {{"kind", "fold check"},
-                                            {"path", options.path},
-                                            {"fold_length_mm", 1e3 * folds.fold_length_m},
-                                            {"mesh_edge_mm", options.mesh_edge_mm},
-                                            {"longest_edge_mm", 1e3 * folds.longest_edge_m},
-                                            {"mesh_holds_folds", folds.holds_folds}};
+            nlohmann::json summary = {{"kind", "fold check"},
+                                      {"path", options.path},
+                                      {"fold_length_mm", 1e3 * folds.fold_length_m},
+                                      {"mesh_edge_mm", options.mesh_edge_mm},
+                                      {"longest_edge_mm", 1e3 * folds.longest_edge_m},
+                                      {"mesh_holds_folds", folds.holds_folds},
+                                      {"fitted_edge_mm", nullptr},
+                                      {"fitted_mesh_holds_folds", nullptr}};
+            if (fitted) {
+                summary["fitted_edge_mm"] = 1e3 * fitted->edge_m;
+                summary["fitted_mesh_holds_folds"] = fitted->holds_folds;
+            }
             std::cout << summary.dump(2) << '\n';
         } else {
-            std::cout << fold_lines(folds, true);
+            std::cout << fold_lines(folds, true) << fitted_mesh_line(fitted);
         }
         return kExitOk;
     }
@@ -73,7 +96,8 @@ int run_info(const InfoOptions& options) {
     else std::cout << human_readable(summary);
     if (!options.json && is_preset) {
         const formats::FabricPreset preset = formats::read_fabric_preset(options.path);
-        std::cout << fold_lines(cloth::check_folds(cloth::material_from_fabric(preset.parameters), 0.0), false);
+        std::cout << fold_lines(cloth::check_folds(cloth::material_from_fabric(preset.parameters), 0.0), false)
+                  << fitted_mesh_line(fitted_mesh_folds(preset));
     }
     return kExitOk;
 }
@@ -91,7 +115,9 @@ const RegisterCommand registration{Command{
             "and the longest mesh edge that holds those folds; with --mesh-edge-mm, whether a mesh\n"
             "with that edge (a garment's mean edge) does (JSON: fold_length_mm, longest_edge_mm,\n"
             "mesh_holds_folds). A coarser mesh folds at its own scale: its drape is the mesh's, and\n"
-            "a finer mesh drapes differently.\n\n"
+            "a finer mesh drapes differently. A fitted preset whose fitting swatch was itself too\n"
+            "coarse for its folds reproduces the filmed drape best on meshes with edges like that\n"
+            "swatch's (JSON: fitted_edge_mm, fitted_mesh_holds_folds; null when not recorded).\n\n"
             "Examples:\n"
             "  flowvid info cotton.fabric.json\n"
             "  flowvid info --json --mesh-edge-mm 12 silk.fabric.json\n"

@@ -136,6 +136,25 @@ TEST(CliSimulate, InfoSaysWhetherAGarmentsEdgesHoldAPresetsFolds) {
         ASSERT_EQ(text.exit_code, 0) << text.err;
         EXPECT_EQ(mentions(text.out, "too long: the cloth folds at the mesh's scale"), edge_mm > 4.0 / 3.0 * fold_mm) << text.out;
     }
+    // The swatch it was fitted on (provenance: 13.04 mm edges) holds the
+    // folds too; the same preset fitted on a 12x12 swatch (27.3 mm edges)
+    // would not, and then info says which meshes reproduce the filmed drape.
+    const CliResult own = run_flowvid({"info", "--json", "--mesh-edge-mm", "20", preset});
+    ASSERT_EQ(own.exit_code, 0) << own.err;
+    const nlohmann::json own_check = nlohmann::json::parse(own.out);
+    EXPECT_NEAR(own_check["fitted_edge_mm"].get<double>(), 300.0 / 23.0, 1e-9);
+    EXPECT_TRUE(own_check["fitted_mesh_holds_folds"].get<bool>());
+    const std::string dir = own_dir("cli_info_folds");
+    nlohmann::json coarse = nlohmann::json::parse(read_text(preset));
+    coarse["provenance"]["swatch_edge_length_m"] = 0.3 / 11.0;
+    write_text(dir + "/coarse.fabric.json", coarse.dump(1));
+    const CliResult coarse_json = run_flowvid({"info", "--json", "--mesh-edge-mm", "20", dir + "/coarse.fabric.json"});
+    ASSERT_EQ(coarse_json.exit_code, 0) << coarse_json.err;
+    EXPECT_FALSE(nlohmann::json::parse(coarse_json.out)["fitted_mesh_holds_folds"].get<bool>());
+    const CliResult coarse_text = run_flowvid({"info", dir + "/coarse.fabric.json"});
+    EXPECT_TRUE(mentions(coarse_text.out, "meshes with edges near 27.3 mm reproduce the filmed drape")) << coarse_text.out;
+    EXPECT_FALSE(mentions(run_flowvid({"info", preset}).out, "reproduce the filmed drape"));
+
     // Plain info ends with the fold length; the option is for presets only.
     const CliResult plain = run_flowvid({"info", preset});
     ASSERT_EQ(plain.exit_code, 0) << plain.err;

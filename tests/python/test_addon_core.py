@@ -180,7 +180,10 @@ class FoldCheckTest(unittest.TestCase):
         cli = backend.CliBackend(os.environ["FLOWVID_CLI"])
         for edge_m in (0.012, 0.020):
             checks = [chosen.check_folds(silk, edge_m) for chosen in (native, cli)]
+            self.assertEqual(set(checks[0]), set(checks[1]))
             for check in checks:
+                self.assertAlmostEqual(check["fitted_edge_m"], 0.3 / 23, places=12)  # the preset's provenance
+                self.assertTrue(check["fitted_mesh_holds_folds"])  # 13.04 mm edges hold 9.83 mm folds
                 self.assertAlmostEqual(check["fold_length_m"], fold_m, places=12)
                 self.assertAlmostEqual(check["longest_edge_m"], 4.0 / 3.0 * fold_m, places=12)
                 self.assertAlmostEqual(check["edge_m"], edge_m, places=12)
@@ -194,6 +197,10 @@ class FoldCheckTest(unittest.TestCase):
                 self.assertIn("edges average 20 mm", note)
                 self.assertIn("at most 13 mm", note)
                 self.assertEqual(warning, "Edges too long for its 9.8 mm folds")
+                self.assertNotIn("fitted on", note)
+                coarse = dict(checks[0], fitted_edge_m=0.3 / 11, fitted_mesh_holds_folds=False)
+                self.assertIn("fitted on a swatch with 27 mm edges, which do not hold them either: edges near 27 mm "
+                              "reproduce the filmed drape", presentation.fold_note(coarse))
         with self.assertRaises(backend.BackendError):
             native.check_folds(silk, -1.0)
 

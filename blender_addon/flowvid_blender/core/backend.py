@@ -39,9 +39,16 @@ class NativeBackend:
 
     def check_folds(self, preset_path, edge_m):
         """Whether a mesh with edges edge_m long holds the preset's folds: {"fold_length_m", "edge_m",
-        "longest_edge_m", "holds_folds"} (flowvid.cloth.check_folds)."""
+        "longest_edge_m", "holds_folds"} (flowvid.cloth.check_folds), and the same for the swatch it was fitted
+        on: "fitted_edge_m", "fitted_mesh_holds_folds" (None where the preset does not record it)."""
         preset = self.read_fabric_preset(preset_path)
-        return self._call(self.module.cloth.check_folds, preset["parameters"], edge_m)
+        check = dict(self._call(self.module.cloth.check_folds, preset["parameters"], edge_m))
+        fitted_edge_m = preset.get("provenance", {}).get("swatch_edge_length_m")
+        check["fitted_edge_m"] = fitted_edge_m if fitted_edge_m and fitted_edge_m > 0 else None
+        check["fitted_mesh_holds_folds"] = (
+            self._call(self.module.cloth.check_folds, preset["parameters"], fitted_edge_m)["holds_folds"]
+            if check["fitted_edge_m"] else None)
+        return check
 
     def write_flowline_set(self, path, flowlines):
         self._call(self.module.flow.write_flowline_set, path, flowlines)
@@ -136,8 +143,11 @@ class CliBackend:
     def check_folds(self, preset_path, edge_m):
         """As NativeBackend.check_folds, through `flowvid info --json --mesh-edge-mm`."""
         check = json.loads(self.run("info", "--json", "--mesh-edge-mm", repr(1e3 * edge_m), preset_path))
+        fitted_edge_mm = check["fitted_edge_mm"]
         return {"fold_length_m": 1e-3 * check["fold_length_mm"], "edge_m": 1e-3 * check["mesh_edge_mm"],
-                "longest_edge_m": 1e-3 * check["longest_edge_mm"], "holds_folds": check["mesh_holds_folds"]}
+                "longest_edge_m": 1e-3 * check["longest_edge_mm"], "holds_folds": check["mesh_holds_folds"],
+                "fitted_edge_m": 1e-3 * fitted_edge_mm if fitted_edge_mm is not None else None,
+                "fitted_mesh_holds_folds": check["fitted_mesh_holds_folds"]}
 
     def write_flowline_set(self, path, flowlines):
         self._write_json(path, flowlines)

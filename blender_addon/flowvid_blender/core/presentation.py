@@ -132,11 +132,15 @@ def fold_note(check):
     where the mesh holds them."""
     if check["holds_folds"]:
         return None
-    return ("This fabric folds at about %s mm when it hangs (its elastogravity length), and this mesh's edges "
+    text = ("This fabric folds at about %s mm when it hangs (its elastogravity length), and this mesh's edges "
             "average %s mm: the cloth folds at the mesh's own scale, so its drape is the mesh's and changes when "
             "you subdivide. Edges of at most %s mm show the fabric's own folds."
             % (_number(1e3 * check["fold_length_m"], 2), _number(1e3 * check["edge_m"], 3),
                _number(1e3 * check["longest_edge_m"], 2)))
+    if check.get("fitted_mesh_holds_folds") is False:
+        text += (" The preset was fitted on a swatch with %s mm edges, which do not hold them either: edges near "
+                 "%s mm reproduce the filmed drape most closely." % ((_number(1e3 * check["fitted_edge_m"], 2),) * 2))
+    return text
 
 
 def fold_warning(check):
