@@ -6,6 +6,7 @@
 #include "commands/merge.hpp"
 #include "frame_options.hpp"
 #include "output.hpp"
+#include "report_html.hpp"
 
 #include "flowvid/cloth/material.hpp"
 #include "flowvid/formats/atomic_file.hpp"
@@ -27,6 +28,7 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 
 namespace flowvid::cli {
@@ -135,6 +137,24 @@ std::string reported_floor_integrator() {
 
 // Each trial's final error next to its predictability floor (the fit's
 // ClothFitRequest::floor_members): an error near the floor is as good as it gets.
+// A fitted preset reproduces the drape of the mesh it was fitted on. Where
+// that mesh is coarser than the fitted fabric's folds (cloth::check_folds),
+// a finer mesh drapes differently: the summary says so, and a note.
+void report_fitted_mesh_folds(const formats::FabricPreset& preset, nlohmann::json& summary) {
+    const std::optional<double> edge_m = preset.provenance.swatch_edge_length_m;
+    if (!edge_m || !(*edge_m > 0.0)) return;
+    const cloth::FoldCheck folds = cloth::check_folds(cloth::material_from_fabric(preset.parameters), *edge_m);
+    summary["fold_length_mm"] = 1e3 * folds.fold_length_m;
+    summary["fitted_mesh_edge_mm"] = 1e3 * *edge_m;
+    summary["fitted_mesh_holds_folds"] = folds.holds_folds;
+    if (!folds.holds_folds)
+        log_message("note: the fitted fabric folds at about " + html::format_number(1e3 * folds.fold_length_m, 2) +
+                    " mm (its elastogravity length), finer than the " + html::format_number(1e3 * *edge_m, 3) +
+                    " mm edges of the mesh it was fitted on: the preset reproduces the footage's drape on meshes with "
+                    "edges near that, and a finer mesh drapes differently (flowvid info --mesh-edge-mm E PRESET "
+                    "checks a mesh)");
+}
+
 nlohmann::json trials_with_floors(const cloth_fit::ClothFitOutcome& outcome) {
     nlohmann::json trials = nlohmann::json::array();
     for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i) {
@@ -248,6 +268,7 @@ int run_fit_cloth(const FitClothOptions& options, const GlobalOptions& global) {
         formats::FabricPreset preset = *outcome.preset;
         apply_source_date_epoch(preset);
         formats::write_fabric_preset(options.out, preset);
+        report_fitted_mesh_folds(preset, summary);
     } else formats::write_file_atomically(options.out, [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
     if (options.json) std::cout << summary.dump(2) << '\n';
     else std::cout << human_readable(summary);
@@ -313,7 +334,7 @@ int merge_cloth(const MergeRequest& merge, const GlobalOptions& global) {
     const formats::FitShardFile& winner = merge.shards.at(merged.winner);
     const optim::VariabilityReport* variability = outcome.variability ? &*outcome.variability : nullptr;
     const std::string split = std::to_string(winner.shard.index) + "/" + std::to_string(winner.shard.count);
-    const nlohmann::json summary = {{"out", merge.out},
+    nlohmann::json summary = {{"out", merge.out},
                                     {"drag", winner.shard.options.value("drag", "nonlinear")},
                                     {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
                                     {"winner", {{"shard", split}, {"file", winner.path}, {"error", winner.shard.best_error}}},
@@ -329,6 +350,7 @@ int merge_cloth(const MergeRequest& merge, const GlobalOptions& global) {
         formats::FabricPreset preset = *outcome.preset;
         apply_source_date_epoch(preset);
         formats::write_fabric_preset(merge.out, preset);
+        report_fitted_mesh_folds(preset, summary);
     } else {
         formats::write_file_atomically(merge.out, [&](std::ostream& out) { out << summary.dump(2) << '\n'; });
     }

@@ -5,6 +5,7 @@
 #include "cli_runner.hpp"
 #include "test_support.hpp"
 
+#include "flowvid/cloth/material.hpp"
 #include "flowvid/formats/capture.hpp"
 #include "flowvid/formats/fabric_preset.hpp"
 #include "flowvid/formats/vertex_animation.hpp"
@@ -254,7 +255,18 @@ TEST(CliClothFit, ScanFitComparesTheStripesDepthAndSaysSo) {
     EXPECT_LE(final_rms, start_rms);
     EXPECT_GT(final_rms, 1.0);   // not below the scan's own accuracy
     EXPECT_LT(final_rms, 14.0);  // a drape in the footage's fold state
-    EXPECT_EQ(flowvid::formats::read_fabric_preset(dir + "/scan.fabric.json").provenance.metric, "scan_depth_mean_square_mm2");
+    const flowvid::formats::FabricPreset fitted = flowvid::formats::read_fabric_preset(dir + "/scan.fabric.json");
+    EXPECT_EQ(fitted.provenance.metric, "scan_depth_mean_square_mm2");
+    // Whether the 12x12 mesh it was fitted on (27.3 mm edges) holds the
+    // fitted fabric's folds: the library's rule on the written preset, in the
+    // summary and, where it does not, in a note.
+    const flowvid::cloth::FoldCheck folds =
+        flowvid::cloth::check_folds(flowvid::cloth::material_from_fabric(fitted.parameters), 0.3 / 11.0);
+    EXPECT_NEAR(summary["fitted_mesh_edge_mm"].get<double>(), 300.0 / 11.0, 1e-6);
+    EXPECT_NEAR(summary["fold_length_mm"].get<double>(), 1e3 * folds.fold_length_m, 1e-9);
+    EXPECT_EQ(summary["fitted_mesh_holds_folds"].get<bool>(), folds.holds_folds);
+    EXPECT_EQ(mentions(fit.err, "the preset reproduces the footage's drape on meshes with edges near that"), !folds.holds_folds)
+        << fit.err;
 
     // eval cloth --compare scan scores the preset the same way: an RMS depth
     // error whose square is the drape's weighted error (weight 1), near the
