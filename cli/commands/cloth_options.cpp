@@ -62,4 +62,10 @@ formats::FabricPreset read_preset_for_simulation(const std::string& path) {
     return preset;
 }
 
+std::optional<cloth::FoldCheck> fitting_swatch_folds(const formats::FabricPreset& preset) {
+    const std::optional<double> edge_m = preset.provenance.swatch_edge_length_m;
+    if (!edge_m || !(*edge_m > 0.0)) return std::nullopt;
+    return cloth::check_folds(cloth::material_from_fabric(preset.parameters), *edge_m);
+}
+
 }  // namespace flowvid::cli

@@ -24,6 +24,12 @@ struct ClothRunOptions {
     double initial_bow = 1.0;          // which way the slack between the pins bows at the start
 };
 
+// Whether the swatch a fitted preset was fitted on (its provenance's
+// swatch_edge_length_m) held the fitted fabric's folds (cloth::check_folds);
+// nullopt where the preset does not record it. Where it did not, the preset
+// reproduces the filmed drape on meshes like that swatch.
+std::optional<cloth::FoldCheck> fitting_swatch_folds(const formats::FabricPreset& preset);
+
 // Adds --resolution, --integrator and --threads to a command.
 void add_cloth_run_options(CLI::App& app, ClothRunOptions& options);
 

@@ -135,26 +135,25 @@ std::string reported_floor_integrator() {
            std::to_string(cloth_fit::kFloorSubstepsPerFrame) + " substeps a frame";
 }
 
-// Each trial's final error next to its predictability floor (the fit's
-// ClothFitRequest::floor_members): an error near the floor is as good as it gets.
 // A fitted preset reproduces the drape of the mesh it was fitted on. Where
-// that mesh is coarser than the fitted fabric's folds (cloth::check_folds),
+// that mesh is coarser than the fitted fabric's folds (fitting_swatch_folds),
 // a finer mesh drapes differently: the summary says so, and a note.
 void report_fitted_mesh_folds(const formats::FabricPreset& preset, nlohmann::json& summary) {
-    const std::optional<double> edge_m = preset.provenance.swatch_edge_length_m;
-    if (!edge_m || !(*edge_m > 0.0)) return;
-    const cloth::FoldCheck folds = cloth::check_folds(cloth::material_from_fabric(preset.parameters), *edge_m);
-    summary["fold_length_mm"] = 1e3 * folds.fold_length_m;
-    summary["fitted_mesh_edge_mm"] = 1e3 * *edge_m;
-    summary["fitted_mesh_holds_folds"] = folds.holds_folds;
-    if (!folds.holds_folds)
-        log_message("note: the fitted fabric folds at about " + html::format_number(1e3 * folds.fold_length_m, 2) +
-                    " mm (its elastogravity length), finer than the " + html::format_number(1e3 * *edge_m, 3) +
+    const std::optional<cloth::FoldCheck> folds = fitting_swatch_folds(preset);
+    if (!folds) return;
+    summary["fold_length_mm"] = 1e3 * folds->fold_length_m;
+    summary["fitted_mesh_edge_mm"] = 1e3 * folds->edge_m;
+    summary["fitted_mesh_holds_folds"] = folds->holds_folds;
+    if (!folds->holds_folds)
+        log_message("note: the fitted fabric folds at about " + html::format_number(1e3 * folds->fold_length_m, 2) +
+                    " mm (its elastogravity length), finer than the " + html::format_number(1e3 * folds->edge_m, 3) +
                     " mm edges of the mesh it was fitted on: the preset reproduces the footage's drape on meshes with "
                     "edges near that, and a finer mesh drapes differently (flowvid info --mesh-edge-mm E PRESET "
                     "checks a mesh)");
 }
 
+// Each trial's final error next to its predictability floor (the fit's
+// ClothFitRequest::floor_members): an error near the floor is as good as it gets.
 nlohmann::json trials_with_floors(const cloth_fit::ClothFitOutcome& outcome) {
     nlohmann::json trials = nlohmann::json::array();
     for (std::size_t i = 0; i < outcome.final_evaluation.trials.size(); ++i) {
@@ -335,17 +334,17 @@ int merge_cloth(const MergeRequest& merge, const GlobalOptions& global) {
     const optim::VariabilityReport* variability = outcome.variability ? &*outcome.variability : nullptr;
     const std::string split = std::to_string(winner.shard.index) + "/" + std::to_string(winner.shard.count);
     nlohmann::json summary = {{"out", merge.out},
-                                    {"drag", winner.shard.options.value("drag", "nonlinear")},
-                                    {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
-                                    {"winner", {{"shard", split}, {"file", winner.path}, {"error", winner.shard.best_error}}},
-                                    {"shard_errors", merged.shard_errors},
-                                    {"final_error", outcome.final_evaluation.total},
-                                    {"final_error_floor", outcome.total_floor},
-                                    {"floor_integrator", reported_floor_integrator()},
-                                    {"trials", trials_with_floors(outcome)},
-                                    {"evaluations", merged.evaluations},
-                                    {"variability_runs", outcome.variability_runs_planned},
-                                    {"seconds", outcome.seconds}};
+                              {"drag", winner.shard.options.value("drag", "nonlinear")},
+                              {"parameters", material_summary(outcome.fitted, outcome.parameters, variability)},
+                              {"winner", {{"shard", split}, {"file", winner.path}, {"error", winner.shard.best_error}}},
+                              {"shard_errors", merged.shard_errors},
+                              {"final_error", outcome.final_evaluation.total},
+                              {"final_error_floor", outcome.total_floor},
+                              {"floor_integrator", reported_floor_integrator()},
+                              {"trials", trials_with_floors(outcome)},
+                              {"evaluations", merged.evaluations},
+                              {"variability_runs", outcome.variability_runs_planned},
+                              {"seconds", outcome.seconds}};
     if (outcome.preset) {
         formats::FabricPreset preset = *outcome.preset;
         apply_source_date_epoch(preset);

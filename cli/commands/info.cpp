@@ -1,6 +1,7 @@
 // flowvid info FILE: what a file holds, for people or (--json) for machines.
 
 #include "command.hpp"
+#include "commands/cloth_options.hpp"
 #include "output.hpp"
 #include "report_html.hpp"
 
@@ -22,14 +23,8 @@ struct InfoOptions {
     double mesh_edge_mm = 0.0;  // 0: not asked
 };
 
-// The mesh a fitted preset was fitted on, checked by the same rule: where it
-// did not hold the folds either, the preset reproduces the filmed drape on
-// meshes like it (docs/cloth_model.md, "Folds finer than the grid").
-std::optional<cloth::FoldCheck> fitted_mesh_folds(const formats::FabricPreset& preset) {
-    if (!preset.provenance.swatch_edge_length_m || !(*preset.provenance.swatch_edge_length_m > 0.0)) return std::nullopt;
-    return cloth::check_folds(cloth::material_from_fabric(preset.parameters), *preset.provenance.swatch_edge_length_m);
-}
-
+// Where the fitting swatch did not hold the folds either, the preset
+// reproduces the filmed drape on meshes like it (docs/cloth_model.md).
 std::string fitted_mesh_line(const std::optional<cloth::FoldCheck>& fitted) {
     if (!fitted || fitted->holds_folds) return "";
     return "fitted on: a swatch with " + html::format_number(1e3 * fitted->edge_m, 3) +
@@ -63,7 +58,7 @@ int run_info(const InfoOptions& options) {
         const formats::FabricPreset preset = formats::read_fabric_preset(options.path);
         const cloth::FoldCheck folds =
             cloth::check_folds(cloth::material_from_fabric(preset.parameters), 1e-3 * options.mesh_edge_mm);
-        const std::optional<cloth::FoldCheck> fitted = fitted_mesh_folds(preset);
+        const std::optional<cloth::FoldCheck> fitted = fitting_swatch_folds(preset);
         if (options.json) {
             nlohmann::json summary = {{"kind", "fold check"},
                                       {"path", options.path},
@@ -97,7 +92,7 @@ int run_info(const InfoOptions& options) {
     if (!options.json && is_preset) {
         const formats::FabricPreset preset = formats::read_fabric_preset(options.path);
         std::cout << fold_lines(cloth::check_folds(cloth::material_from_fabric(preset.parameters), 0.0), false)
-                  << fitted_mesh_line(fitted_mesh_folds(preset));
+                  << fitted_mesh_line(fitting_swatch_folds(preset));
     }
     return kExitOk;
 }
