@@ -287,6 +287,11 @@ int run_video_stage(const DemoOptions& options, const GlobalOptions& global) {
             std::cout << "  (the clip's moving texture alone has detail "
                       << html::format_number(quality_edit.value("tracked_texture_detail", NAN))
                       << ": an edit covered by moved texture keeps about that much)\n";
+        if (quality_edit.contains("footage_over_region"))
+            std::cout << "  (the footage itself over the same region: detail "
+                      << html::format_number(quality_edit["footage_over_region"].value("detail", NAN)) << ", patch fidelity "
+                      << html::format_number(quality_edit["footage_over_region"].value("patch_fidelity", NAN))
+                      << ": what leaving the scene as filmed scores there)\n";
     }
     if (!quality.is_discarded() && quality.contains("methods")) {
         for (const char* method : {"ours", "loop", "flow map"}) {
@@ -585,6 +590,13 @@ void write_index(const DemoOptions& options, const std::string& stages_run, doub
         };
         add_region("loop", quality);
         add_region("particle edit", quality_edit);
+        if (!quality_edit.is_discarded() && quality_edit.contains("footage_over_region")) {
+            // The reference for the edit: its region left as filmed.
+            const nlohmann::json& f = quality_edit["footage_over_region"];
+            region.rows.push_back({"the footage itself over the particle edit's region",
+                                   html::format_number(f.value("detail", NAN)),
+                                   html::format_number(f.value("patch_fidelity", NAN)), "", ""});
+        }
         if (!region.rows.empty()) body << html::table(region);
     }
     const nlohmann::json diagnosis = read_json_file(out / "diagnosis" / "diagnose.json");

@@ -160,7 +160,8 @@ int run_edit_quality(const QualityOptions& options, const flow::PreparedSynthesi
                               {"carry_background", prepared.settings.carry_background},
                               {"region", {{"ours", region_json(edit)}}},
                               {"clip_region_reference", clip_region_json(edit)},
-                              {"tracked_texture_detail", measured.tracked_texture_detail}};
+                              {"tracked_texture_detail", measured.tracked_texture_detail},
+                              {"footage_over_region", region_json(measured.footage_over_region)}};
     if (measured.region_still_view) {
         summary["region_still_view"] = {{"ours", region_json(*measured.region_still_view)}};
         summary["clip_region_reference_still_view"] = clip_region_json(*measured.region_still_view);
@@ -175,6 +176,10 @@ int run_edit_quality(const QualityOptions& options, const flow::PreparedSynthesi
     std::printf("the clip's moving texture alone (within half a patch of the stretches tracked) has detail %.2f: an edit\n"
                 "covered by moved texture keeps about that much; more is the scene showing between and under it\n",
                 measured.tracked_texture_detail);
+    std::printf("the footage itself over the same region%s scores detail %.2f and patch fidelity %.2f\n"
+                "(each frame searched without its own): what leaving the scene as filmed scores there\n",
+                prepared.footage ? " (stabilised into the output's view)" : "", measured.footage_over_region.detail,
+                measured.footage_over_region.patch_fidelity);
     if (measured.region_still_view) print_region_table({{"edit", *measured.region_still_view}}, options.region_px, true);
     return kExitOk;
 }

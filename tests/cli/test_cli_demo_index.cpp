@@ -77,6 +77,10 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
                {{"methods", {{"ours", {{"seam_max_ratio", 0.954}, {"share_above_clip_p99", 0.0}, {"motion_ratio", 0.973}}},
                              {"loop", {{"seam_max_ratio", 5.52}, {"share_above_clip_p99", 0.02}, {"motion_ratio", 1.0}}}}},
                 {"clip_reference", {{"seam_max_ratio", 1.117}, {"smallest_transition_ratio", 0.745}}}});
+    // The particle edit beside the footage itself over its region (its reference).
+    write_json(out / "video" / "quality_edit.json",
+               {{"region", {{"ours", {{"detail", 0.617}, {"patch_fidelity", 3.349}, {"share_above_clip_p99", 0.0}, {"motion", 1.306}}}}},
+                {"footage_over_region", {{"detail", 1.444}, {"patch_fidelity", 3.087}}}});
     write_json(out / "diagnosis" / "diagnose.json", {{"verdict", "named"},
                                                      {"message", "the gap is explained by wind"},
                                                      {"held_out_over_floor", 7.5},
@@ -100,7 +104,7 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
     for (const std::string& target : targets) EXPECT_TRUE(fs::exists(out / target)) << target;
     // Key figures, as the stages reported them.
     for (const char* figure : {"11000", "9030", "1230", "151", "19.6", "4.2", "RMS depth error", "0.954", "5.52", "0.973", "1.12", "verdict: named", "43%",
-                               "the gap is explained by wind"})
+                               "the gap is explained by wind", "3.35", "0.617", "3.09", "1.44"})
         EXPECT_NE(index.find(figure), std::string::npos) << figure << " missing from index.html";
     // Each stage's verdict in one sentence with its units (as a reader sees it: quotes unescaped).
     const std::string text = std::regex_replace(index, std::regex("&#39;"), "'");
@@ -108,7 +112,7 @@ TEST(CliDemo, IndexLinksEveryOutputWithItsFiguresAndRendersInChromium) {
          {"over frames 1-10 the fitted fabric misses the footage by 4.67 times the predictability floor",
           "is 0.954 times the clip's 95th-percentile change (the clip's own largest: 1.12; naive looping: 5.52): no seam",
           "misses held-out frames by 7.50 times the predictability floor; modelling the named effect closes 43% of that gap",
-          "Blender simulated and rendered its 1 frames"})
+          "Blender simulated and rendered its 1 frames", "the footage itself over the particle edit's region"})
         EXPECT_NE(text.find(sentence), std::string::npos) << sentence;
 
     // A person sees it: headless Chromium renders the page, thumbnail included.

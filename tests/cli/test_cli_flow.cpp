@@ -605,12 +605,18 @@ TEST(CliFlow, QualityMeasuresAnEditOverItsOutputLinesRegion) {
     EXPECT_GT(ours.at("patch_fidelity").get<double>(), 0.0);
     // Beside it, the detail of what particles carry (clip_detail_share's own test checks the number).
     EXPECT_GT(j.at("tracked_texture_detail").get<double>(), 0.0);
+    // And the footage itself over the edit's region, not the clip's (the
+    // leave-own-frame-out search is checked in FlowRegionQuality).
+    const auto& footage = j.at("footage_over_region");
+    EXPECT_EQ(footage.at("region_pixels").get<double>(), output_pixels);
+    EXPECT_GT(footage.at("patch_fidelity").get<double>(), 0.0);
 
     const CliResult table = run_flowvid({"quality", "--bank", tiny_bank(), "--capture", tiny_capture(), "--edit", "--frame-count", "10"});
     ASSERT_EQ(table.exit_code, 0) << table.err;
     EXPECT_TRUE(mentions(table.out, "edit along 2 output lines")) << table.out;
     EXPECT_TRUE(mentions(table.out, "whole flow region")) << table.out;
     EXPECT_TRUE(mentions(table.out, "moving texture alone")) << table.out;
+    EXPECT_TRUE(mentions(table.out, "footage itself over the same region")) << table.out;
 }
 
 TEST(CliFlow, EditDefaultsFollowTheBankAndTheClip) {

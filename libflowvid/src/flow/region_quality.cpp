@@ -304,9 +304,12 @@ RegionMeter::RegionMeter(const std::vector<std::vector<float>>& clip_luma, int w
 RegionMeter::~RegionMeter() = default;
 
 RegionQuality RegionMeter::measure(const std::vector<std::vector<float>>& output_luma,
-                                   const std::vector<std::vector<std::uint8_t>>& output_regions) const {
+                                   const std::vector<std::vector<std::uint8_t>>& output_regions,
+                                   bool leave_own_frame_out) const {
     const Clip& c = *m_clip;
     if (output_luma.size() < 2) throw std::invalid_argument("the output needs at least two frames to be measured");
+    if (leave_own_frame_out && output_luma.size() > c.energy.size())
+        throw std::invalid_argument("leaving each output frame's own clip frame out needs at most the clip's frames");
     if (output_regions.size() != 1 && output_regions.size() != output_luma.size())
         throw std::invalid_argument("one output region, or one per output frame");
     RegionQuality q;
@@ -338,7 +341,7 @@ RegionQuality RegionMeter::measure(const std::vector<std::vector<float>>& output
 
     q.clip_patch_rms = c.loo_patch_rms;
     q.patch_rms = mean_patch_distance(*c.patches, output_luma, spread(static_cast<int>(output_luma.size()), c.settings.query_frames),
-                                      output_regions, c.width, c.height, c.settings, false);
+                                      output_regions, c.width, c.height, c.settings, leave_own_frame_out);
     q.patch_fidelity = q.clip_patch_rms > 0.0 ? q.patch_rms / q.clip_patch_rms : 0.0;
     return q;
 }

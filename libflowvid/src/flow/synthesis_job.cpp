@@ -338,20 +338,30 @@ EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double r
     const double half_patch_px = 0.5 * prepared.bank->patch_size_px;  // what a particle's patch carries
     const std::vector<std::uint8_t> clip_region =
         line_band_mask(drawn_input_polylines(prepared.drawing), width, height, region_px);
+    // The scene as filmed (in the output's view), over the first frames' regions.
+    const std::size_t scene_frames = std::min(output_luma.size(), clip_luma.size());
+    const std::vector<std::vector<float>> scene(clip_luma.begin(), clip_luma.begin() + static_cast<std::ptrdiff_t>(scene_frames));
+    const auto first_regions = [scene_frames](const std::vector<std::vector<std::uint8_t>>& all) {
+        return all.size() == 1 ? all : std::vector<std::vector<std::uint8_t>>(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(scene_frames));
+    };
     if (prepared.footage) {
         // The shared scoring tool compares with the footage as filmed; the
         // still view says how much of the difference is the camera's drift.
         const std::vector<std::vector<float>> footage_luma = prepared.footage->luma_frames();
         const std::vector<std::uint8_t> footage_region =
             line_band_mask(polylines_as_drawn(drawn_input_polylines(prepared.drawing), camera), width, height, region_px);
-        out.region = RegionMeter(footage_luma, width, height, footage_region, settings).measure(output_luma, regions_as_drawn);
+        const RegionMeter footage_meter(footage_luma, width, height, footage_region, settings);
+        out.region = footage_meter.measure(output_luma, regions_as_drawn);
+        out.footage_over_region = footage_meter.measure(scene, first_regions(regions_as_drawn), true);
         out.region_still_view = RegionMeter(clip_luma, width, height, clip_region, settings).measure(output_luma, regions);
         out.tracked_texture_detail =
             clip_detail_share(footage_luma, width, height,
                               line_band_mask(polylines_as_drawn(prepared.input_points, camera), width, height, half_patch_px),
                               footage_region);
     } else {
-        out.region = RegionMeter(clip_luma, width, height, clip_region, settings).measure(output_luma, regions);
+        const RegionMeter clip_meter(clip_luma, width, height, clip_region, settings);
+        out.region = clip_meter.measure(output_luma, regions);
+        out.footage_over_region = clip_meter.measure(scene, first_regions(regions), true);
         out.tracked_texture_detail = clip_detail_share(
             clip_luma, width, height, line_band_mask(prepared.input_points, width, height, half_patch_px), clip_region);
     }

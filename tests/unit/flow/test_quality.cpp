@@ -286,6 +286,32 @@ TEST(FlowRegionQuality, TheClipAgainstItselfAndABlurOfIt) {
     EXPECT_EQ(still_meter.measure(replayed, {band}).motion, 0.0);
 }
 
+TEST(FlowRegionQuality, TheClipMeasuredWithoutItsOwnFramesScoresItsOwnReference) {
+    // The clip's own frames as the output, each searched without its own
+    // frame: the same queries as the clip's leave-one-frame-out reference,
+    // so patch fidelity is exactly 1 (and 0 when the own frame is searched).
+    std::vector<std::vector<float>> clip;
+    for (int t = 0; t < 30; ++t) clip.push_back(noise_frame(t, 5, 3.0));
+    std::vector<std::uint8_t> band(static_cast<std::size_t>(kW) * kH, 0);
+    for (int y = 0; y < kH; ++y)
+        for (int x = 16; x < 48; ++x) band[static_cast<std::size_t>(y) * kW + x] = 1;
+    RegionSettings settings;
+    settings.patch_px = 12;
+    settings.query_stride_px = 6;
+    settings.search_stride_px = 2;
+    const RegionMeter meter(clip, kW, kH, band, settings);
+    const RegionQuality without_own = meter.measure(clip, {band}, true);
+    EXPECT_GT(without_own.clip_patch_rms, 0.1);
+    EXPECT_NEAR(without_own.patch_rms, without_own.clip_patch_rms, 1e-9);
+    EXPECT_NEAR(without_own.patch_fidelity, 1.0, 1e-9);
+    EXPECT_NEAR(without_own.detail, 1.0, 1e-12);
+    EXPECT_NEAR(meter.measure(clip, {band}).patch_rms, 0.0, 1e-6);
+    // A frame the clip does not have cannot leave its own out.
+    std::vector<std::vector<float>> longer = clip;
+    longer.push_back(clip.front());
+    EXPECT_THROW(meter.measure(longer, {band}, true), std::invalid_argument);
+}
+
 TEST(FlowRegionQuality, AMovingRegionIsMeasuredWhereItIsAtEachFrame) {
     // Output frames that are flat grey except for the clip's texture inside a
     // band that moves 2 px per frame: measured in that moving band, they keep

@@ -177,8 +177,14 @@ public:
     RegionMeter(const RegionMeter&) = delete;
     RegionMeter& operator=(const RegionMeter&) = delete;
     // `output_regions`: one mask per output frame, or one for all.
+    // `leave_own_frame_out`: the output is the clip's own frames (output
+    // frame t is clip frame t, e.g. the footage stabilised into another
+    // view), and each query leaves its frame's patches out of the search,
+    // as the clip's own reference does: what leaving the scene as filmed
+    // scores over the output's region. At most as many frames as the clip.
     RegionQuality measure(const std::vector<std::vector<float>>& output_luma,
-                          const std::vector<std::vector<std::uint8_t>>& output_regions) const;
+                          const std::vector<std::vector<std::uint8_t>>& output_regions,
+                          bool leave_own_frame_out = false) const;
 
 private:
     struct Clip;

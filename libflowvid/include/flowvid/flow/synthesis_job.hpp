@@ -169,6 +169,12 @@ struct EditQuality {
     // followed, over its flow region's (clip_detail_share, as filmed): what
     // an edit covered by moved texture keeps on average.
     double tracked_texture_detail = 0.0;
+    // The footage itself (stabilised into the output's view when the camera
+    // drifts) measured like `region`, over the edit's region, each frame's
+    // patches searched without its own frame: what an edit that left the
+    // scene as filmed scores there. A still output of a drifting clip
+    // cannot score far below its patch fidelity (docs/flow.md).
+    RegionQuality footage_over_region;
 };
 EditQuality measure_edit(const PreparedSynthesis& prepared, int frames, double region_px, int threads,
                          const Progress& progress = {});
