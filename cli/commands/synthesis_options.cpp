@@ -36,6 +36,11 @@ void add_synthesis_options(CLI::App& app, SynthesisOptions& o) {
                    "before mixing: 1 = in proportion (a double exposure), larger = the heavier shows, soft seam")
         ->check(CLI::Range(1.0, 64.0))
         ->capture_default_str();
+    app.add_option("--edge-fade", o.edge_fade_px,
+                   "the texture fades out over PX pixels at its edge, as a filmed fall's edge fades into the rock "
+                   "(default: a patch for edits of whole textures, where new water meets the scene; 0 for synthesis "
+                   "and the moving layer; 0 = off)")
+        ->check(CLI::NonNegativeNumber);
 }
 
 flow::SynthesisSettings synthesis_settings(const SynthesisOptions& o) {
@@ -100,6 +105,8 @@ flow::SynthesisJob synthesis_job(const std::string& bank, const std::string& cap
     job.texture_auto = texture == "auto";
     if (!job.texture_auto) job.settings.texture_layer = flow::texture_layer_from_string(texture);
     job.coverage_auto = options.coverage < 0.0;
+    job.edge_fade_auto = options.edge_fade_px < 0.0;
+    if (!job.edge_fade_auto) job.settings.edge_fade_px = options.edge_fade_px;
     return job;
 }
 

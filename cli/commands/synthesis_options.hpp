@@ -26,6 +26,7 @@ struct SynthesisOptions {
     std::string blend = "detail";
     double overlap_sharpness = 4.0;
     int borrow_within_frames = flow::SynthesisSettings{}.borrow_within_frames;
+    double edge_fade_px = -1.0;  // < 0: automatic (SynthesisJob::edge_fade_auto)
 };
 
 // What `flowvid edit` (and `flowvid quality --edit`) take for the edit itself.
@@ -48,7 +49,8 @@ void add_edit_options(CLI::App& app, EditOptions& options);
 void apply_edit_options(const EditOptions& options, int threads, flow::SynthesisJob& job);
 
 // Adds --particles, --first-start, --seed, --borrow-within, --coverage,
-// --fade-frames, --wrap-fade-frames, --blend and --overlap-sharpness to a command.
+// --fade-frames, --wrap-fade-frames, --blend, --overlap-sharpness and
+// --edge-fade to a command.
 void add_synthesis_options(CLI::App& app, SynthesisOptions& options);
 
 // The library settings those options give (the rest at their defaults).

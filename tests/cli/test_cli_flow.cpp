@@ -9,6 +9,7 @@
 #include "flowvid/flow/quality.hpp"
 #include "flowvid/flow/synthetic.hpp"
 #include "flowvid/formats/any_file.hpp"
+#include "flowvid/formats/particle_bank.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -634,10 +635,19 @@ TEST(CliFlow, EditDefaultsFollowTheBankAndTheClip) {
     EXPECT_EQ(w.at("background"), "replay");
     EXPECT_TRUE(w.at("carry_background").get<bool>());
     EXPECT_TRUE(mentions(water.err, "carry it from around their input lines")) << water.err;
+    // The new water fades into the scene over a patch at its edge.
+    const int patch = flowvid::formats::read_particle_bank(tiny_bank()).patch_size_px;
+    EXPECT_EQ(w.at("edge_fade_px").get<double>(), patch);
+    EXPECT_TRUE(mentions(water.err, "fades out over " + std::to_string(patch) + " px")) << water.err;
     const CliResult no_carry = run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frame-count", "2", "--json",
                                             "--no-carry-background", "--out", dir + "/n%04d.png"});
     ASSERT_EQ(no_carry.exit_code, 0) << no_carry.err;
     EXPECT_FALSE(nlohmann::json::parse(no_carry.out).at("carry_background").get<bool>());
+    const CliResult no_fade = run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frame-count", "2", "--json",
+                                           "--edge-fade", "0", "--out", dir + "/e%04d.png"});
+    ASSERT_EQ(no_fade.exit_code, 0) << no_fade.err;
+    EXPECT_EQ(nlohmann::json::parse(no_fade.out).at("edge_fade_px").get<double>(), 0.0);
+    EXPECT_FALSE(mentions(no_fade.err, "fades out over")) << no_fade.err;
     EXPECT_EQ(run_flowvid({"edit", "--bank", tiny_bank(), "--flowlines", lines, "--frame-count", "2", "--carry-background",
                            "--no-carry-background", "--out", dir + "/x%04d.png"})
                   .exit_code,
@@ -655,15 +665,19 @@ TEST(CliFlow, EditDefaultsFollowTheBankAndTheClip) {
     EXPECT_EQ(f.at("coverage").get<double>(), 2.0);
     EXPECT_EQ(f.at("background"), "median");
     EXPECT_FALSE(f.at("carry_background").get<bool>());
+    EXPECT_EQ(f.at("edge_fade_px").get<double>(), 0.0);  // the screened layer has no edge to fade
     const CliResult synth = run_flowvid({"synth", "--bank", flames, "--frame-count", "2", "--json", "--out", dir + "/s%04d.png"});
     ASSERT_EQ(synth.exit_code, 0) << synth.err;
     EXPECT_EQ(nlohmann::json::parse(synth.out).at("texture"), "whole");
     EXPECT_EQ(nlohmann::json::parse(synth.out).at("coverage").get<double>(), 0.5);
+    EXPECT_EQ(nlohmann::json::parse(synth.out).at("edge_fade_px").get<double>(), 0.0);  // patches over their own flow
     // Asked for, the options win.
     const CliResult asked = run_flowvid({"edit", "--bank", flames, "--flowlines", lines, "--frame-count", "2", "--json",
-                                         "--texture", "whole", "--coverage", "1", "--out", dir + "/a%04d.png"});
+                                         "--texture", "whole", "--coverage", "1", "--edge-fade", "5", "--out",
+                                         dir + "/a%04d.png"});
     ASSERT_EQ(asked.exit_code, 0) << asked.err;
     EXPECT_EQ(nlohmann::json::parse(asked.out).at("texture"), "whole");
     EXPECT_EQ(nlohmann::json::parse(asked.out).at("coverage").get<double>(), 1.0);
     EXPECT_TRUE(nlohmann::json::parse(asked.out).at("carry_background").get<bool>());  // whole textures carry
+    EXPECT_EQ(nlohmann::json::parse(asked.out).at("edge_fade_px").get<double>(), 5.0);
 }

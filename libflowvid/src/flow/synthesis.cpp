@@ -1,5 +1,6 @@
 #include "flowvid/flow/synthesis.hpp"
 
+#include "layer_edges.hpp"
 #include "synthesis_kernels.hpp"
 #include "synthesis_plan.hpp"
 #include "warp_table.hpp"
@@ -425,6 +426,13 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
                                   kDetailRadiusPx, rows);
         else gain.clear();
     }
+    // With an edge fade the layer is finished first, then faded and composited.
+    const bool fade = m_settings.edge_fade_px > 0.0;
+    std::vector<float> layer, layer_coverage;
+    if (fade) {
+        layer.assign(3 * pixels, 0.0f);
+        layer_coverage.assign(pixels, 0.0f);
+    }
     for (std::size_t i = 0; i < pixels; ++i) {
         const float* a = acc.rgbw.data() + 4 * i;
         if (a[3] <= 1e-6f) continue;
@@ -444,9 +452,15 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
                     tex[k] = mean + (tex[k] - mean) * gain[i];
                 }
         }
+        if (fade) {
+            std::copy(tex, tex + 3, layer.begin() + static_cast<std::ptrdiff_t>(3 * i));
+            layer_coverage[i] = c;
+            continue;
+        }
         composite(out.rgb.data() + 3 * i, tex, c, screen);
         if (coverage) (*coverage)[i] = c;
     }
+    if (fade) composite_faded_layer(layer, layer_coverage, m_settings.edge_fade_px, screen, out, coverage);
     return out;
 }
 

@@ -5,6 +5,7 @@
 #include "flowvid/flow/synthesis.hpp"
 #include "flowvid/threads.hpp"
 
+#include "layer_edges.hpp"
 #include "synthesis_kernels.hpp"
 #include "synthesis_plan.hpp"
 #include "warp_table.hpp"
@@ -216,6 +217,8 @@ void ring_row_sums(RenderBuffers& s, int y, int r) {
 
 struct Synthesizer::Scratch : RenderBuffers {
     CarryBuffers carry;
+    // With an edge fade: the finished layer, faded and composited once every band is done.
+    std::vector<float> layer, layer_coverage;
 };
 
 
@@ -321,6 +324,11 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
 
     const float full = static_cast<float>(std::max(1e-6, m_settings.coverage_weight));
     const bool screen = m_settings.texture_layer == TextureLayer::moving;
+    const bool fade = m_settings.edge_fade_px > 0.0;
+    if (fade) {
+        s.layer.assign(3 * static_cast<std::size_t>(w) * h, 0.0f);
+        s.layer_coverage.assign(static_cast<std::size_t>(w) * h, 0.0f);
+    }
     int lo = 0;
     for (int k = 0; k < bands; ++k) {
         const int hi = step_hi(k);
@@ -397,11 +405,18 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
                             }
                     }
                 }
+                if (fade) {
+                    const std::size_t i = static_cast<std::size_t>(y) * w + x;
+                    std::copy(tex, tex + 3, s.layer.begin() + static_cast<std::ptrdiff_t>(3 * i));
+                    s.layer_coverage[i] = c;
+                    continue;
+                }
                 composite(orow + 3 * x, tex, c, screen);
                 if (cov) cov[x] = c;
             }
         }
     }
+    if (fade) composite_faded_layer(s.layer, s.layer_coverage, m_settings.edge_fade_px, screen, out, coverage);
 }
 
 RgbImage Synthesizer::render(int frame, std::vector<float>* coverage) const {

@@ -82,6 +82,7 @@ Decisions decide(const SynthesisJob& job, const formats::ParticleBank& bank) {
     if (job.texture_auto) d.settings.texture_layer = job.edit && flames ? TextureLayer::moving : TextureLayer::whole;
     d.moving = d.settings.texture_layer == TextureLayer::moving;
     if (job.coverage_auto) d.settings.coverage_weight = job.edit ? 2.0 : 0.5;
+    if (job.edge_fade_auto) d.settings.edge_fade_px = job.edit && !d.moving ? static_cast<double>(bank.patch_size_px) : 0.0;
     // Whole textures choose (on plain synthesis, for edits too); the moving
     // layer keeps the plate it was taken from.
     d.background_to_choose = d.auto_background && !d.moving;
@@ -169,6 +170,9 @@ PreparedSynthesis assemble(SynthesisSources sources, const SynthesisJob& job, co
                             "(--no-carry-background: not)");
         say(log, text);
     }
+    if (job.edit && job.edge_fade_auto && settings.edge_fade_px > 0.0)
+        say(log, "edge: the texture fades out over " + std::to_string(static_cast<int>(std::lround(settings.edge_fade_px))) +
+                     " px (a patch) where it ends, as the filmed flow's own edge fades into the scene (--edge-fade 0: not)");
     Background background = moving && out.background == BackgroundMode::median
                                 ? Background::plate(*still_plate)
                                 : make_background(out.background, out.clip, out.streams->schedule(), out.streams->patch_size());
@@ -405,6 +409,7 @@ nlohmann::json outcome_summary(const SynthesisOutcome& outcome, const SynthesisJ
     summary["background"] = to_string(outcome.background);
     summary["texture"] = to_string(outcome.settings.texture_layer);
     summary["coverage"] = outcome.settings.coverage_weight;
+    summary["edge_fade_px"] = outcome.settings.edge_fade_px;
     if (job.edit) {
         summary["mapping"] = to_string(outcome.settings.mapping);
         summary["carry_background"] = outcome.settings.carry_background;

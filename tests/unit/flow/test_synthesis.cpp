@@ -826,10 +826,12 @@ TEST(FlowSynthesis, BandedRenderingEqualsTheWholeFramePass) {
     const OverlapScene scene = overlap_scene();
     for (bool warped : {false, true})
         for (bool preserve : {true, false})
-            for (double sharpness : {1.0, 4.0}) {
+            for (double sharpness : {1.0, 4.0})
+              for (double fade_px : {0.0, 12.0}) {
                 SynthesisSettings settings;
                 settings.preserve_detail = preserve;
                 settings.overlap_sharpness = sharpness;
+                settings.edge_fade_px = fade_px;
                 auto streams = std::make_shared<ParticleStreams>(scene.bank, scene.inputs, settings);
                 const std::vector<OutputLine> outputs = warped ? overlap_outputs(scene) : std::vector<OutputLine>{};
                 const Synthesizer banded(streams, outputs, Background::plate(scene.plate), settings);
@@ -847,7 +849,7 @@ TEST(FlowSynthesis, BandedRenderingEqualsTheWholeFramePass) {
                 }
                 SCOPED_TRACE(std::string(warped ? "warped and keyed lines" : "identity lines") +
                              (preserve ? ", detail preserved" : ", plain blending") + ", overlap sharpness " +
-                             std::to_string(sharpness));
+                             std::to_string(sharpness) + ", edge fade " + std::to_string(fade_px));
                 EXPECT_LE(worst, 1e-4f);
                 EXPECT_LE(worst_coverage, 1e-4f);
                 EXPECT_GT(textured, 0.2f);  // the frames are not just the plate
@@ -864,6 +866,67 @@ TEST(FlowSynthesis, BandedRenderingEqualsTheWholeFramePass) {
     const Synthesizer unsharpened(streams, {}, Background::plate(scene.plate), mixed);
     EXPECT_GT(max_difference(preserved.render(4).rgb, blended.render(4).rgb), 0.05f);
     EXPECT_GT(max_difference(unsharpened.render(4).rgb, blended.render(4).rgb), 0.05f);
+}
+
+// SynthesisSettings::edge_fade_px scales the layer's coverage c by
+// clamp(2 T / M - 1, 0, 1): T the coverage smoothed by two boxes of radius
+// fade / 2 (averaged over the samples inside the frame), M the largest T
+// within fade px. Checked against that rule computed here directly, on the
+// unfaded render's coverage.
+TEST(FlowSynthesis, AnEdgeFadeScalesTheLayersCoverageByItsTentOverItsLargest) {
+    const OverlapScene scene = overlap_scene();
+    SynthesisSettings settings, faded_settings;
+    faded_settings.edge_fade_px = 12.0;
+    auto streams = std::make_shared<ParticleStreams>(scene.bank, scene.inputs, settings);
+    const Synthesizer plain(streams, overlap_outputs(scene), Background::plate(scene.plate), settings);
+    const Synthesizer faded(streams, overlap_outputs(scene), Background::plate(scene.plate), faded_settings);
+    const int w = scene.plate.width, h = scene.plate.height, r = 6;
+    std::vector<float> c0, c1;
+    plain.render(7, &c0);
+    faded.render(7, &c1);
+    const auto at = [w](const std::vector<double>& v, int x, int y) { return v[static_cast<std::size_t>(y) * w + x]; };
+    const auto box = [&](const std::vector<double>& in, bool along_x) {
+        std::vector<double> out(in.size());
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) {
+                double sum = 0.0;
+                int count = 0;
+                for (int d = -r; d <= r; ++d) {
+                    const int xx = along_x ? x + d : x, yy = along_x ? y : y + d;
+                    if (xx < 0 || xx >= w || yy < 0 || yy >= h) continue;
+                    sum += at(in, xx, yy);
+                    ++count;
+                }
+                out[static_cast<std::size_t>(y) * w + x] = sum / count;
+            }
+        return out;
+    };
+    std::vector<double> tent(c0.begin(), c0.end());
+    for (int repeat = 0; repeat < 2; ++repeat) tent = box(box(tent, true), false);
+    double worst = 0.0, largest_before = 0.0, largest_after = 0.0;
+    int rim = 0, kept = 0;
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            double largest = 0.0;
+            for (int yy = std::max(0, y - 2 * r); yy <= std::min(h - 1, y + 2 * r); ++yy)
+                for (int xx = std::max(0, x - 2 * r); xx <= std::min(w - 1, x + 2 * r); ++xx)
+                    largest = std::max(largest, at(tent, xx, yy));
+            const std::size_t i = static_cast<std::size_t>(y) * w + x;
+            const double expected =
+                c0[i] > 0.0f && largest > 0.0 ? c0[i] * std::clamp(2.0 * tent[i] / largest - 1.0, 0.0, 1.0) : 0.0;
+            worst = std::max(worst, std::abs(expected - c1[i]));
+            largest_before = std::max(largest_before, static_cast<double>(c0[i]));
+            largest_after = std::max(largest_after, static_cast<double>(c1[i]));
+            if (c0[i] > 0.9f && c1[i] < 0.5f) ++rim;
+            if (c0[i] > 0.9f && c1[i] > 0.9f) ++kept;
+        }
+    EXPECT_LE(worst, 1e-5);
+    // It fades a rim and keeps what lies within; the layer never vanishes,
+    // even where it is thinner than the fade.
+    EXPECT_GT(rim, 50);
+    std::printf("[ measured ] of the pixels the layer covers above 0.9: %d faded below 0.5, %d kept above 0.9\n", rim, kept);
+    EXPECT_GT(kept, 50);
+    EXPECT_NEAR(largest_after, largest_before, 1e-6);
 }
 
 TEST(FlowSynthesis, FramesDoNotDependOnTheThreadCount) {

@@ -155,6 +155,14 @@ struct SynthesisSettings {
     // would show twice. Unedited lines over that plate render as with
     // `whole`, except where the clip is darker than it.
     TextureLayer texture_layer = TextureLayer::whole;
+    // The texture layer's coverage falls to 0 at the layer's edge over this
+    // many pixels (0: off; detail::fade_layer_edges): a new channel of water
+    // ends the way the filmed fall's own edge does, fading into the rock
+    // over about a patch (the cascade's right edge: 24 px), instead of where
+    // its patches' summed weight runs out (about 8 px, flat water beside
+    // crisp rock, an edge the clip never shows). Gaps inside the layer fade
+    // the same way. SynthesisJob turns it on for edits of whole textures.
+    double edge_fade_px = 0.0;
     // Testing: render with the straightforward whole-frame accumulation
     // (several full-size buffers per frame) instead of the banded renderer,
     // which reproduces it to float rounding. Slower; same frames.

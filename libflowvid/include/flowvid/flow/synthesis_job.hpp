@@ -49,6 +49,13 @@ struct SynthesisJob {
     // (flames: the scene stays where it is). false: settings.carry_background
     // alone decides.
     bool carry_background_auto = true;
+    // An edit of whole textures fades the texture layer's edge over a patch
+    // (settings.edge_fade_px = the bank's patch size): where a line moved
+    // off the flow ends over the scene, the new water fades into it as the
+    // filmed edge does. Plain synthesis puts patches over the flow they were
+    // cut from and the moving layer is screened, so neither fades. false:
+    // settings.edge_fade_px alone decides.
+    bool edge_fade_auto = true;
     // Chosen from the bank when true (settings.texture_layer and
     // coverage_weight are then ignored): an edit of a non-stationary bank
     // (flames, smoke) moves only the light the flow adds (TextureLayer::moving;
