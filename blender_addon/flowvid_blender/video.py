@@ -24,19 +24,20 @@ def run_flowvid_tool(*arguments):
 
 
 def synthesize(bank, flowlines, frame_start, frame_end, out_dir, background=None, texture=None, capture=None,
-               progress=None):
+               progress=None, edge_fade=None):
     """flowvid edit for the frame range, in process where the module is there (else through the tool): PNG
     frames out_dir/%06d.png; returns the first frame's path.
     background: auto, median, loop, replay, relit or none (None: auto). texture: auto, whole or moving
     (moving keeps only the light flames or smoke add to the scene, screened over its dark plate or over
-    black; None: auto). capture: the source clip (None: the one the bank records).
+    black; None: auto). capture: the source clip (None: the one the bank records). edge_fade: px over which
+    the texture fades out where it ends (None: auto, a patch for whole textures; 0: a hard edge).
     progress(stage, fraction, message) -> False cancels."""
     os.makedirs(out_dir, exist_ok=True)
     pattern = os.path.join(out_dir, "%06d.png")
     try:
         get_backend().synthesize(bank, pattern, (frame_start, frame_end), edit=True, flowlines=flowlines,
                                  capture=capture or "", background=background or "auto", texture=texture or "auto",
-                                 progress=progress)
+                                 progress=progress, edge_fade=edge_fade)
     except BackendError as error:
         raise FlowvidError("synthesis failed: %s" % error) from None
     return pattern % frame_start

@@ -18,7 +18,8 @@ namespace {
 // flowvid synth and flowvid edit, in process.
 py::object synthesize(const std::string& bank, const std::string& out, const std::pair<int, int>& frames, bool edit,
                       const std::string& flowlines, const std::string& capture, const std::string& background,
-                      const std::string& texture, const py::object& coverage, const std::string& mapping,
+                      const std::string& texture, const py::object& coverage, const py::object& edge_fade,
+                      const std::string& mapping,
                       const py::object& carry_background, bool interpolate, bool loop, int threads,
                       const std::string& dense_out, const py::object& progress) {
     flow::SynthesisJob job;
@@ -30,6 +31,8 @@ py::object synthesize(const std::string& bank, const std::string& out, const std
     if (!job.texture_auto) job.settings.texture_layer = flow::texture_layer_from_string(texture);
     job.coverage_auto = coverage.is_none();
     if (!coverage.is_none()) job.settings.coverage_weight = coverage.cast<double>();
+    job.edge_fade_auto = edge_fade.is_none();
+    if (!edge_fade.is_none()) job.settings.edge_fade_px = edge_fade.cast<double>();
     job.edit = edit;
     job.interpolate = interpolate;
     job.settings.mapping = flow::arc_mapping_from_string(mapping);
@@ -86,7 +89,8 @@ void bind_flow(py::module_& module) {
         py::arg("path"), "Every problem of a flow-line file, as messages (empty when valid).");
     flow.def("synthesize", &synthesize, py::arg("bank"), py::arg("out"), py::arg("frames") = std::pair<int, int>{1, 100},
              py::arg("edit") = false, py::arg("flowlines") = "", py::arg("capture") = "", py::arg("background") = "auto",
-             py::arg("texture") = "auto", py::arg("coverage") = py::none(), py::arg("mapping") = "equal",
+             py::arg("texture") = "auto", py::arg("coverage") = py::none(), py::arg("edge_fade") = py::none(),
+             py::arg("mapping") = "equal",
              py::arg("carry_background") = py::none(), py::arg("interpolate") = true, py::arg("loop") = false,
              py::arg("threads") = 0, py::arg("dense_out") = "", py::arg("progress") = py::none(),
              R"(Render frames of the infinite sequence from a particle bank, as `flowvid synth` (edit=False:
@@ -97,7 +101,9 @@ bank: *.bank.exr from `flowvid track`; out: out/%06d.png (.exr, .tif), a folder,
 or, for one frame, an image; frames: (first, last), 1-based, inclusive; flowlines: the drawing
 (default: the capture's); capture: the source clip (default: the one the bank records);
 background: auto, median, loop, replay, relit or none; texture: auto, whole or moving;
-coverage: None for automatic (0.5 synth, 2 edit); carry_background: None = where `auto`
+coverage: None for automatic (0.5 synth, 2 edit); edge_fade: px over which the texture fades
+out at its edge, None for automatic (a patch for edits of whole textures, else 0);
+carry_background: None = where `auto`
 replays the clip; loop: render exactly one period; dense_out: write an edit's dense lines.
 progress(stage, fraction, message) -> bool: False cancels (frames written so far are kept;
 flowvid.Cancelled before rendering starts). Returns the summary `flowvid synth --json` prints.)");

@@ -166,9 +166,12 @@ def test_end_to_end_render():
         # The texture choice reaches the tool: over black, the moving layer keeps only the light the
         # flow adds to the clip's dark plate, (pixel - plate) / (1 - plate) <= pixel: never brighter than
         # the whole patches on the same pixels, and darker on the whole (the same frame without it).
+        # Like for like: the moving layer has no edge fade, so the whole patches are rendered without it.
+        whole_first = read_pixels(api.synthesize(bank, lines_path, 1, 1, os.path.join(folder, "whole"), background="none",
+                                                 texture="whole", capture=clip, edge_fade=0))
         moving_first = api.synthesize(bank, lines_path, 1, 1, os.path.join(folder, "moving"), background="none",
                                       texture="moving", capture=clip)
-        covered = [(sum(w), sum(m)) for rw, rm in zip(synth_first, read_pixels(moving_first))
+        covered = [(sum(w), sum(m)) for rw, rm in zip(whole_first, read_pixels(moving_first))
                    for w, m in zip(rw, rm) if sum(w) > 0.15]
         share = sum(m for _, m in covered) / sum(w for w, _ in covered)
         brighter = max(m - w for w, m in covered)

@@ -300,6 +300,18 @@ class SynthesisEntryPointTest(unittest.TestCase):
                     self.assertEqual(a.read(), b.read(), "frame %d differs between the module and the tool" % frame)
             self.assertEqual(outputs["module"]["period_frames"], outputs["tool"]["period_frames"])
             self.assertEqual(outputs["module"]["background"], outputs["tool"]["background"])
+            self.assertEqual(outputs["module"]["edge_fade_px"], 0.0)  # plain synthesis does not fade its edge
+            # An edge fade asked for reaches the library through either backend, the same.
+            for name, chosen in (("module_fade", native), ("tool_fade", cli)):
+                summary = chosen.synthesize(bank, os.path.join(folder, name, "%06d.png"), (3, 3), flowlines=drawn,
+                                            capture=clip, edge_fade=6)
+                self.assertEqual(summary["edge_fade_px"], 6.0, name)
+            with open(os.path.join(folder, "module_fade", "000003.png"), "rb") as a, \
+                    open(os.path.join(folder, "tool_fade", "000003.png"), "rb") as b, \
+                    open(os.path.join(folder, "module", "000003.png"), "rb") as plain:
+                faded = a.read()
+                self.assertEqual(faded, b.read(), "the faded frame differs between the module and the tool")
+                self.assertNotEqual(faded, plain.read(), "the fade changed nothing")
 
             # Cancelling from the progress callback keeps the frames written, and says how many.
             def stop_after_two(stage, fraction, message):

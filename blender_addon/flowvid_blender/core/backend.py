@@ -57,11 +57,13 @@ class NativeBackend:
         return self._call(self.module.flow.read_flowline_set, path)
 
     def synthesize(self, bank, out, frames, edit=False, flowlines="", capture="", background="auto", texture="auto",
-                   progress=None):
+                   progress=None, edge_fade=None):
         """flowvid synth (edit=False) or edit, in process; returns the summary `flowvid synth --json` prints.
-        progress(stage, fraction, message) -> False cancels (frames written so far stay)."""
+        edge_fade: px over which the texture fades out at its edge (None: the library's choice, a patch for edits
+        of whole textures). progress(stage, fraction, message) -> False cancels (frames written so far stay)."""
         return self._call(self.module.flow.synthesize, bank, out, frames=tuple(frames), edit=edit, flowlines=flowlines,
-                          capture=capture, background=background, texture=texture, progress=progress)
+                          capture=capture, background=background, texture=texture, edge_fade=edge_fade,
+                          progress=progress)
 
     def simulate_swatch(self, experiment, parameters, **options):
         """The library's swatch experiment (flowvid.cloth.simulate_swatch); raises BackendError unless ok."""
@@ -153,10 +155,11 @@ class CliBackend:
         self._write_json(path, flowlines)
 
     def synthesize(self, bank, out, frames, edit=False, flowlines="", capture="", background="auto", texture="auto",
-                   progress=None):
+                   progress=None, edge_fade=None):
         """As NativeBackend.synthesize, through `flowvid synth|edit --json`."""
         arguments = ["edit" if edit else "synth", "--bank", bank, "--out", out, "--frames", "%d:%d" % tuple(frames),
                      "--background", background, "--texture", texture, "--json"]
+        arguments += ["--edge-fade", "%g" % edge_fade] if edge_fade is not None else []
         arguments += ["--flowlines", flowlines] if flowlines else []
         arguments += ["--capture", capture] if capture else []
         return json.loads(self.run(*arguments, progress=progress))
