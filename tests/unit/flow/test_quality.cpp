@@ -250,6 +250,27 @@ TEST(FlowRegionQuality, APeriodicSeriesPutsItsPowerInOneBin) {
     EXPECT_EQ(periodic_peak_share({1.0, 2.0, 3.0}), 0.0);  // too short to say
 }
 
+namespace {
+
+// Columns 16-47 of every row: the region the noise clips below are measured over.
+std::vector<std::uint8_t> middle_band() {
+    std::vector<std::uint8_t> band(static_cast<std::size_t>(kW) * kH, 0);
+    for (int y = 0; y < kH; ++y)
+        for (int x = 16; x < 48; ++x) band[static_cast<std::size_t>(y) * kW + x] = 1;
+    return band;
+}
+
+// 12 px patches on fine grids, for frames this small.
+RegionSettings small_patch_settings() {
+    RegionSettings settings;
+    settings.patch_px = 12;
+    settings.query_stride_px = 6;
+    settings.search_stride_px = 2;
+    return settings;
+}
+
+}  // namespace
+
 TEST(FlowRegionQuality, TheClipAgainstItselfAndABlurOfIt) {
     // A texture sliding 1 px per frame: replayed, every measure is the clip's own;
     // blurred, it keeps less detail and its patches are no longer the clip's.
@@ -259,13 +280,8 @@ TEST(FlowRegionQuality, TheClipAgainstItselfAndABlurOfIt) {
         replayed.push_back(clip[static_cast<std::size_t>(t)]);
         blurred.push_back(box_blur(clip[static_cast<std::size_t>(t)]));
     }
-    std::vector<std::uint8_t> band(static_cast<std::size_t>(kW) * kH, 0);
-    for (int y = 0; y < kH; ++y)
-        for (int x = 16; x < 48; ++x) band[static_cast<std::size_t>(y) * kW + x] = 1;
-    RegionSettings settings;
-    settings.patch_px = 12;
-    settings.query_stride_px = 6;
-    settings.search_stride_px = 2;
+    const std::vector<std::uint8_t> band = middle_band();
+    const RegionSettings settings = small_patch_settings();
     const RegionMeter meter(clip, kW, kH, band, settings);
     const RegionQuality same = meter.measure(replayed, {band});
     EXPECT_NEAR(same.detail, 1.0, 1e-12);
@@ -292,13 +308,8 @@ TEST(FlowRegionQuality, TheClipMeasuredWithoutItsOwnFramesScoresItsOwnReference)
     // so patch fidelity is exactly 1 (and 0 when the own frame is searched).
     std::vector<std::vector<float>> clip;
     for (int t = 0; t < 30; ++t) clip.push_back(noise_frame(t, 5, 3.0));
-    std::vector<std::uint8_t> band(static_cast<std::size_t>(kW) * kH, 0);
-    for (int y = 0; y < kH; ++y)
-        for (int x = 16; x < 48; ++x) band[static_cast<std::size_t>(y) * kW + x] = 1;
-    RegionSettings settings;
-    settings.patch_px = 12;
-    settings.query_stride_px = 6;
-    settings.search_stride_px = 2;
+    const std::vector<std::uint8_t> band = middle_band();
+    const RegionSettings settings = small_patch_settings();
     const RegionMeter meter(clip, kW, kH, band, settings);
     const RegionQuality without_own = meter.measure(clip, {band}, true);
     EXPECT_GT(without_own.clip_patch_rms, 0.1);
