@@ -1,6 +1,7 @@
 #include "layer_edges.hpp"
 
 #include "synthesis_kernels.hpp"
+#include "warp_table.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,31 +11,6 @@
 namespace flowvid::flow::detail {
 
 namespace {
-
-// One pass of a box of radius `radius` along rows (along_x) or columns,
-// averaging over the part of the box inside the frame.
-void box_pass(const std::vector<float>& in, std::vector<float>& out, int width, int height, int radius, bool along_x) {
-    const int n = along_x ? width : height, lines = along_x ? height : width;
-    const auto at = [&](int line, int i) {
-        return along_x ? static_cast<std::size_t>(line) * width + i : static_cast<std::size_t>(i) * width + line;
-    };
-    for (int l = 0; l < lines; ++l) {
-        double sum = 0.0;
-        int count = 0;
-        for (int i = 0; i < std::min(n, radius); ++i, ++count) sum += in[at(l, i)];
-        for (int i = 0; i < n; ++i) {
-            if (i + radius < n) {
-                sum += in[at(l, i + radius)];
-                ++count;
-            }
-            if (i - radius - 1 >= 0) {
-                sum -= in[at(l, i - radius - 1)];
-                --count;
-            }
-            out[at(l, i)] = static_cast<float>(sum / count);
-        }
-    }
-}
 
 // One pass of a sliding maximum over `radius` either side, along rows
 // (along_x) or columns.
@@ -65,10 +41,7 @@ void fade_layer_edges(std::vector<float>& coverage, int width, int height, doubl
     if (radius < 1 || width <= 0 || height <= 0) return;
     if (std::none_of(coverage.begin(), coverage.end(), [](float c) { return c > 0.0f; })) return;
     std::vector<float> tent = coverage, scratch(coverage.size());
-    for (int repeat = 0; repeat < 2; ++repeat) {
-        box_pass(tent, scratch, width, height, radius, true);
-        box_pass(scratch, tent, width, height, radius, false);
-    }
+    smooth_in_place(tent, width, height, 1, radius);
     // The tent's largest value within its reach: 1 beside a layer wider than
     // the fade, less beside a thin one (a lone line, a single patch), whose
     // middle then stays and whose sides fade instead of all of it.

@@ -430,7 +430,7 @@ RgbImage Synthesizer::render_reference(int frame, std::vector<float>* coverage) 
     const bool fade = m_settings.edge_fade_px > 0.0;
     std::vector<float> layer, layer_coverage;
     if (fade) {
-        layer.assign(3 * pixels, 0.0f);
+        layer.resize(3 * pixels);  // read only where layer_coverage is set below
         layer_coverage.assign(pixels, 0.0f);
     }
     for (std::size_t i = 0; i < pixels; ++i) {

@@ -326,7 +326,7 @@ void Synthesizer::render_into(int frame, RgbImage& out, std::vector<float>* cove
     const bool screen = m_settings.texture_layer == TextureLayer::moving;
     const bool fade = m_settings.edge_fade_px > 0.0;
     if (fade) {
-        s.layer.assign(3 * static_cast<std::size_t>(w) * h, 0.0f);
+        s.layer.resize(3 * static_cast<std::size_t>(w) * h);  // read only where layer_coverage is set below
         s.layer_coverage.assign(static_cast<std::size_t>(w) * h, 0.0f);
     }
     int lo = 0;

@@ -248,36 +248,42 @@ void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStream
     }
 }
 
-RgbImage smoothed(const RgbImage& image, int radius) {
-    RgbImage a = image, b(image.width, image.height);
-    const auto pass = [radius](const RgbImage& in, RgbImage& out, bool along_x) {
-        const int n = along_x ? in.width : in.height, lines = along_x ? in.height : in.width;
+void smooth_in_place(std::vector<float>& values, int width, int height, int channels, int radius) {
+    std::vector<float> across(values.size());
+    const auto pass = [radius, channels, width, height](const std::vector<float>& in, std::vector<float>& out, bool along_x) {
+        const int n = along_x ? width : height, lines = along_x ? height : width;
+        std::vector<double> sum(static_cast<std::size_t>(channels));
         for (int l = 0; l < lines; ++l) {
-            const auto at = [&](const RgbImage& im, int i) -> std::size_t {
-                return (along_x ? static_cast<std::size_t>(l) * im.width + i : static_cast<std::size_t>(i) * im.width + l) * 3;
+            const auto at = [&](int i) -> std::size_t {
+                return (along_x ? static_cast<std::size_t>(l) * width + i : static_cast<std::size_t>(i) * width + l) * channels;
             };
-            double sum[3] = {0.0, 0.0, 0.0};
+            std::fill(sum.begin(), sum.end(), 0.0);
             int count = 0;
             for (int i = 0; i < std::min(n, radius); ++i, ++count)
-                for (int k = 0; k < 3; ++k) sum[k] += in.rgb[at(in, i) + k];
+                for (int k = 0; k < channels; ++k) sum[k] += in[at(i) + k];
             for (int i = 0; i < n; ++i) {
                 if (i + radius < n) {
-                    for (int k = 0; k < 3; ++k) sum[k] += in.rgb[at(in, i + radius) + k];
+                    for (int k = 0; k < channels; ++k) sum[k] += in[at(i + radius) + k];
                     ++count;
                 }
                 if (i - radius - 1 >= 0) {
-                    for (int k = 0; k < 3; ++k) sum[k] -= in.rgb[at(in, i - radius - 1) + k];
+                    for (int k = 0; k < channels; ++k) sum[k] -= in[at(i - radius - 1) + k];
                     --count;
                 }
-                for (int k = 0; k < 3; ++k) out.rgb[at(out, i) + k] = static_cast<float>(sum[k] / count);
+                for (int k = 0; k < channels; ++k) out[at(i) + k] = static_cast<float>(sum[k] / count);
             }
         }
     };
     for (int repeat = 0; repeat < 2; ++repeat) {
-        pass(a, b, true);
-        pass(b, a, false);
+        pass(values, across, true);
+        pass(across, values, false);
     }
-    return a;
+}
+
+RgbImage smoothed(const RgbImage& image, int radius) {
+    RgbImage out = image;
+    smooth_in_place(out.rgb, out.width, out.height, 3, radius);
+    return out;
 }
 
 void carry_background(const std::vector<const WarpTable*>& tables, const RgbImage& source, float full,

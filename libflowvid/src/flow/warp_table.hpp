@@ -85,8 +85,12 @@ std::vector<std::pair<double, double>> arcs_to_carry(const std::vector<Eigen::Ve
 // One particle's patch added through a warp table (the whole-frame pass).
 void splat_warped(Accumulator& acc, const WarpTable& table, const ParticleStreams::Visible& particle, int patch);
 
-// `image` smoothed by a box of (2 radius + 1)^2 pixels, twice (a tent),
-// shrinking the box at the borders.
+// `values` (width x height pixels of `channels` interleaved floats)
+// smoothed by a box of (2 radius + 1)^2 pixels, twice (a tent), averaging
+// over the part of the box inside the frame.
+void smooth_in_place(std::vector<float>& values, int width, int height, int channels, int radius);
+
+// `image` smoothed so (smooth_in_place).
 RgbImage smoothed(const RgbImage& image, int radius);
 
 // Composites over `out` the background found around each warped line's
