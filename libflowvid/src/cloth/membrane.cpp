@@ -25,9 +25,11 @@ constexpr double kInvSqrt2 = 0.70710678118654752440;
 // A tension-only fibre along a diagonal of the weave, w_d = (w_u + sign w_v)/sqrt 2,
 // E = k/2 A max(|w_d| - 1, 0)^2: its force on w_u and w_v, and (when asked)
 // d(-dE/dw_d)/dw_d = -k A (h h^T + C/|w_d| (I - h h^T)), exact and definite
-// alike since C > 0 where it acts. False where the fibre is slack.
+// alike since C > 0 where it acts. False where the fibre is slack or k is 0
+// (a fibre this triangle does not measure, ClothModel::TriangleData).
 inline bool diagonal_fibre(const Vector3d& wu, const Vector3d& wv, double sign, double k, double A, Vector3d& fu,
                            Vector3d& fv, Matrix3d* K) {
+    if (k == 0.0) return false;
     const Vector3d wd = kInvSqrt2 * (wu + sign * wv);
     const double ld = wd.norm();
     if (!(ld > 1.0)) return false;
@@ -94,7 +96,8 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
             Vector3d fu = -A * ((lu > 0.0 ? su / lu : 0.0) * wu + sh * wv);
             Vector3d fv = -A * ((lv > 0.0 ? sv / lv : 0.0) * wv + sh * wu);
             if (kd_on != 0.0)
-                for (const double sign : {1.0, -1.0}) diagonal_fibre(wu, wv, sign, kd_on, A, fu, fv, nullptr);
+                for (size_t d = 0; d < 2; ++d)
+                    diagonal_fibre(wu, wv, d == 0 ? 1.0 : -1.0, kd_on * t.diagonal_weight[d], A, fu, fv, nullptr);
             for (int a = 0; a < 3; ++a)
                 f.segment<3>(3 * t.v[static_cast<size_t>(a)]) +=
                     t.alpha[static_cast<size_t>(a)] * fu + t.beta[static_cast<size_t>(a)] * fv;
@@ -136,7 +139,8 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
             Matrix3d Kd[2];
             bool taut[2] = {false, false};
             if (kd_on != 0.0)
-                for (int d = 0; d < 2; ++d) taut[d] = diagonal_fibre(wu, wv, d == 0 ? 1.0 : -1.0, kd_on, A, fu, fv, &Kd[d]);
+                for (size_t d = 0; d < 2; ++d)
+                    taut[d] = diagonal_fibre(wu, wv, d == 0 ? 1.0 : -1.0, kd_on * t.diagonal_weight[d], A, fu, fv, &Kd[d]);
             for (int a = 0; a < 3; ++a)
                 f.segment<3>(3 * t.v[static_cast<size_t>(a)]) +=
                     t.alpha[static_cast<size_t>(a)] * fu + t.beta[static_cast<size_t>(a)] * fv;
@@ -268,9 +272,12 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
             fv -= shear_coef * wu;
         }
         if (kd_on != 0.0)
-            for (const double sign : {1.0, -1.0}) {
+            for (size_t d = 0; d < 2; ++d) {
+                const double sign = d == 0 ? 1.0 : -1.0;
                 Matrix3d Kd;
-                if (!diagonal_fibre(wu, wv, sign, kd_on, A, fu, fv, want_dx ? &Kd : nullptr) || !want_dx) continue;
+                if (!diagonal_fibre(wu, wv, sign, kd_on * t.diagonal_weight[d], A, fu, fv, want_dx ? &Kd : nullptr) ||
+                    !want_dx)
+                    continue;
                 Kuu += 0.5 * Kd;
                 Kvv += 0.5 * Kd;
                 Kuv += (0.5 * sign) * Kd;

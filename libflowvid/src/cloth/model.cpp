@@ -122,6 +122,7 @@ void ClothModel::validate_and_precompute() {
         }
         m_triangles.push_back(d);
     }
+    compute_diagonal_fibre_weights();
     for (int i = 0; i < n; ++i)
         if (!(m_vertex_area(i) > 0.0))
             diagnostics.error("material_uv_m[" + std::to_string(i) + "]", "vertex belongs to no triangle (it has no mass)",
@@ -192,7 +193,45 @@ void ClothModel::compute_material_frames() {
         frame_coefficients(m_mesh.material_uv_m[static_cast<size_t>(t.v[0])],
                            m_mesh.material_uv_m[static_cast<size_t>(t.v[1])],
                            m_mesh.material_uv_m[static_cast<size_t>(t.v[2])], m_material.bias_angle_rad, t.alpha, t.beta);
+    compute_diagonal_fibre_weights();
     m_frame_bias_rad = m_material.bias_angle_rad;
+}
+
+void ClothModel::compute_diagonal_fibre_weights() {
+    // A fibre measured from a triangle's deformation gradient alone runs along
+    // one of the triangle's edges (the cell's diagonal) or across the
+    // triangle to a point that only exists in its plane. Such a virtual fibre
+    // is stretched whenever the cell folds along its other diagonal, so a
+    // coarse mesh cannot make the folds a fabric with tension-only bias
+    // fibres makes freely (docs/cloth_model.md, "Diagonal fibres on the mesh's
+    // own diagonals"). Where the mesh has real edges along a fibre, the
+    // fibre is measured on them instead.
+    const double c = std::cos(m_material.bias_angle_rad), s = std::sin(m_material.bias_angle_rad);
+    const Eigen::Vector2d warp(c, s), weft(-s, c);
+    const std::array<Eigen::Vector2d, 2> fibre = {(warp + weft).normalized(), (warp - weft).normalized()};
+    std::array<double, 2> along_area = {0.0, 0.0};
+    std::vector<std::array<bool, 2>> along(m_triangles.size(), {false, false});
+    for (size_t ti = 0; ti < m_triangles.size(); ++ti) {
+        const TriangleData& t = m_triangles[ti];
+        for (size_t k = 0; k < 3; ++k) {
+            const Eigen::Vector2d e = m_mesh.material_uv_m[static_cast<size_t>(t.v[(k + 1) % 3])] -
+                                      m_mesh.material_uv_m[static_cast<size_t>(t.v[k])];
+            for (size_t d = 0; d < 2; ++d)
+                if (std::abs(e.x() * fibre[d].y() - e.y() * fibre[d].x()) <= 1e-9 * e.norm()) along[ti][d] = true;
+        }
+        for (size_t d = 0; d < 2; ++d)
+            if (along[ti][d]) along_area[d] += t.rest_area_m2;
+    }
+    for (size_t d = 0; d < 2; ++d) {
+        // A mesh whose edges follow the fibre in a few triangles only (an
+        // irregular garment) keeps the per-triangle measure: a handful of
+        // edges cannot carry the whole fabric's bias. A checkerboard grid has
+        // half its area along each diagonal.
+        const bool on_edges = along_area[d] > 0.0 && along_area[d] >= kMinAreaAlongDiagonal * m_total_area;
+        const double weight = on_edges ? m_total_area / along_area[d] : 1.0;
+        for (size_t ti = 0; ti < m_triangles.size(); ++ti)
+            m_triangles[ti].diagonal_weight[d] = on_edges ? (along[ti][d] ? weight : 0.0) : 1.0;
+    }
 }
 
 BlockSparseMatrix ClothModel::make_jacobian_matrix() const { return BlockSparseMatrix(vertex_count(), m_pattern_pairs); }
@@ -386,7 +425,8 @@ double ClothModel::potential_energy(const Eigen::VectorXd& x, unsigned terms) {
         if ((terms & ForceTerm::shear) && m_material.diagonal_tension_N_per_m != 0.0)
             for (const double sign : {1.0, -1.0}) {
                 const double stretched = std::max((wu + sign * wv).norm() * 0.70710678118654752440 - 1.0, 0.0);
-                energy += 0.5 * t.rest_area_m2 * m_material.diagonal_tension_N_per_m * stretched * stretched;
+                energy += 0.5 * t.rest_area_m2 * m_material.diagonal_tension_N_per_m *
+                          t.diagonal_weight[sign > 0.0 ? 0 : 1] * stretched * stretched;
             }
     }
     if ((terms & ForceTerm::bending) && m_material.bend_N_m != 0.0)

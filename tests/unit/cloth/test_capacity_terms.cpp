@@ -317,3 +317,77 @@ TEST(ClothDiagonalFibres, PureShearPullsOneDiagonalOnly) {
     }
     EXPECT_EQ(fc::ClothMaterial{}.diagonal_tension_N_per_m, 0.0);
 }
+
+TEST(ClothDiagonalFibres, OnAGridEachCellMeasuresItsOwnDiagonalEdge) {
+    // On a grid whose cells alternate their diagonals, each fibre family is
+    // measured on the cells' real diagonal edges only: E = k * A_cell *
+    // max(|e| / |e_rest| - 1, 0)^2 per diagonal edge (the two triangles on it
+    // count twice the area of triangles that measure both families, as half
+    // the cells carry each family). Computed here from the edges' lengths,
+    // with no deformation gradient, on random configurations.
+    const double h = 0.02;
+    const fc::ClothMesh mesh = fc::make_swatch_mesh(4 * h, 3 * h, 4, 5);  // 4 x 3 square cells
+    fc::ClothMaterial m = soft_compression_material();
+    m.diagonal_tension_N_per_m = 70.0;
+    m.shear_N_per_m = 0.0;
+    fc::ClothModel model(mesh, m);
+    for (unsigned seed : {1u, 2u}) {
+        const Config c = random_config(mesh, seed, 0.006);
+        double expected = 0.0;
+        int pulled = 0;
+        for (int r = 0; r + 1 < 4; ++r)
+            for (int col = 0; col + 1 < 5; ++col) {
+                // The edge make_swatch_mesh splits the cell along.
+                const bool rising = (r + col) % 2 == 0;
+                const int a = rising ? r * 5 + col : r * 5 + col + 1;
+                const int b = rising ? (r + 1) * 5 + col + 1 : (r + 1) * 5 + col;
+                const double stretch = (c.x.segment<3>(3 * a) - c.x.segment<3>(3 * b)).norm() / (std::sqrt(2.0) * h) - 1.0;
+                if (stretch > 0.0) ++pulled;
+                // 6 of the 12 cells carry each family, so each edge stands
+                // for twice its cell's area: 2 * k/2 * h^2 * stretch^2.
+                expected += 70.0 * h * h * std::pow(std::max(stretch, 0.0), 2);
+            }
+        ASSERT_GT(pulled, 2) << "the check needs pulled diagonals";
+        EXPECT_NEAR(model.potential_energy(c.x, fc::ForceTerm::shear), expected, 1e-12 * expected) << seed;
+    }
+}
+
+TEST(ClothDiagonalFibres, ACellFoldsAlongItsOtherDiagonalWithoutPullingAFibre) {
+    // Two square cells; the second is split along its falling diagonal. Its
+    // corner on the far side of the rising diagonal is turned 60 degrees
+    // about that diagonal: a fold along a line no edge follows. The cell's
+    // sides keep their lengths and its real (falling) diagonal shortens, so a
+    // fabric of tension-only bias fibres folds there freely. A fibre measured
+    // across each triangle to a point in its own plane was stretched by
+    // 1 - cos 60 = 50 % of its squared rest length instead: the coarse-mesh
+    // lock of docs/cloth_model.md. A pure in-plane shear of the same mesh
+    // still stores the continuum's energy.
+    const double h = 0.05;
+    const fc::ClothMesh mesh = fc::make_swatch_mesh(2 * h, h, 2, 3);
+    fc::ClothMaterial m = soft_compression_material();
+    m.diagonal_tension_N_per_m = 70.0;
+    m.shear_N_per_m = 0.0;
+    fc::ClothModel model(mesh, m);
+    const auto flat = [&](int i) {
+        const Eigen::Vector2d& uv = mesh.material_uv_m[static_cast<size_t>(i)];
+        return Eigen::Vector3d(uv.x(), uv.y(), 0.0);
+    };
+    Eigen::VectorXd x(3 * mesh.vertex_count());
+    for (int i = 0; i < mesh.vertex_count(); ++i) x.segment<3>(3 * i) = flat(i);
+    // Vertex 2 = (2h, 0), the far corner; the axis runs from vertex 1 (h, 0) to vertex 5 (2h, h).
+    const Eigen::Vector3d axis_from = flat(1), axis = (flat(5) - flat(1)).normalized();
+    x.segment<3>(6) = axis_from + Eigen::AngleAxisd(M_PI / 3.0, axis) * (flat(2) - axis_from);
+    EXPECT_NEAR((x.segment<3>(6) - x.segment<3>(3)).norm(), h, 1e-15);
+    EXPECT_NEAR((x.segment<3>(6) - x.segment<3>(15)).norm(), h, 1e-15);
+    EXPECT_LT((x.segment<3>(6) - x.segment<3>(12)).norm(), 0.9 * std::sqrt(2.0) * h);  // the real diagonal shortens
+    // (The flat cell's fibres sit at |w_d| = 1 up to rounding.) The in-plane
+    // measure would store 0.5 k A (sqrt(1.25) - 1)^2 = 6e-4 J in this cell.
+    EXPECT_LT(model.potential_energy(x, fc::ForceTerm::shear), 1e-18);
+    for (int i = 0; i < mesh.vertex_count(); ++i) {
+        const Eigen::Vector2d& uv = mesh.material_uv_m[static_cast<size_t>(i)];
+        x.segment<3>(3 * i) = Eigen::Vector3d(uv.x() + 0.2 * uv.y(), uv.y(), 0.0);
+    }
+    const double pulled = Eigen::Vector3d(1.2, 1.0, 0.0).norm() / std::sqrt(2.0) - 1.0;
+    const double expected = 0.5 * 70.0 * 2 * h * h * pulled * pulled;
+    EXPECT_NEAR(model.potential_energy(x, fc::ForceTerm::shear), expected, 1e-12 * expected);
+}

@@ -12,6 +12,7 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -245,7 +246,9 @@ TEST(ClothSwatch, TheCapacityTermsKeepADrapeMeshIndependentWhereTheGridResolvesI
         std::printf("[ measured ] fitted silk's terms, bending %.0e N m (folds %.1f mm; 12x12 edge %.1f mm): max vertex distance "
                     "12-24: %.2f mm, 24-48: %.2f mm\n",
                     bend_N_m, 1e3 * fold_m, 1e3 * coarse_edge_m, 1e3 * d1, 1e3 * d2);
-        const bool passes_drape_test = d2 < d1 && d1 < 0.02;  // the drape test's allowance
+        // The drape test's allowance; meshes within 2 mm (a tenth of it) of
+        // each other have converged, whichever pair is the closer.
+        const bool passes_drape_test = d1 < 0.02 && (d2 < d1 || std::max(d1, d2) < 0.002);
         EXPECT_EQ(holds_folds, bend_N_m == 2e-5);
         EXPECT_EQ(passes_drape_test, holds_folds) << "fold length " << 1e3 * fold_m << " mm";
     }

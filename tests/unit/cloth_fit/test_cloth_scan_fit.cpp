@@ -255,9 +255,12 @@ TEST(ClothScanFit, RegisteringTheFabricToTheScanStartsItNearerTheTruth) {
     // A fit's start for a waving trial: the middle of the ranges (the fit's
     // own base) settled from the scanned first frame. Registered to the scan
     // first (pulled to the scanned depths, free to slide across the camera
-    // rays), it settles nearer the truth of frame 1 than when the vertices
-    // are only moved onto the scan along the rays (cotton waving-2: 15.0 ->
-    // 5.9 mm in docs/cloth_fitting.md).
+    // rays), it settles at least as near the truth of frame 1 as when the
+    // vertices are only moved onto the scan along the rays. Cotton waving-2:
+    // 15.0 -> 5.9 mm in docs/cloth_fitting.md (stop 62), when the diagonal
+    // fibres were measured across each triangle and locked the moved start's
+    // folds; since they are measured on the mesh's own diagonals (stop 70)
+    // the moved start settles near as well: 6.9 -> 6.8 mm.
     if (!have_capture("cloth-cotton-waving-2")) GTEST_SKIP() << "shared captures not available";
     const formats::Capture c = capture("cloth-cotton-waving-2");
     TrialLoadSettings load;
@@ -277,5 +280,5 @@ TEST(ClothScanFit, RegisteringTheFabricToTheScanStartsItNearerTheTruth) {
     std::printf("[ measured ] waving-2 start against truth: registered %.1f mm, moved along the rays %.1f mm\n",
                 truth_rms_mm(registered), truth_rms_mm(moved));
     EXPECT_LT(truth_rms_mm(registered), 8.0);
-    EXPECT_LT(truth_rms_mm(registered), 0.7 * truth_rms_mm(moved));
+    EXPECT_LE(truth_rms_mm(registered), truth_rms_mm(moved));
 }

@@ -145,6 +145,9 @@ public:
     int threads() const;
     ThreadPool* worker_pool() { return m_pool.get(); }
     static constexpr int kChunks = 2;
+    // A diagonal fibre family is measured on the mesh's own edges where
+    // triangles with an edge along it cover at least this share of the area.
+    static constexpr double kMinAreaAlongDiagonal = 0.4;
 
     double potential_energy(const Eigen::VectorXd& x, unsigned terms = ForceTerm::conservative);
     double kinetic_energy(const Eigen::VectorXd& v) const;
@@ -187,6 +190,9 @@ public:
         std::array<double, 3> alpha;  // w_u = sum alpha_a x_a (u: the warp, rotated by the bias angle)
         std::array<double, 3> beta;   // w_v = sum beta_a x_a (v: the weft)
         double rest_area_m2;
+        // Weights of the diagonal fibres (1, 1) and (1, -1) of the weave in
+        // this triangle (compute_diagonal_fibre_weights).
+        std::array<double, 2> diagonal_weight{1.0, 1.0};
         std::array<int, 9> slots;     // Jacobian blocks (a, b) -> slot
     };
     struct EdgeData {
@@ -198,6 +204,12 @@ public:
 private:
     void validate_and_precompute();
     void compute_material_frames();  // alpha, beta of every triangle for m_material.bias_angle_rad
+    // Where the mesh has edges along a diagonal of the weave (a grid with its
+    // cells split along alternating diagonals), that fibre family is measured
+    // on those edges only, weighted so that its total area is the mesh's;
+    // elsewhere each triangle measures both fibres (weights 1). Depends on the
+    // bias angle.
+    void compute_diagonal_fibre_weights();
     void evaluate_terms(const Eigen::VectorXd& x, const Eigen::VectorXd& v, double time_s, unsigned terms,
                         Eigen::VectorXd& force, BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv, JacobianMode mode,
                         Linearization* lin, const Eigen::VectorXd* product_of = nullptr);
