@@ -225,6 +225,22 @@ TEST(CliClothFit, TracksFitFindsTheFabricThatMadeTheTracks) {
     EXPECT_NE(bad_mesh.err.find("--second-drape-mesh"), std::string::npos) << bad_mesh.err;
     EXPECT_FALSE(std::filesystem::exists(dir + "/bad.fabric.json"));
 
+    // --hold KEY=VALUE: the shear held near zero is the preset's, the rest fitted;
+    // a value no preset can hold is refused before anything is written.
+    const CliResult held = run_flowvid({"fit", "cloth", "--capture", copy, "--fit-to", "tracks", "--out", dir + "/held.fabric.json",
+                                        "--evaluations", "12", "--variability-runs", "0", "--resolution", "8x8",
+                                        "--hold", "shear_stiffness_N_per_m=1e-6", "--json"});
+    ASSERT_EQ(held.exit_code, 0) << held.err;
+    const flowvid::formats::FabricPreset held_preset = flowvid::formats::read_fabric_preset(dir + "/held.fabric.json");
+    EXPECT_DOUBLE_EQ(held_preset.parameters.shear_stiffness_N_per_m.value, 1e-6);
+    EXPECT_EQ(nlohmann::json::parse(held.out)["held_parameters"], nlohmann::json::array({"shear_stiffness_N_per_m=1e-6"}));
+    const CliResult refused = run_flowvid({"fit", "cloth", "--capture", copy, "--fit-to", "tracks", "--out",
+                                           dir + "/refused.fabric.json", "--hold", "shear_stiffness_N_per_m=0"});
+    EXPECT_EQ(refused.exit_code, 2);
+    EXPECT_NE(refused.err.find("--hold"), std::string::npos) << refused.err;
+    EXPECT_NE(refused.err.find("shear_stiffness_N_per_m=1e-6"), std::string::npos) << refused.err;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/refused.fabric.json"));
+
     // A capture without tracks is refused for a tracks fit, naming the field and the way out.
     const CliResult none = run_flowvid({"fit", "cloth", "--capture", source, "--fit-to", "tracks", "--out", dir + "/x.fabric.json"});
     EXPECT_EQ(none.exit_code, 3);

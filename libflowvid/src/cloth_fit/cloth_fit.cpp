@@ -65,6 +65,12 @@ double material_parameter(const cloth::ClothMaterial& material, const std::strin
     return (parameters.*(preset_entry(key)->member)).value;
 }
 
+bool parameter_allows_zero(const std::string& key) {
+    require_known(key);
+    const formats::FabricParameterInfo* entry = preset_entry(key);
+    return entry != nullptr && entry->zero_allowed;
+}
+
 std::vector<FittedParameter> static_test_parameters() {
     return {
         {kStretchTie, 10.0, 1e4, true},

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <optional>
 #include <stdexcept>
@@ -117,12 +118,42 @@ struct FitControl {
     Reporter report;
 };
 
+// A held parameter, "key" or "key=value" (ClothFitRequest::held_parameters).
+struct HeldParameter {
+    std::string key;
+    std::optional<double> value;  // none: the start's value
+};
+
+HeldParameter parse_held(const std::string& text) {
+    const std::size_t equals = text.find('=');
+    HeldParameter held{text.substr(0, equals), std::nullopt};
+    if (equals == std::string::npos) return held;
+    const std::string number = text.substr(equals + 1);
+    char* end = nullptr;
+    const double value = number.empty() ? NAN : std::strtod(number.c_str(), &end);
+    if (number.empty() || end != number.c_str() + number.size() || !std::isfinite(value) || value < 0.0)
+        throw UsageError("", "--hold", "'" + text + "': '" + number + "' is not a value the parameter can take",
+                         "give a non-negative number in the preset's SI unit, e.g. --hold " + held.key + "=1e-6");
+    bool zero_allowed = false;
+    try {
+        zero_allowed = parameter_allows_zero(held.key);
+    } catch (const std::invalid_argument&) {
+        return held;  // an unknown key: load_fit_trials names the fitted ones
+    }
+    if (value == 0.0 && !zero_allowed)
+        throw UsageError("", "--hold", "'" + text + "': a fabric preset needs " + held.key + " positive",
+                         "hold it at a small positive value instead, e.g. --hold " + held.key + "=1e-6");
+    held.value = value;
+    return held;
+}
+
 // The request's trials; their names and the fitted parameters go into `outcome`.
 std::vector<ClothTrial> load_fit_trials(const ClothFitRequest& request, ClothFitOutcome& outcome) {
     std::vector<ClothTrial> trials = load_trials(request.captures, request.load);
     for (const ClothTrial& t : trials) outcome.trial_names.push_back(t.name);
     std::vector<FittedParameter> parameters = request.parameters.empty() ? parameters_for(trials, request.drag) : request.parameters;
-    for (const std::string& held : request.held_parameters) {
+    for (const std::string& held_text : request.held_parameters) {
+        const std::string held = parse_held(held_text).key;
         const auto it = std::find_if(parameters.begin(), parameters.end(), [&](const FittedParameter& p) { return p.key == held; });
         if (it == parameters.end()) {
             std::string fitted;
@@ -146,6 +177,8 @@ ClothFitProblem make_problem(const ClothFitRequest& request, std::vector<ClothTr
         for (const FittedParameter& p : outcome.parameters)
             set_material_parameter(settings.base, p.key, std::clamp(material_parameter(*request.start, p.key), p.lower, p.upper));
     }
+    for (const std::string& text : request.held_parameters)
+        if (const HeldParameter held = parse_held(text); held.value) set_material_parameter(settings.base, held.key, *held.value);
     outcome.start = settings.base;
     ClothFitProblem problem(std::move(trials), outcome.parameters, settings);
     outcome.trials = problem.trials();

@@ -531,6 +531,14 @@ TEST(ClothFit, AHeldParameterIsLeftOutAndKeepsItsStartValue) {
     EXPECT_DOUBLE_EQ(held.fitted.bend_N_m, cloth::ClothMaterial{}.bend_N_m);
     EXPECT_NE(held.fitted.stretch_warp_N_per_m, cloth::ClothMaterial{}.stretch_warp_N_per_m);  // the fitted one moved
 
+    // KEY=VALUE holds it at that value: the start and the fitted fabric have it.
+    request.held_parameters = {"stretch_warp_compression_ratio", "bend_stiffness_N_m=3e-7"};
+    const ClothFitOutcome held_at = fit_cloth(request);
+    ASSERT_EQ(held_at.parameters.size(), 1u);
+    EXPECT_EQ(held_at.start.bend_N_m, 3e-7);
+    EXPECT_EQ(held_at.fitted.bend_N_m, 3e-7);
+    EXPECT_NE(held_at.fitted.stretch_warp_N_per_m, held.fitted.stretch_warp_N_per_m);  // a stiffer fabric fits otherwise
+
     request.held_parameters = {"shear_stiffness_N_per_m"};  // not fitted here
     try {
         fit_cloth(request);
@@ -538,6 +546,18 @@ TEST(ClothFit, AHeldParameterIsLeftOutAndKeepsItsStartValue) {
     } catch (const UsageError& e) {
         EXPECT_EQ(e.field(), "--hold");
         EXPECT_NE(e.fix().find("stretch_stiffness_N_per_m"), std::string::npos) << e.fix();
+    }
+    // Values a preset cannot hold are refused before anything is simulated.
+    for (const char* bad : {"bend_stiffness_N_m=soft", "bend_stiffness_N_m=", "bend_stiffness_N_m=-1e-7",
+                            "bend_stiffness_N_m=nan", "stretch_stiffness_N_per_m=0"}) {
+        request.held_parameters = {bad};
+        try {
+            fit_cloth(request);
+            ADD_FAILURE() << bad << " must be refused";
+        } catch (const UsageError& e) {
+            EXPECT_EQ(e.field(), "--hold") << bad;
+            EXPECT_NE(e.fix().find("=1e-6"), std::string::npos) << e.fix();
+        }
     }
 }
 

@@ -46,6 +46,9 @@ struct FittedParameter {
 // Sets or reads `key` of a material. Throws std::invalid_argument naming an unknown key.
 void set_material_parameter(cloth::ClothMaterial& material, const std::string& key, double value);
 double material_parameter(const cloth::ClothMaterial& material, const std::string& key);
+// Whether a parameter may be 0 (a term switched off) in a fabric preset; the
+// others must be positive.
+bool parameter_allows_zero(const std::string& key);
 
 // The thesis's choices: static test, 6 (stretch, shear, bend and their
 // damping; drag held at its base value); waving test, those and the 3 drag

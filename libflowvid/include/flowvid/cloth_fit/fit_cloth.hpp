@@ -84,10 +84,13 @@ struct ClothFitRequest {
     // mesh; a floor buys a preset that drapes alike on 12x12 to 48x48 meshes
     // at the cost of reach (docs/cloth_model.md, "Resolution").
     double min_bending_N_m = 0.0;
-    // Parameters left out of the fit (keys of `parameters`): they keep the
+    // Parameters left out of the fit (keys of `parameters`): "key" keeps the
     // start's value (the base material's, e.g. a capacity term's neutral
-    // value). An ablation: a fabric fitted without soft compression, say,
-    // for the gap diagnosis to find it missing. Unknown keys: UsageError.
+    // value), "key=value" holds it at that value (SI, the preset's unit).
+    // An ablation: a fabric fitted without soft compression, say, for the gap
+    // diagnosis to find it missing; or a trade: shear held near 0 buys a
+    // preset that drapes alike on 12x12 to 48x48 meshes at a cost in reach
+    // (docs/cloth_model.md). Unknown keys, bad values: UsageError.
     std::vector<std::string> held_parameters;
     // The fit's start instead of the middle of the parameters' ranges (its
     // fitted values clamped into them): where the search begins, and the
