@@ -520,9 +520,9 @@ const RegisterFitKind registration{FitKind{
                        "ablation, e.g. --hold stretch_warp_compression_ratio --hold stretch_weft_compression_ratio "
                        "fits without soft compression, and `flowvid diagnose` then names compression_softness if the "
                        "footage needs it; or a trade, e.g. --hold shear_stiffness_N_per_m=1e-6: with the shear read "
-                       "across each triangle gone, the silk captures' tracks-fitted preset drapes 18 mm (max) apart on "
-                       "12x12 and 24x24 instead of 34, and misses held-out frames 1-10 by 7.7 mm instead of 5.0 "
-                       "(docs/cloth_model.md)");
+                       "across each triangle gone, the silk captures' tracks-fitted preset drapes its hem equally wide "
+                       "on 12x12, 24x24 and 48x48 meshes and 21 mm (max) apart instead of 34, and misses held-out "
+                       "frames 1-10 by 6.8 mm instead of 5.0, its drape by 6.6 instead of 4.5 (docs/cloth_model.md)");
         app.add_option("--static-weight", options->static_weight,
                        "weight of each static drape against one full-weight waving frame (default 1; a tracks fit "
                        "of drapes and waving tests: as much as a waving test's frames together, about 15 at 20 "
