@@ -522,7 +522,8 @@ const RegisterFitKind registration{FitKind{
                        "footage needs it; or a trade, e.g. --hold shear_stiffness_N_per_m=1e-6: with the shear read "
                        "across each triangle gone, the silk captures' tracks-fitted preset drapes its hem equally wide "
                        "on 12x12, 24x24 and 48x48 meshes and 21 mm (max) apart instead of 34, and misses held-out "
-                       "frames 1-10 by 6.8 mm instead of 5.0, its drape by 6.6 instead of 4.5 (docs/cloth_model.md)");
+                       "frames 1-10 by 6.8 mm instead of 5.0, its drape by 6.6 instead of 4.5; cotton's, which needs its "
+                       "shear, loses both ways (docs/cloth_model.md)");
         app.add_option("--static-weight", options->static_weight,
                        "weight of each static drape against one full-weight waving frame (default 1; a tracks fit "
                        "of drapes and waving tests: as much as a waving test's frames together, about 15 at 20 "

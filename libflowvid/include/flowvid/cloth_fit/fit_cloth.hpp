@@ -88,9 +88,10 @@ struct ClothFitRequest {
     // start's value (the base material's, e.g. a capacity term's neutral
     // value), "key=value" holds it at that value (SI, the preset's unit).
     // An ablation: a fabric fitted without soft compression, say, for the gap
-    // diagnosis to find it missing; or a trade: shear held near 0 buys a
-    // preset that drapes alike on 12x12 to 48x48 meshes at a cost in reach
-    // (docs/cloth_model.md). Unknown keys, bad values: UsageError.
+    // diagnosis to find it missing; or a trade: silk's shear held near 0
+    // buys a preset that drapes alike on 12x12 to 48x48 meshes at a cost in
+    // reach (not cotton's: docs/cloth_model.md). Unknown keys, bad values:
+    // UsageError.
     std::vector<std::string> held_parameters;
     // The fit's start instead of the middle of the parameters' ranges (its
     // fitted values clamped into them): where the search begins, and the
