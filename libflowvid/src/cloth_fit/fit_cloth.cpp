@@ -134,15 +134,6 @@ HeldParameter parse_held(const std::string& text) {
     if (number.empty() || end != number.c_str() + number.size() || !std::isfinite(value) || value < 0.0)
         throw UsageError("", "--hold", "'" + text + "': '" + number + "' is not a value the parameter can take",
                          "give a non-negative number in the preset's SI unit, e.g. --hold " + held.key + "=1e-6");
-    bool zero_allowed = false;
-    try {
-        zero_allowed = parameter_allows_zero(held.key);
-    } catch (const std::invalid_argument&) {
-        return held;  // an unknown key: load_fit_trials names the fitted ones
-    }
-    if (value == 0.0 && !zero_allowed)
-        throw UsageError("", "--hold", "'" + text + "': a fabric preset needs " + held.key + " positive",
-                         "hold it at a small positive value instead, e.g. --hold " + held.key + "=1e-6");
     held.value = value;
     return held;
 }
@@ -153,7 +144,8 @@ std::vector<ClothTrial> load_fit_trials(const ClothFitRequest& request, ClothFit
     for (const ClothTrial& t : trials) outcome.trial_names.push_back(t.name);
     std::vector<FittedParameter> parameters = request.parameters.empty() ? parameters_for(trials, request.drag) : request.parameters;
     for (const std::string& held_text : request.held_parameters) {
-        const std::string held = parse_held(held_text).key;
+        const HeldParameter parsed = parse_held(held_text);
+        const std::string& held = parsed.key;
         const auto it = std::find_if(parameters.begin(), parameters.end(), [&](const FittedParameter& p) { return p.key == held; });
         if (it == parameters.end()) {
             std::string fitted;
@@ -161,6 +153,9 @@ std::vector<ClothTrial> load_fit_trials(const ClothFitRequest& request, ClothFit
             throw UsageError("", "--hold", "cannot hold '" + held + "': this fit does not fit it",
                              "hold one of the fitted parameters: " + fitted);
         }
+        if (parsed.value == 0.0 && !parameter_allows_zero(held))
+            throw UsageError("", "--hold", "'" + held_text + "': a fabric preset needs " + held + " positive",
+                             "hold it at a small positive value instead, e.g. --hold " + held + "=1e-6");
         parameters.erase(it);
     }
     outcome.parameters = with_bending_floor(parameters, request.min_bending_N_m);
