@@ -83,7 +83,7 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
             const double lu = wu.norm(), lv = wv.norm();
             double su = stretch_stiffness(ku_on, ru, lu - 1.0) * (lu - 1.0);
             double sv = stretch_stiffness(kv_on, rv, lv - 1.0) * (lv - 1.0);
-            double sh = ks_on * wu.dot(wv);
+            double sh = ks_on * t.shear_weight * wu.dot(wv);
             if (need_v) {
                 const Vector3d v0 = at(v, t.v[0]), v1 = at(v, t.v[1]), v2 = at(v, t.v[2]);
                 const Vector3d wu_dot = t.alpha[0] * v0 + t.alpha[1] * v1 + t.alpha[2] * v2;
@@ -125,7 +125,8 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
             const double cpv = lv > 0.0 ? std::max(lv - 1.0, 0.0) / lv : 0.0;
             // Forces (as the force-only path).
             const double ku_at = stretch_stiffness(ku_on, ru, lu - 1.0), kv_at = stretch_stiffness(kv_on, rv, lv - 1.0);
-            double su = ku_at * (lu - 1.0), svv = kv_at * (lv - 1.0), sh = ks_on * wu.dot(wv);
+            const double ks_t = ks_on * t.shear_weight;
+            double su = ku_at * (lu - 1.0), svv = kv_at * (lv - 1.0), sh = ks_t * wu.dot(wv);
             if (need_v) {
                 const Vector3d v0 = at(v, t.v[0]), v1 = at(v, t.v[1]), v2 = at(v, t.v[2]);
                 const Vector3d wu_dot = t.alpha[0] * v0 + t.alpha[1] * v1 + t.alpha[2] * v2;
@@ -147,7 +148,7 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
             // J blocks.
             const double ju_ww = -A * (sx * ku_at * (1.0 - cpu) + sv * cu_on), ju_i = -A * sx * ku_at * cpu;
             const double jv_ww = -A * (sx * kv_at * (1.0 - cpv) + sv * cv_on), jv_i = -A * sx * kv_at * cpv;
-            const double js = -A * (sx * ks_on + sv * cs_on);
+            const double js = -A * (sx * ks_t + sv * cs_on);
             Matrix3d C0 = ju_ww * hu * hu.transpose() + js * wv * wv.transpose();
             C0.diagonal().array() += ju_i;
             Matrix3d C1 = jv_ww * hv * hv.transpose() + js * wu * wu.transpose();
@@ -174,8 +175,8 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
                     pv += t.beta[static_cast<size_t>(b)] * at(*product_of, t.v[static_cast<size_t>(b)]);
                 }
                 const double wvpu = wv.dot(pu), wupv = wu.dot(pv);
-                Vector3d qu = -A * (ku_at * ((1.0 - cpu) * hu.dot(pu) * hu + cpu * pu) + ks_on * (wvpu + wupv) * wv);
-                Vector3d qv = -A * (kv_at * ((1.0 - cpv) * hv.dot(pv) * hv + cpv * pv) + ks_on * (wvpu + wupv) * wu);
+                Vector3d qu = -A * (ku_at * ((1.0 - cpu) * hu.dot(pu) * hu + cpu * pu) + ks_t * (wvpu + wupv) * wv);
+                Vector3d qv = -A * (kv_at * ((1.0 - cpv) * hv.dot(pv) * hv + cpv * pv) + ks_t * (wvpu + wupv) * wu);
                 for (int d = 0; d < 2; ++d)
                     if (taut[d]) {
                         const double sign = d == 0 ? 1.0 : -1.0;
@@ -240,14 +241,15 @@ void ClothModel::add_membrane(const Eigen::VectorXd& x, const Eigen::VectorXd& v
         if (shear || shear_damp) {
             const double C = wu.dot(wv);
             if (shear) {
-                shear_coef += ks * A * C;
+                const double ks_t = ks * t.shear_weight;
+                shear_coef += ks_t * A * C;
                 if (want_dx) {
                     // -ks A grad C grad C^T
-                    Kuu -= ks * A * wv * wv.transpose();
-                    Kvv -= ks * A * wu * wu.transpose();
-                    Kuv -= ks * A * wv * wu.transpose();
-                    Kvu -= ks * A * wu * wv.transpose();
-                    if (exact) shear_curv -= ks * A * C;
+                    Kuu -= ks_t * A * wv * wv.transpose();
+                    Kvv -= ks_t * A * wu * wu.transpose();
+                    Kuv -= ks_t * A * wv * wu.transpose();
+                    Kvu -= ks_t * A * wu * wv.transpose();
+                    if (exact) shear_curv -= ks_t * A * C;
                 }
             }
             if (shear_damp) {

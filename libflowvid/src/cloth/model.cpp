@@ -154,6 +154,7 @@ void ClothModel::validate_and_precompute() {
     m_mass.resize(n);
     set_material(m_material);
 
+    compute_cells();
     m_edges.clear();
     m_pattern_pairs.clear();
     for (const TriangleData& t : m_triangles)
@@ -186,6 +187,22 @@ void ClothModel::validate_and_precompute() {
         for (int a = 0; a < 4; ++a)
             for (int b = 0; b < 4; ++b)
                 e.slots[static_cast<size_t>(4 * a + b)] = pattern.slot(e.v[static_cast<size_t>(a)], e.v[static_cast<size_t>(b)]);
+    index_cells(pattern);
+}
+
+void ClothModel::index_cells(const BlockSparseMatrix& pattern) {
+    // A cell's vertices are a triangle's or a hinge's wings: all in the pattern.
+    m_vertex_cell_local.clear();
+    if (m_cells.empty()) return;
+    m_vertex_cell_local.assign(static_cast<size_t>(vertex_count()), {});
+    for (size_t c = 0; c < m_cells.size(); ++c) {
+        CellData& cell = m_cells[c];
+        for (int a = 0; a < 4; ++a) {
+            m_vertex_cell_local[static_cast<size_t>(cell.v[static_cast<size_t>(a)])].push_back({static_cast<int>(c), a});
+            for (int b = 0; b < 4; ++b)
+                cell.slots[static_cast<size_t>(4 * a + b)] = pattern.slot(cell.v[static_cast<size_t>(a)], cell.v[static_cast<size_t>(b)]);
+        }
+    }
 }
 
 void ClothModel::compute_material_frames() {
@@ -194,6 +211,8 @@ void ClothModel::compute_material_frames() {
                            m_mesh.material_uv_m[static_cast<size_t>(t.v[1])],
                            m_mesh.material_uv_m[static_cast<size_t>(t.v[2])], m_material.bias_angle_rad, t.alpha, t.beta);
     compute_diagonal_fibre_weights();
+    compute_cells();
+    if (!m_pattern_pairs.empty() && !m_cells.empty()) index_cells(make_jacobian_matrix());
     m_frame_bias_rad = m_material.bias_angle_rad;
 }
 
@@ -254,6 +273,8 @@ void ClothModel::linearize(const Eigen::VectorXd& x, const Eigen::VectorXd& v, d
     lin.drag_block.resize(m_triangles.size());
     lin.vertex_block.assign(static_cast<size_t>(n), Matrix3d::Zero());
     lin.pair_blocks.clear();
+    lin.has_cells = false;
+    lin.cell_blocks.resize(16 * m_cells.size());
     if (product_of) lin.dfdx_product.setZero(3 * n);
     evaluate_terms(x, v, time_s, terms, force, nullptr, nullptr, JacobianMode::definite, &lin, product_of);
 }
@@ -309,6 +330,7 @@ void ClothModel::evaluate_terms(const Eigen::VectorXd& x, const Eigen::VectorXd&
         if (lin && product_of)
             for (int c = 0; c < kChunks; ++c) lin->dfdx_product += m_chunk_product[static_cast<size_t>(c)];
     }
+    if (terms & ForceTerm::shear) add_cell_shear(x, &force, nullptr, dfdx, mode, lin, product_of);
     if (terms & ForceTerm::gravity)
         for (int i = 0; i < n; ++i) force.segment<3>(3 * i) += m_mass(i) * m_environment.gravity_m_per_s2;
     if ((terms & (ForceTerm::body_contact | ForceTerm::friction)) && !m_environment.colliders.empty())
@@ -363,6 +385,16 @@ void ClothModel::apply_product(const Linearization& lin, const Eigen::VectorXd& 
             for (int a = 0; a < 3; ++a) out.segment<3>(3 * tri.v[static_cast<size_t>(a)]) += q;
         }
     }
+    if (lin.has_cells)
+        for (size_t c = 0; c < m_cells.size(); ++c) {
+            const CellData& cell = m_cells[c];
+            const Matrix3d* B = &lin.cell_blocks[16 * c];
+            for (int a = 0; a < 4; ++a) {
+                Vector3d q = Vector3d::Zero();
+                for (int b = 0; b < 4; ++b) q += B[4 * a + b] * at(p, cell.v[static_cast<size_t>(b)]);
+                out.segment<3>(3 * cell.v[static_cast<size_t>(a)]) += q;
+            }
+        }
     if (lin.has_vertex)
         for (int i = 0; i < vertex_count(); ++i) out.segment<3>(3 * i) += lin.vertex_block[static_cast<size_t>(i)] * at(p, i);
     for (const auto& e : lin.pair_blocks) out.segment<3>(3 * e.row) += e.value * at(p, e.col);
@@ -396,6 +428,12 @@ void ClothModel::assemble_product(const Linearization& lin, BlockSparseMatrix& J
                     for (int b = 0; b < 4; ++b)
                         J.block(ed.slots[static_cast<size_t>(4 * a + b)]).noalias() += ga * g.segment<3>(3 * b).transpose();
                 }
+            if (lin.has_cells)
+                for (const auto& [c, a] : m_vertex_cell_local[static_cast<size_t>(i)]) {
+                    const CellData& cell = m_cells[static_cast<size_t>(c)];
+                    const Matrix3d* B = &lin.cell_blocks[16 * static_cast<size_t>(c)];
+                    for (int b = 0; b < 4; ++b) J.block(cell.slots[static_cast<size_t>(4 * a + b)]) += B[4 * a + b];
+                }
             if (lin.has_vertex) J.block(J.diagonal_slot(i)) += lin.vertex_block[static_cast<size_t>(i)];
         }
     };
@@ -421,7 +459,7 @@ double ClothModel::potential_energy(const Eigen::VectorXd& x, unsigned terms) {
         // Compression stores the ratio's share (exactly ku, kv at ratio 1).
         const double ku_at = cu < 0.0 ? ku * m_material.stretch_warp_compression_ratio : ku;
         const double kv_at = cv < 0.0 ? kv * m_material.stretch_weft_compression_ratio : kv;
-        energy += 0.5 * t.rest_area_m2 * (ku_at * cu * cu + kv_at * cv * cv + ks * cs * cs);
+        energy += 0.5 * t.rest_area_m2 * (ku_at * cu * cu + kv_at * cv * cv + ks * t.shear_weight * cs * cs);
         if ((terms & ForceTerm::shear) && m_material.diagonal_tension_N_per_m != 0.0)
             for (const double sign : {1.0, -1.0}) {
                 const double stretched = std::max((wu + sign * wv).norm() * 0.70710678118654752440 - 1.0, 0.0);
@@ -429,6 +467,7 @@ double ClothModel::potential_energy(const Eigen::VectorXd& x, unsigned terms) {
                           t.diagonal_weight[sign > 0.0 ? 0 : 1] * stretched * stretched;
             }
     }
+    if (terms & ForceTerm::shear) add_cell_shear(x, nullptr, &energy, nullptr, JacobianMode::exact, nullptr, nullptr);
     if ((terms & ForceTerm::bending) && m_material.bend_N_m != 0.0)
         for (size_t ei = 0; ei < m_edges.size(); ++ei) {
             const EdgeData& e = m_edges[ei];

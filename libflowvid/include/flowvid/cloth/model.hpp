@@ -88,7 +88,8 @@ struct Linearization {
     std::vector<Eigen::Matrix3d> drag_block;     // per triangle: the block between any two of its vertices
     std::vector<Eigen::Matrix3d> vertex_block;   // contacts and friction (diagonal blocks)
     std::vector<BlockSparseMatrix::Extra> pair_blocks;  // self contact
-    bool has_membrane = false, has_bending = false, has_drag = false, has_vertex = false;
+    std::vector<Eigen::Matrix3d> cell_blocks;   // per grid cell: block (a, b) at 16 c + 4 a + b (ClothModel::CellData)
+    bool has_membrane = false, has_bending = false, has_drag = false, has_vertex = false, has_cells = false;
     // df/dx (definite, unscaled) times the vector given to linearize.
     Eigen::VectorXd dfdx_product;
 };
@@ -193,6 +194,8 @@ public:
         // Weights of the diagonal fibres (1, 1) and (1, -1) of the weave in
         // this triangle (compute_diagonal_fibre_weights).
         std::array<double, 2> diagonal_weight{1.0, 1.0};
+        // 0 where a grid cell measures this triangle's shear (CellData), else 1.
+        double shear_weight = 1.0;
         std::array<int, 9> slots;     // Jacobian blocks (a, b) -> slot
     };
     struct EdgeData {
@@ -201,7 +204,29 @@ public:
         std::array<int, 16> slots;
     };
 
+    // A grid cell: two triangles that share a diagonal edge and make a
+    // rectangle along warp and weft. Its shear is read at all four corners
+    // (cell_shear.cpp; experimental: no cells unless the environment sets
+    // FLOWVID_EXPERIMENTAL_CELL_SHEAR or FLOWVID_EXPERIMENTAL_CELL_FIBRES).
+    struct CellData {
+        std::array<int, 4> v;                 // edge v0-v1 (the diagonal), wings v2, v3
+        std::array<std::array<int, 3>, 4> corner;  // per corner: local (c, p, q), p along the warp, q the weft
+        std::array<double, 4> inverse_uv;     // 1 / (du_p dv_q): s = k (x_p - x_c).(x_q - x_c) is w_u . w_v there
+        double rest_area_m2 = 0.0;
+        // Rest lengths of the diagonals v0-v1 and v2-v3 when the cell is square
+        // (they then run along the weave's bias), else 0: no fibres on the cell.
+        std::array<double, 2> diagonal_rest_m{0.0, 0.0};
+        std::array<int, 16> slots;            // Jacobian blocks (a, b) -> slot
+    };
+    const std::vector<CellData>& cells() const { return m_cells; }
+
 private:
+    void compute_cells();
+    void index_cells(const BlockSparseMatrix& pattern);  // slots and the vertex -> cell map
+    // Fold-free cell shear and the cells' fibres (docs/cloth_model.md): their
+    // forces, energy, and Jacobians or the linearisation's cell blocks.
+    void add_cell_shear(const Eigen::VectorXd& x, Eigen::VectorXd* f, double* energy, BlockSparseMatrix* dfdx,
+                        JacobianMode mode, Linearization* lin, const Eigen::VectorXd* product_of) const;
     void validate_and_precompute();
     void compute_material_frames();  // alpha, beta of every triangle for m_material.bias_angle_rad
     // Where the mesh has edges along a diagonal of the weave (a grid with its
@@ -238,6 +263,7 @@ private:
     std::vector<BendingStencil> m_stencils;
     std::vector<TriangleData> m_triangles;
     std::vector<EdgeData> m_edges;
+    std::vector<CellData> m_cells;
     double m_frame_bias_rad = 0.0;        // the bias angle alpha, beta were computed for
     std::vector<double> m_rest_fold_rad;  // per edge; empty: all 0 (no extra work in the loops)
     std::vector<std::pair<int, int>> m_pattern_pairs;
@@ -260,6 +286,7 @@ private:
     std::vector<int> m_body_mesh_offsets;  // per collider: first packed triangle id
     std::vector<std::vector<std::pair<int, int>>> m_vertex_triangle_local;  // (triangle, local index)
     std::vector<std::vector<std::pair<int, int>>> m_vertex_edge_local;      // (edge, local index)
+    std::vector<std::vector<std::pair<int, int>>> m_vertex_cell_local;      // (cell, local index)
     std::vector<Eigen::VectorXd> m_chunk_force;
     std::vector<Eigen::VectorXd> m_chunk_product;
     std::unique_ptr<ThreadPool> m_pool;
