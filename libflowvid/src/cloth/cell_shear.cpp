@@ -116,7 +116,8 @@ void ClothModel::add_cell_shear(const Eigen::VectorXd& x, Eigen::VectorXd* f, do
     const double kd = m_material.diagonal_tension_N_per_m;
     if (m_cells.empty() || (ks == 0.0 && kd == 0.0)) return;
     const bool exact = mode == JacobianMode::exact;
-    for (const CellData& cell : m_cells) {
+    for (size_t ci = 0; ci < m_cells.size(); ++ci) {
+        const CellData& cell = m_cells[ci];
         std::array<Vector3d, 4> X;
         for (size_t k = 0; k < 4; ++k) X[k] = at(x, cell.v[k]);
         std::array<double, 4> shear;
@@ -200,7 +201,6 @@ void ClothModel::add_cell_shear(const Eigen::VectorXd& x, Eigen::VectorXd* f, do
                  hwd * (grad_pw * grad_pd.transpose() + grad_pd * grad_pw.transpose());
         }
         const Matrix12 K = -scale * H - fibre_hessian;
-        const size_t ci = static_cast<size_t>(&cell - m_cells.data());
         for (int a = 0; a < 4; ++a)
             for (int b = 0; b < 4; ++b) {
                 const Matrix3d block = K.block<3, 3>(3 * a, 3 * b);
