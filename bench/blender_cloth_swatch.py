@@ -104,7 +104,11 @@ def main():
             sys.exit("--start-positions: expected %d float64 values, found %d" % (3 * rows * cols, len(raw) // 8))
         values = struct.unpack("<%dd" % (3 * rows * cols), raw)
         start = [tuple(values[3 * i:3 * i + 3]) for i in range(rows * cols)]
-        basis = obj.shape_key_add(name="Basis")
+        # Blender takes the rest shape from the cache's first frame unless
+        # rest_shape_key names a key other than the basis: the flat grid is
+        # kept as a key of its own so that the start does not become the rest.
+        obj.shape_key_add(name="Basis")
+        obj.shape_key_add(name="flat")
         moved = obj.shape_key_add(name="start")
         for i, co in enumerate(start):
             moved.data[i].co = co
@@ -154,7 +158,7 @@ def main():
     s.time_scale = math.sqrt(1000.0) / fps  # gravity 9.81 m/s^2 at this fps, as the captures
     s.vertex_group_mass = "pin"
     if start:
-        s.rest_shape_key = obj.data.shape_keys.key_blocks["Basis"]
+        s.rest_shape_key = obj.data.shape_keys.key_blocks["flat"]
     cloth.collision_settings.use_collision = False
     cloth.collision_settings.use_self_collision = False
     cloth.point_cache.frame_start = 1
