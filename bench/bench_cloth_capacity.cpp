@@ -114,6 +114,7 @@ struct Options {
     // fitting (does the objective prefer the fabric nearer the truth?).
     std::vector<std::string> score;
     double budget_seconds = 0.0;  // fit cloth --budget-seconds (0: the evaluations alone end the fit)
+    std::optional<double> shear_cells;  // fit cloth --shear-cells (unset: its default for the fit target)
     // With --score: each preset's held-out waving-2 prediction is repeated
     // with its bending and air drag changed by k parts in a million (k = 1..N,
     // both signs), as the captures' README measured Blender's own chaos.
@@ -578,6 +579,10 @@ int main(int argc, char** argv) {
         else if (a == "--outside-band") o.outside_band_px = std::atof(value().c_str());
         else if (a == "--score") o.score = flowvid::bench::comma_list(value());
         else if (a == "--budget-seconds") o.budget_seconds = std::atof(value().c_str());
+        else if (a == "--shear-cells") {
+            o.shear_cells = std::atof(value().c_str());
+            if (!(*o.shear_cells >= 0.0 && *o.shear_cells <= 1.0)) return usage("--shear-cells takes a share from 0 to 1");
+        }
         else if (a == "--chaos-members") o.chaos_members = std::atoi(value().c_str());
         else if (a == "--score-from-measured-start") o.score_from_measured_start = true;
         else if (a == "--score-start-material") o.score_start_material = value();
@@ -616,9 +621,10 @@ int main(int argc, char** argv) {
                         "  [--outside-band 16] (scan fits: background pixels this near the swatch's outline count\n"
                         "   against a simulation covering them; 0: off)\n"
                         "  [--budget-seconds 600] (each fit also ends at this wall-clock time, as fit cloth's)\n"
+                        "  [--shear-cells 0..1] (fit cloth --shear-cells; default 1 for tracks fits, else 0)\n"
                         "  [--refine-rounds N] (fit cloth --refine-rounds: searches again from the best fabric, its fold states picked again)\n"
                         "  [--score A.fabric.json,B.fabric.json] (instead of fitting: each preset's training objective\n"
-                        "   under the fit's settings and its held-out waving-2 prediction, first fabric only)\n"
+                        "   under the fit's settings, its held-out waving-2 prediction and its drapes, first fabric only)\n"
                         "  [--score-from-measured-start] (with --score: the trials start from their measured first\n"
                         "   frames, a tracks fit's start, instead of the footage's own: how much the start decides)\n"
                         "  [--score-start-material P.fabric.json] (with --score: the footage's start is chosen with\n"
@@ -700,6 +706,10 @@ int main(int argc, char** argv) {
                 const Windows held_out = predict(copies[waving2], m, o.threads);
                 std::printf("  %s held out (frame 1 / 1-10 / 11-25 / 26-end / all): %.1f / %.1f / %.1f / %.1f / %.1f mm\n",
                             waving2.c_str(), held_out.frame1, held_out.f1_10, held_out.f11_25, held_out.f26_end, held_out.all);
+                // The drapes, as the fits' rows print them: static-1 (trained on) and static-2 (held out).
+                std::printf("  static drape: %s %.1f mm", static1.c_str(), predict(copies[static1], m, o.threads).frame1);
+                if (has_static2) std::printf(", %s (held out) %.1f mm", static2.c_str(), predict(copies[static2], m, o.threads).frame1);
+                std::printf("\n");
                 if (o.chaos_members > 0) {
                     Windows low = held_out, high = held_out;
                     auto widen = [](double& lo, double& hi, double v) {
@@ -762,6 +772,7 @@ int main(int argc, char** argv) {
                 // figures since stop 56; with fit cloth's 400 the cotton fit
                 // drapes 29 mm apart on 12x12 and 24x24 instead of 19).
                 if (o.budget_seconds <= 0.0) request.problem.evaluation_equilibrium_iterations = 0;
+                request.shear_cell_fraction = o.shear_cells;
                 request.problem.second_drape_rows = o.second_drape_rows;
                 request.problem.second_drape_cols = o.second_drape_cols;
                 request.parameters = variant_parameters(variant);

@@ -43,6 +43,10 @@ const std::vector<FabricParameterInfo>& fabric_parameter_table() {
         {"diagonal_tension_stiffness_N_per_m", "N/m", true,
          "tension-only fibres along both diagonals of the weave (they resist shear where pulled, not in folds)",
          &P::diagonal_tension_stiffness_N_per_m, "1.1", 0.0},
+        {"shear_cell_fraction", "1", true,
+         "share (0..1) of the shear stiffness read on a grid mesh's cells, at all four corners, where a fold along "
+         "either diagonal is not shear, instead of across each triangle (0: across each triangle)",
+         &P::shear_cell_fraction, "1.2", 0.0},
     };
     return table;
 }

@@ -142,7 +142,11 @@ TEST(Cli, ConvertSvgToFlowLinesAndBack) {
 // mistakes a user makes (no --mesh, wrong output type, a broken mesh).
 TEST(Cli, ConvertFabricPresetToU3mUsdaBlenderAndBack) {
     const std::string dir = scratch_dir("cli_convert_preset");
-    const nlohmann::json original = nlohmann::json::parse(read_text(example_preset()));
+    // Written back as the current version: the example's 1.1 parameters and
+    // the one 1.2 added at its neutral value.
+    nlohmann::json original = nlohmann::json::parse(read_text(example_preset()));
+    original["version"] = "1.2";
+    original["parameters"]["shear_cell_fraction"] = {{"value", 0.0}};
     for (const char* type : {".u3m", ".usda"}) {
         const std::string converted = dir + "/cotton" + type;
         CliResult to = run_flowvid({"convert", example_preset(), converted});

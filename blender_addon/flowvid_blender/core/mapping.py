@@ -86,13 +86,14 @@ class Mapping:
     derived: dict = field(default_factory=dict)      # intermediate quantities (tau, spring constants, ...)
 
 
-# Parameters added in format 1.1 and their neutral values (a 1.0 preset lacks them).
+# Parameters added since format 1.0 and their neutral values (an older preset lacks them).
 OPTIONAL_PARAMETERS = {
     "stretch_warp_compression_ratio": 1.0,
     "stretch_weft_compression_ratio": 1.0,
     "drag_linear_normal_kg_per_m2_s": 0.0,
     "hem_line_density_kg_per_m": 0.0,
     "diagonal_tension_stiffness_N_per_m": 0.0,
+    "shear_cell_fraction": 0.0,  # 1.2: where a grid reads the shear; Blender's springs need no mapping of it
 }
 
 
@@ -298,6 +299,7 @@ def parameters_from_settings(settings, mesh, areal_density_kg_per_m2=0.15,
         "drag_linear_normal_kg_per_m2_s": c_drag,
         "hem_line_density_kg_per_m": 0.0,
         "diagonal_tension_stiffness_N_per_m": 0.0,
+        "shear_cell_fraction": 0.0,
     }
 
 

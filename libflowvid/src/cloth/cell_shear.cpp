@@ -11,9 +11,11 @@
 // cells also carry the tension-only diagonal fibres on both their diagonals
 // (Blender's shear springs) instead of on the triangles' edges.
 //
-// Experimental, for the capacity study (#28): off unless the environment sets
-// FLOWVID_EXPERIMENTAL_CELL_SHEAR (and/or FLOWVID_EXPERIMENTAL_CELL_FIBRES);
-// off, every triangle keeps its own shear and fibres, bit for bit.
+// The material's shear_cell_fraction (preset key since 1.2) is the share of
+// ks read on the cells; the cells' triangles keep the rest. At 0 no cells are
+// built and every triangle keeps its own shear, bit for bit. The cells' fibres
+// are experimental, for the capacity study (#28): off unless the environment
+// sets FLOWVID_EXPERIMENTAL_CELL_FIBRES.
 
 #include "flowvid/cloth/model.hpp"
 
@@ -36,10 +38,6 @@ namespace {
 using Vector12 = Eigen::Matrix<double, 12, 1>;
 using Matrix12 = Eigen::Matrix<double, 12, 12>;
 
-bool cell_shear_enabled() {
-    static const bool enabled = std::getenv("FLOWVID_EXPERIMENTAL_CELL_SHEAR") != nullptr;
-    return enabled;
-}
 bool cell_fibres_enabled() {
     static const bool enabled = std::getenv("FLOWVID_EXPERIMENTAL_CELL_FIBRES") != nullptr;
     return enabled;
@@ -49,7 +47,8 @@ bool cell_fibres_enabled() {
 void ClothModel::compute_cells() {
     m_cells.clear();
     for (TriangleData& t : m_triangles) t.shear_weight = 1.0;
-    if (!cell_shear_enabled() && !cell_fibres_enabled()) return;
+    m_cells_fraction = m_material.shear_cell_fraction;
+    if (m_cells_fraction == 0.0 && !cell_fibres_enabled()) return;
     const double c = std::cos(m_material.bias_angle_rad), s = std::sin(m_material.bias_angle_rad);
     const Eigen::Vector2d warp(c, s), weft(-s, c);
     std::map<std::array<int, 3>, size_t> triangle_of;
@@ -105,14 +104,14 @@ void ClothModel::compute_cells() {
         }
         m_cells.push_back(cell);
     }
-    if (cell_shear_enabled())
-        for (size_t ti = 0; ti < m_triangles.size(); ++ti)
-            if (claimed[ti]) m_triangles[ti].shear_weight = 0.0;
+    // The cells' triangles keep the share not read on the cells.
+    for (size_t ti = 0; ti < m_triangles.size(); ++ti)
+        if (claimed[ti]) m_triangles[ti].shear_weight = 1.0 - m_cells_fraction;
 }
 
 void ClothModel::add_cell_shear(const Eigen::VectorXd& x, Eigen::VectorXd* f, double* energy, BlockSparseMatrix* dfdx,
                                 JacobianMode mode, Linearization* lin, const Eigen::VectorXd* product_of) const {
-    const double ks = cell_shear_enabled() ? m_material.shear_N_per_m : 0.0;
+    const double ks = m_material.shear_cell_fraction * m_material.shear_N_per_m;
     const double kd = m_material.diagonal_tension_N_per_m;
     if (m_cells.empty() || (ks == 0.0 && kd == 0.0)) return;
     const bool exact = mode == JacobianMode::exact;

@@ -1,6 +1,7 @@
 #include "flowvid/cloth/material.hpp"
 
 #include <cmath>
+#include <iterator>
 #include <utility>
 
 namespace flowvid::cloth {
@@ -31,6 +32,7 @@ const Binding kBindings[] = {
     {&formats::FabricParameters::drag_linear_normal_kg_per_m2_s, &ClothMaterial::drag_linear_normal_kg_per_m2_s},
     {&formats::FabricParameters::hem_line_density_kg_per_m, &ClothMaterial::hem_line_density_kg_per_m},
     {&formats::FabricParameters::diagonal_tension_stiffness_N_per_m, &ClothMaterial::diagonal_tension_N_per_m},
+    {&formats::FabricParameters::shear_cell_fraction, &ClothMaterial::shear_cell_fraction},
 };
 
 const char* preset_key(formats::FabricParameter formats::FabricParameters::*member) {
@@ -84,6 +86,9 @@ std::vector<Problem> check_material(const ClothMaterial& material) {
     }
     if (std::isfinite(material.areal_density_kg_per_m2) && !(material.areal_density_kg_per_m2 > 0.0))
         add(kBindings[0], "must be positive (the cloth needs mass)", "give the fabric's areal density in kg/m^2");
+    if (std::isfinite(material.shear_cell_fraction) && !(material.shear_cell_fraction >= 0.0 && material.shear_cell_fraction <= 1.0))
+        add(kBindings[std::size(kBindings) - 1], "is a share and must lie in [0, 1]",
+            "give 0 (shear read across each triangle), 1 (on a grid's cells) or a share between");
     // The optional terms are not preset keys: named by their members.
     const std::pair<const char*, double> optional_terms[] = {
         {"bias_angle_rad", material.bias_angle_rad},

@@ -64,7 +64,11 @@ void ClothModel::set_material(const ClothMaterial& material) {
     std::vector<Problem> problems = check_material(material);
     if (!problems.empty()) throw ValidationError(std::move(problems));
     m_material = material;
-    if (m_material.bias_angle_rad != m_frame_bias_rad) compute_material_frames();
+    if (m_material.bias_angle_rad != m_frame_bias_rad) {
+        compute_material_frames();  // the cells too
+    } else if (m_material.shear_cell_fraction != m_cells_fraction) {
+        refresh_cells();
+    }
     m_total_mass = 0.0;
     const double hem = m_material.hem_line_density_kg_per_m;
     for (int i = 0; i < vertex_count(); ++i) {
@@ -190,6 +194,15 @@ void ClothModel::validate_and_precompute() {
     index_cells(pattern);
 }
 
+void ClothModel::refresh_cells() {
+    compute_cells();
+    // Before validate_and_precompute has built the pattern there is nothing to index.
+    if (m_cells.empty())
+        m_vertex_cell_local.clear();
+    else if (!m_pattern_pairs.empty())
+        index_cells(make_jacobian_matrix());
+}
+
 void ClothModel::index_cells(const BlockSparseMatrix& pattern) {
     // A cell's vertices are a triangle's or a hinge's wings: all in the pattern.
     m_vertex_cell_local.clear();
@@ -211,8 +224,7 @@ void ClothModel::compute_material_frames() {
                            m_mesh.material_uv_m[static_cast<size_t>(t.v[1])],
                            m_mesh.material_uv_m[static_cast<size_t>(t.v[2])], m_material.bias_angle_rad, t.alpha, t.beta);
     compute_diagonal_fibre_weights();
-    compute_cells();
-    if (!m_pattern_pairs.empty() && !m_cells.empty()) index_cells(make_jacobian_matrix());
+    refresh_cells();
     m_frame_bias_rad = m_material.bias_angle_rad;
 }
 

@@ -305,6 +305,8 @@ double default_static_weight(const TrialLoadSettings& load, const std::vector<fo
     return load.target == FitTarget::tracks && mixed ? balanced_static_weight(load) : 1.0;
 }
 
+double default_shear_cell_fraction(FitTarget target) { return target == FitTarget::tracks ? 1.0 : 0.0; }
+
 ClothTrial load_trial(const formats::Capture& capture, const TrialLoadSettings& settings) {
     if (settings.target == FitTarget::tracks) return load_tracks_trial(capture, settings);
     if (settings.target == FitTarget::scan) return load_scan_trial(capture, settings);

@@ -162,6 +162,15 @@ std::vector<ClothTrial> load_fit_trials(const ClothFitRequest& request, ClothFit
     return trials;
 }
 
+}  // namespace
+
+double resolved_shear_cell_fraction(const ClothFitRequest& request) {
+    if (request.shear_cell_fraction) return *request.shear_cell_fraction;
+    return request.start ? request.start->shear_cell_fraction : default_shear_cell_fraction(request.load.target);
+}
+
+namespace {
+
 // The problem a whole fit searches and a merge finishes: the base starts in
 // the middle of the fitted parameters' ranges.
 ClothFitProblem make_problem(const ClothFitRequest& request, std::vector<ClothTrial> trials, ClothFitOutcome& outcome) {
@@ -174,6 +183,7 @@ ClothFitProblem make_problem(const ClothFitRequest& request, std::vector<ClothTr
     }
     for (const std::string& text : request.held_parameters)
         if (const HeldParameter held = parse_held(text); held.value) set_material_parameter(settings.base, held.key, *held.value);
+    settings.base.shear_cell_fraction = resolved_shear_cell_fraction(request);
     outcome.start = settings.base;
     ClothFitProblem problem(std::move(trials), outcome.parameters, settings);
     outcome.trials = problem.trials();

@@ -64,6 +64,9 @@ ClothFitRequest cloth_fit_request_from_shard(const formats::FitShardFile& file) 
             from = comma + 1;
         }
     }
+    // Written only when not 0; shards older than the cells' shear have none.
+    request.shear_cell_fraction =
+        view.has("shear-cells") ? view.number("shear-cells", formats::NumberRange::closed(0.0, 1.0)).value_or(0.0) : 0.0;
     if (view.has("second-drape-mesh")) {  // written only when set
         const std::string text = view.string("second-drape-mesh").value_or("");
         if (const auto mesh = cloth::mesh_size_from_text(text)) {
@@ -77,7 +80,7 @@ ClothFitRequest cloth_fit_request_from_shard(const formats::FitShardFile& file) 
     const double initial_bow = view.number("initial-bow", formats::NumberRange::closed(-2.0, 2.0)).value_or(1.0);
     view.check_known_keys({"drag", "metric", "fit-to", "seed", "evaluations", "budget-seconds", "frames", "full-weight-frames",
                            "half-life-frames", "static-weight", "min-bending", "second-drape-mesh", "hold", "search",
-                           "resolution", "integrator", "initial-bow"});
+                           "resolution", "integrator", "initial-bow", "shear-cells"});
     const auto mesh = cloth::mesh_size_from_text(resolution);
     if (!mesh)
         diagnostics.error("/request/options/resolution", "\"" + resolution + "\" is not ROWSxCOLS", "run the shard again");
@@ -104,6 +107,7 @@ nlohmann::json cloth_fit_result_options(const ClothFitRequest& request) {
     if (request.load.target != FitTarget::footage) options["fit-to"] = fit_target_name(request.load.target);
     if (request.load.static_weight != 1.0) options["static-weight"] = request.load.static_weight;
     if (request.min_bending_N_m > 0.0) options["min-bending"] = request.min_bending_N_m;
+    if (const double share = resolved_shear_cell_fraction(request); share != 0.0) options["shear-cells"] = share;
     if (request.problem.has_second_drape_mesh())
         options["second-drape-mesh"] =
             std::to_string(request.problem.second_drape_rows) + "x" + std::to_string(request.problem.second_drape_cols);

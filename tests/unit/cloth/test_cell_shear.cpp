@@ -1,7 +1,9 @@
 // Shear read on a grid's cells (cell_shear.cpp): forces and Jacobians against
 // finite differences, the element-wise linearisation against the assembled
-// matrices, a pure shear's energy against the continuum's, and a cell folded
-// along either diagonal storing none.
+// matrices, a pure shear's energy against the continuum's, a cell folded
+// along either diagonal storing none, and a share of it blending the two
+// readings. The cells' fibres are experimental and switched on here for
+// every test (FLOWVID_EXPERIMENTAL_CELL_FIBRES).
 
 #include "flowvid/cloth/model.hpp"
 #include "flowvid/cloth/swatch.hpp"
@@ -16,13 +18,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace fc = flowvid::cloth;
 
 namespace {
 
 const bool kEnabled = [] {
-    setenv("FLOWVID_EXPERIMENTAL_CELL_SHEAR", "1", 1);
     setenv("FLOWVID_EXPERIMENTAL_CELL_FIBRES", "1", 1);
     return true;
 }();
@@ -36,6 +40,7 @@ fc::ClothMaterial shear_material() {
     m.bend_N_m = 2e-5;
     m.shear_damping_N_s_per_m = 0.01;
     m.diagonal_tension_N_per_m = 70.0;
+    m.shear_cell_fraction = 1.0;
     return m;
 }
 
@@ -170,4 +175,54 @@ TEST(ClothCellShear, APureShearStoresTheContinuumsEnergyAndAFoldAlongEitherDiago
                         along_edge ? "split" : "unsplit", stored);
             EXPECT_LT(stored, 1e-18);
         }
+}
+
+TEST(ClothCellShear, AShareOfTheShearOnTheCellsBlendsTheTwoReadings) {
+    const fc::ClothMesh mesh = fc::make_swatch_mesh(0.08, 0.06, 4, 5);
+    fc::ClothMaterial m = shear_material();
+    m.diagonal_tension_N_per_m = 0.0;  // the shear alone
+    const Eigen::VectorXd x = random_x(mesh, 7, 0.008);
+    const unsigned terms = fc::ForceTerm::shear;
+    const auto energy_and_force = [&](double share) {
+        m.shear_cell_fraction = share;
+        fc::ClothModel model(mesh, m);
+        return std::make_pair(model.potential_energy(x, terms), force_of(model, x, terms));
+    };
+    const auto [e0, f0] = energy_and_force(0.0);
+    const auto [e1, f1] = energy_and_force(1.0);
+    const auto [e_quarter, f_quarter] = energy_and_force(0.25);
+    std::printf("[ measured ] shear energy across triangles %.4e J, on cells %.4e J\n", e0, e1);
+    EXPECT_GT(std::abs(e1 - e0), 1e-3 * e0);  // the readings differ on this shape
+    EXPECT_NEAR(e_quarter, 0.75 * e0 + 0.25 * e1, 1e-12 * e0);
+    EXPECT_LT((f_quarter - (0.75 * f0 + 0.25 * f1)).norm(), 1e-12 * f0.norm());
+    // A share changed on a built model (as a fit does) rebuilds what it needs:
+    // the same forces and linearisation as a model built with it.
+    m.shear_cell_fraction = 0.0;
+    fc::ClothModel changed(mesh, m);
+    for (const double share : {1.0, 0.25, 0.0, 0.25}) {
+        SCOPED_TRACE(share);
+        m.shear_cell_fraction = share;
+        changed.set_material(m);
+        fc::ClothModel fresh(mesh, m);
+        EXPECT_EQ(changed.cells().size(), fresh.cells().size());
+        EXPECT_LT((force_of(changed, x, terms) - force_of(fresh, x, terms)).norm(), 1e-14 * f0.norm());
+        fc::BlockSparseMatrix a = changed.make_jacobian_matrix(), b = fresh.make_jacobian_matrix();
+        Eigen::VectorXd fa, fb;
+        changed.evaluate(x, Eigen::VectorXd::Zero(x.size()), 0.0, terms, fa, &a, nullptr, fc::JacobianMode::exact);
+        fresh.evaluate(x, Eigen::VectorXd::Zero(x.size()), 0.0, terms, fb, &b, nullptr, fc::JacobianMode::exact);
+        EXPECT_LT((a.to_dense() - b.to_dense()).norm(), 1e-14 * b.to_dense().norm());
+    }
+}
+
+TEST(ClothCellShear, AShareOutsideZeroToOneIsRefusedNamingTheKey) {
+    fc::ClothMaterial m = shear_material();
+    for (const double share : {-0.1, 1.5}) {
+        m.shear_cell_fraction = share;
+        const std::vector<flowvid::Problem> problems = fc::check_material(m);
+        ASSERT_EQ(problems.size(), 1u) << share;
+        EXPECT_EQ(problems[0].field, "/parameters/shear_cell_fraction/value");
+        EXPECT_NE(problems[0].fix.find("0 (shear read across each triangle)"), std::string::npos);
+    }
+    m.shear_cell_fraction = 1.0;
+    EXPECT_TRUE(fc::check_material(m).empty());
 }

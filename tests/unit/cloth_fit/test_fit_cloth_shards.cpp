@@ -40,7 +40,7 @@ TEST(FitClothShards, EveryOptionTravelsThroughAShardAndBack) {
                           {"full-weight-frames", 3}, {"half-life-frames", 5.0},  {"resolution", "30x20"},
                           {"integrator", "rk4"},     {"initial-bow", -1.0},       {"fit-to", "tracks"},
                           {"static-weight", 2.5},    {"min-bending", 1e-5},       {"search", "cmaes"},
-                          {"second-drape-mesh", "12x10"},
+                          {"second-drape-mesh", "12x10"},       {"shear-cells", 0.5},
                           {"hold", "stretch_warp_compression_ratio,stretch_weft_compression_ratio"}};
     const cloth_fit::ClothFitRequest request = cloth_fit::cloth_fit_request_from_shard(file);
     EXPECT_EQ(request.drag, cloth_fit::DragModel::linear);
@@ -49,6 +49,7 @@ TEST(FitClothShards, EveryOptionTravelsThroughAShardAndBack) {
     EXPECT_EQ(request.problem.swatch.cols, 20);
     EXPECT_EQ(request.problem.second_drape_rows, 12);
     EXPECT_EQ(request.problem.second_drape_cols, 10);
+    EXPECT_EQ(request.shear_cell_fraction, 0.5);
     EXPECT_DOUBLE_EQ(request.problem.swatch.simulation.position_tolerance_m, 1e-4);  // an adaptive integrator's
     EXPECT_EQ(cloth_fit::cloth_fit_result_options(request).dump(), file.shard.options.dump());
 }

@@ -45,14 +45,16 @@ TEST(FabricPreset, Version1_0FilesReadAsTheSameFabricWithNeutralNewParameters) {
     EXPECT_EQ(old.parameters.stretch_weft_compression_ratio.value, 1.0);
     EXPECT_EQ(old.parameters.drag_linear_normal_kg_per_m2_s.value, 0.0);
     EXPECT_EQ(old.parameters.hem_line_density_kg_per_m.value, 0.0);
+    EXPECT_EQ(old.parameters.shear_cell_fraction.value, 0.0);  // 1.2: shear read across each triangle
     const FabricPreset current = read_fabric_preset(example_path());
     for (const FabricParameterInfo& info : fabric_parameter_table())
         EXPECT_EQ((old.parameters.*info.member).value, (current.parameters.*info.member).value) << info.key;
-    // Written again, it is a 1.1 file with every parameter spelled out.
+    // Written again, it is a 1.2 file with every parameter spelled out.
     const std::string dir = scratch_dir("fabric_upgrade");
     write_fabric_preset(dir + "/old.fabric.json", old);
     const nlohmann::json written = nlohmann::json::parse(read_text(dir + "/old.fabric.json"));
-    EXPECT_EQ(written["version"], "1.1");
+    EXPECT_EQ(written["version"], "1.2");
+    EXPECT_EQ(written["parameters"]["shear_cell_fraction"]["value"], 0.0);
     EXPECT_EQ(written["parameters"]["stretch_weft_compression_ratio"]["value"], 1.0);
     EXPECT_EQ(read_fabric_preset(dir + "/old.fabric.json").parameters, old.parameters);
     // Only the parameters added after 1.0 are optional.

@@ -2,9 +2,9 @@
 // Fabric preset (*.fabric.json): the portable description of a fitted fabric.
 // SI units; every parameter is normalised per rest area (or per edge as stated
 // in formats/specs/fabric_preset.md) so that it does not depend on the mesh
-// resolution it was fitted on. Format name "flowvid.fabric", version 1.1
-// (1.1 added optional parameters whose absence means their neutral value, so
-// 1.0 files read as the same fabric).
+// resolution it was fitted on. Format name "flowvid.fabric", version 1.2
+// (1.1 and 1.2 added optional parameters whose absence means their neutral
+// value, so older files read as the same fabric).
 
 #include "flowvid/error.hpp"
 #include "flowvid/formats/json_fields.hpp"
@@ -21,7 +21,7 @@
 namespace flowvid::formats {
 
 inline constexpr const char* kFabricFormatName = "flowvid.fabric";
-inline constexpr FormatVersion kFabricFormatVersion{1, 1};
+inline constexpr FormatVersion kFabricFormatVersion{1, 2};
 
 // One fitted quantity: its value, an optional 1-sigma uncertainty (same unit),
 // and an optional valid range [min, max] it was searched or may be used in.
@@ -36,7 +36,8 @@ struct FabricParameter {
 };
 
 // The Baraff-Witkin fabric model with the thesis's three-parameter air drag,
-// and (since 1.1) softer compression, linear normal drag and a hem.
+// and (since 1.1) softer compression, linear normal drag and a hem, and
+// (since 1.2) where a grid mesh reads the shear.
 struct FabricParameters {
     FabricParameter areal_density_kg_per_m2;
     FabricParameter stretch_warp_stiffness_N_per_m;   // per rest area: E = k/2 * A * C^2
@@ -56,6 +57,10 @@ struct FabricParameters {
     FabricParameter drag_linear_normal_kg_per_m2_s{0.0, {}, {}};  // kL: linear drag on the normal relative velocity
     FabricParameter hem_line_density_kg_per_m{0.0, {}, {}};       // extra mass per metre of free boundary
     FabricParameter diagonal_tension_stiffness_N_per_m{0.0, {}, {}};  // tension-only fibres along the weave's diagonals
+    // Since 1.2: the share (0..1) of the shear stiffness read on a grid's
+    // cells, where a fold along either diagonal is not shear, instead of
+    // across each triangle (0: across each triangle, as 1.0 and 1.1 read it).
+    FabricParameter shear_cell_fraction{0.0, {}, {}};
 
     bool operator==(const FabricParameters& other) const;
 };

@@ -20,6 +20,12 @@ struct ClothMaterial {
     double stretch_warp_N_per_m = 150.0;     // C = |w_u| - 1
     double stretch_weft_N_per_m = 150.0;     // C = |w_v| - 1
     double shear_N_per_m = 90.0;             // C = w_u . w_v
+    // Where a grid mesh reads that shear (preset key since 1.2): this share of
+    // ks on its cells, E = ks/2 A h(P_wing, P_diagonal) at all four corners,
+    // which a fold along either diagonal leaves at zero (cell_shear.cpp), the
+    // rest across each triangle. Meshes without rectangular cells read it all
+    // on triangles. 0: across each triangle, bit for bit.
+    double shear_cell_fraction = 0.0;
     // Tension-only fibres along both diagonals of the weave, w_d = (w_u +- w_v)/sqrt 2:
     // E = k/2 * A_rest * max(|w_d| - 1, 0)^2 each. They resist shear and
     // stretch only where they are pulled, not in compressed folds (Blender's

@@ -206,8 +206,8 @@ public:
 
     // A grid cell: two triangles that share a diagonal edge and make a
     // rectangle along warp and weft. Its shear is read at all four corners
-    // (cell_shear.cpp; experimental: no cells unless the environment sets
-    // FLOWVID_EXPERIMENTAL_CELL_SHEAR or FLOWVID_EXPERIMENTAL_CELL_FIBRES).
+    // (cell_shear.cpp): built when the material's shear_cell_fraction is
+    // above 0 (or the experimental FLOWVID_EXPERIMENTAL_CELL_FIBRES is set).
     struct CellData {
         std::array<int, 4> v;                 // edge v0-v1 (the diagonal), wings v2, v3
         std::array<std::array<int, 3>, 4> corner;  // per corner: local (c, p, q), p along the warp, q the weft
@@ -223,6 +223,7 @@ public:
 private:
     void compute_cells();
     void index_cells(const BlockSparseMatrix& pattern);  // slots and the vertex -> cell map
+    void refresh_cells();  // both, after the material's cell share or frames changed
     // Fold-free cell shear and the cells' fibres (docs/cloth_model.md): their
     // forces, energy, and Jacobians or the linearisation's cell blocks.
     void add_cell_shear(const Eigen::VectorXd& x, Eigen::VectorXd* f, double* energy, BlockSparseMatrix* dfdx,
@@ -264,6 +265,7 @@ private:
     std::vector<TriangleData> m_triangles;
     std::vector<EdgeData> m_edges;
     std::vector<CellData> m_cells;
+    double m_cells_fraction = 0.0;  // the shear_cell_fraction the cells and weights were built for
     double m_frame_bias_rad = 0.0;        // the bias angle alpha, beta were computed for
     std::vector<double> m_rest_fold_rad;  // per edge; empty: all 0 (no extra work in the loops)
     std::vector<std::pair<int, int>> m_pattern_pairs;

@@ -210,6 +210,14 @@ double balanced_static_weight(const TrialLoadSettings& load);
 // to balance.
 double default_static_weight(const TrialLoadSettings& load, const std::vector<formats::Capture>& captures);
 
+// fit cloth's share of the shear read on the swatch grid's cells unless one
+// is given (ClothMaterial::shear_cell_fraction): 1 for a tracks fit, where
+// the capacity study measured it (silk's held-out drape 0.8 mm against 4.5
+// read across each triangle, cotton's whole held-out trial 20.5 against
+// 22.3-23.5; docs/cloth_model.md, "The bound remeasured"), 0 otherwise: the
+// scan and angle-map fits are measured with the shear across each triangle.
+double default_shear_cell_fraction(FitTarget target);
+
 // Reads a cloth capture's footage (or, for FitTarget::tracks, its tracks)
 // into a trial. Throws what ClothFootage and the capture readers throw
 // (ValidationError naming capture.json fields; "/tracks" for a tracks fit of

@@ -93,6 +93,10 @@ struct ClothFitRequest {
     // reach (not cotton's: docs/cloth_model.md). Unknown keys, bad values:
     // UsageError.
     std::vector<std::string> held_parameters;
+    // The share of the shear read on the swatch grid's cells (not fitted; the
+    // preset keeps it). nullopt: the start's when a start is given, else
+    // default_shear_cell_fraction(load.target).
+    std::optional<double> shear_cell_fraction;
     // The fit's start instead of the middle of the parameters' ranges (its
     // fitted values clamped into them): where the search begins, and the
     // fabric whose equilibrium picks each trial's fold state (an earlier
@@ -152,6 +156,10 @@ struct ClothFitRequest {
     Progress progress;
     const std::atomic<bool>* cancel = nullptr;
 };
+
+// The share of the shear the request's fit reads on the grid's cells: the
+// request's, else its start's, else the fit target's default.
+double resolved_shear_cell_fraction(const ClothFitRequest& request);
 
 // One search round of a fit: its start (the previous round's best, or the
 // request's start), its best point, both on this round's objective (its fold
