@@ -1,7 +1,7 @@
 #include "flowvid/cloth/material.hpp"
 
 #include <cmath>
-#include <iterator>
+#include <stdexcept>
 #include <utility>
 
 namespace flowvid::cloth {
@@ -34,6 +34,12 @@ const Binding kBindings[] = {
     {&formats::FabricParameters::diagonal_tension_stiffness_N_per_m, &ClothMaterial::diagonal_tension_N_per_m},
     {&formats::FabricParameters::shear_cell_fraction, &ClothMaterial::shear_cell_fraction},
 };
+
+const Binding& binding_of(double ClothMaterial::*member) {
+    for (const Binding& b : kBindings)
+        if (b.material == member) return b;
+    throw std::logic_error("a ClothMaterial member without a preset key");
+}
 
 const char* preset_key(formats::FabricParameter formats::FabricParameters::*member) {
     for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table())
@@ -87,7 +93,7 @@ std::vector<Problem> check_material(const ClothMaterial& material) {
     if (std::isfinite(material.areal_density_kg_per_m2) && !(material.areal_density_kg_per_m2 > 0.0))
         add(kBindings[0], "must be positive (the cloth needs mass)", "give the fabric's areal density in kg/m^2");
     if (std::isfinite(material.shear_cell_fraction) && !(material.shear_cell_fraction >= 0.0 && material.shear_cell_fraction <= 1.0))
-        add(kBindings[std::size(kBindings) - 1], "is a share and must lie in [0, 1]",
+        add(binding_of(&ClothMaterial::shear_cell_fraction), "is a share and must lie in [0, 1]",
             "give 0 (shear read across each triangle), 1 (on a grid's cells) or a share between");
     // The optional terms are not preset keys: named by their members.
     const std::pair<const char*, double> optional_terms[] = {
