@@ -203,6 +203,13 @@ TEST(CliClothFit, TracksFitFindsTheFabricThatMadeTheTracks) {
     std::printf("[measured] tracks fit of our own drape: RMS %.3f mm (start %.1f mm)\n", final_rms, start_rms);
     EXPECT_LT(final_rms, 1.0);
     EXPECT_GT(start_rms, 5.0) << "the start must miss for the check to mean anything";
+    // Its fabric reads the shear on the cells (share 1), and its floor is
+    // reported: the floor's members keep that share (a member moved past 1
+    // was refused, which lost the floor whenever the draws moved it up;
+    // ClothFloor.MembersKeepTheCellShareAndStayValid).
+    EXPECT_EQ(summary["shear_cell_fraction"], 1.0);
+    EXPECT_TRUE(summary["trials"][0]["floor"].is_number()) << fit.err;
+    EXPECT_EQ(fit.err.find("no predictability floor"), std::string::npos) << fit.err;
     const flowvid::formats::FabricPreset back = flowvid::formats::read_fabric_preset(dir + "/back.fabric.json");
     EXPECT_EQ(back.provenance.metric, "tracks_mean_square_mm2");
 

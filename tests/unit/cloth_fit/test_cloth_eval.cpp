@@ -2,6 +2,7 @@
 // fabric, its time windows, and the pixel footprint that sets the jitter.
 
 #include "flowvid/cloth_fit/cloth_eval.hpp"
+#include "flowvid/cloth/material.hpp"
 
 #include <gtest/gtest.h>
 
@@ -54,6 +55,25 @@ TEST(ClothFloor, MembersDrawParametersWithinTheirUncertaintyAndKeepTies) {
     EXPECT_EQ(again[17].jitter_seed, members[17].jitter_seed);
     floor.seed = 2;
     EXPECT_NE(draw_floor_members(fabric, floor)[17].material.bend_N_m, members[17].material.bend_N_m);
+}
+
+TEST(ClothFloor, MembersKeepTheCellShareAndStayValid) {
+    // A tracks fit's preset reads all shear on the cells (share 1): a member
+    // moved past 1 was refused, and the fit lost its floor with a warning.
+    cloth::ClothMaterial fabric;
+    fabric.shear_cell_fraction = 1.0;
+    FloorSettings floor;
+    floor.members = 64;
+    floor.relative_perturbation = 1e-3;  // larger than a fit's, so that a moved share would show
+    int refused = 0, moved_share = 0, moved_bend = 0;
+    for (const FloorMember& m : draw_floor_members(fabric, floor)) {
+        refused += cloth::check_material(m.material).empty() ? 0 : 1;
+        moved_share += m.material.shear_cell_fraction == 1.0 ? 0 : 1;
+        moved_bend += m.material.bend_N_m == fabric.bend_N_m ? 0 : 1;
+    }
+    EXPECT_EQ(refused, 0);
+    EXPECT_EQ(moved_share, 0);
+    EXPECT_EQ(moved_bend, 64);  // the fabric's own parameters still move
 }
 
 TEST(ClothFloor, PresetUncertaintyIsWhatThePresetCarries) {
