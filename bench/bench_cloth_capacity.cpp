@@ -347,11 +347,13 @@ Eigen::MatrixX3d resample(const Eigen::MatrixX3d& grid, int rows, int cols, int 
 // hanging swatch (its pins sliding in, as the captures were made) or, with
 // `start`, from those positions with the pins held. With `mass_of_grid` > 0
 // the swatch weighs what the preset gives it on that grid (the per-vertex
-// mass scaled), else the preset's mass per vertex. Cached in the scratch
-// folder by `key`. Empty on failure (printed).
+// mass scaled), else the preset's mass per vertex. `change_ppm` changes
+// the preset's bending and air damping by that many parts in a million (a
+// chaos ensemble's member). Cached in the scratch folder by `key`. Empty on
+// failure (printed).
 fc::GridFrames blender_run(const Options& o, const std::string& capture_name, const std::string& preset_capture, int grid,
                            int frames, const std::optional<Eigen::MatrixX3d>& start, int mass_of_grid, const std::string& key,
-                           const fs::path& scratch) {
+                           const fs::path& scratch, int change_ppm = 0) {
     const fs::path folder = scratch / "blender";
     fs::create_directories(folder);
     const fs::path start_file = folder / (key + ".start.raw"), positions = folder / (key + ".positions.raw");
@@ -372,6 +374,7 @@ fc::GridFrames blender_run(const Options& o, const std::string& capture_name, co
             cmd << " --quality 5";  // the captures' own quality, preroll and slide
         }
         if (mass_of_grid > 0) cmd << " --mass-of-grid " << mass_of_grid;
+        if (change_ppm != 0) cmd << " --change-ppm " << change_ppm;
         cmd << " --positions-out \"" << positions.string() << ".part\" > \"" << (folder / (key + ".log")).string() << "\" 2>&1";
         std::fprintf(stderr, "  blender: %s\n", key.c_str());
         if (std::system(cmd.str().c_str()) != 0 || !fs::exists(positions.string() + ".part")) {
@@ -397,17 +400,20 @@ fc::GridFrames blender_run(const Options& o, const std::string& capture_name, co
 // Blender's cloth with `preset_capture`'s preset on `capture`'s experiment at
 // a grid x grid mesh, started from the truth's first frame and settled for
 // 100 frames with the pins held, then driven by the pins; its RMS distance to
-// the truth per frame, read back at the truth's grid. Empty on failure.
+// the truth per frame, read back at the truth's grid. With `change_ppm`, the
+// preset's bending and air damping changed by that many parts in a million.
+// Empty on failure.
 std::vector<double> blender_rms(const Options& o, const std::string& capture_name, const std::string& preset_capture,
-                                int grid, const fs::path& scratch) {
+                                int grid, const fs::path& scratch, int change_ppm = 0) {
     const ff::Capture capture = ff::read_capture(shared_capture(capture_name));
     const ff::VertexAnimation truth = *ff::read_capture_truth_positions(capture);
     const int rows = *truth.grid_rows, cols = *truth.grid_cols;
     const fc::GridFrames real = fc::grid_frames_of(truth);
     const int frames = capture.kind == "cloth.static" ? 2 : capture.frames.count;
-    const std::string key = capture_name + "_" + preset_capture + "_" + std::to_string(grid);
-    const fc::GridFrames run =
-        blender_run(o, capture_name, preset_capture, grid, frames, resample(real.front(), rows, cols, grid, grid), 0, key, scratch);
+    const std::string key = capture_name + "_" + preset_capture + "_" + std::to_string(grid) +
+                            (change_ppm != 0 ? "_ppm" + std::to_string(change_ppm) : std::string());
+    const fc::GridFrames run = blender_run(o, capture_name, preset_capture, grid, frames, resample(real.front(), rows, cols, grid, grid),
+                                           0, key, scratch, change_ppm);
     if (run.empty()) return {};
     fc::GridFrames simulated;
     for (const Eigen::MatrixX3d& g : run) simulated.push_back(resample(g, grid, grid, rows, cols));
@@ -532,6 +538,50 @@ void print_row(const std::string& label, const Windows& w) {
                 cell(w.f11_25).c_str(), cell(w.f26_end).c_str(), cell(w.all).c_str());
 }
 
+// One prediction's chaos ensemble (the unchanged run and its members):
+// each window's range and mean over the runs, as "low-high (mean)".
+std::string ensemble_summary(const std::vector<Windows>& runs) {
+    std::string text;
+    char buffer[64];
+    for (double Windows::*window : {&Windows::frame1, &Windows::f1_10, &Windows::f11_25, &Windows::f26_end, &Windows::all}) {
+        double low = INFINITY, high = -INFINITY, sum = 0;
+        for (const Windows& w : runs) {
+            low = std::min(low, w.*window);
+            high = std::max(high, w.*window);
+            sum += w.*window;
+        }
+        std::snprintf(buffer, sizeof buffer, "%s%.1f-%.1f (%.1f)", text.empty() ? "" : " / ", low, high,
+                      sum / static_cast<double>(runs.size()));
+        text += buffer;
+    }
+    return text;
+}
+
+nlohmann::json ensemble_json(const std::vector<Windows>& runs) {
+    nlohmann::json members = nlohmann::json::array();
+    for (const Windows& w : runs) members.push_back(windows_json(w));
+    return members;
+}
+
+// With --chaos-members N: Blender's run of `preset_capture` on `capture_name`
+// again with the preset's bending and air damping changed by +-k parts in a
+// million, k = 1..N, as the fits' predictions are scored; prints each
+// window's range and mean over the runs (`unchanged` first) and records them.
+void blender_ensemble(const Options& o, const std::string& capture_name, const std::string& preset_capture, int grid,
+                      const Windows& unchanged, const fs::path& scratch, nlohmann::json& record) {
+    if (o.chaos_members <= 0) return;
+    std::vector<Windows> runs{unchanged};
+    for (int k = 1; k <= o.chaos_members; ++k)
+        for (const int sign : {1, -1}) {
+            const std::vector<double> rms = blender_rms(o, capture_name, preset_capture, grid, scratch, sign * k);
+            if (!rms.empty()) runs.push_back(windows_of(rms));
+        }
+    std::printf("|   the same changed by up to %d parts in a million (%zu runs), low-high (mean): %s mm |\n", o.chaos_members,
+                runs.size(), ensemble_summary(runs).c_str());
+    std::fflush(stdout);
+    record = ensemble_json(runs);
+}
+
 int usage(const char* message) {
     std::fprintf(stderr, "flowvid_bench_cloth_capacity: %s\n", message);
     return 2;
@@ -632,7 +682,9 @@ int main(int argc, char** argv) {
                         "  [--start-from P.fabric.json] (the fits start from this preset, its fabric also picking\n"
                         "   the fold states, instead of the middle of the ranges: a second round of a fit)\n"
                         "  [--chaos-members 0] (with --score: the prediction again with bending and drag changed by\n"
-                        "   +-k parts in a million, k = 1..N: the spread chaos alone gives each window)\n"
+                        "   +-k parts in a million, k = 1..N; Blender's waving rows likewise, its preset's bending\n"
+                        "   and air damping changed: each window's range and mean over the runs, the spread chaos\n"
+                        "   alone gives it)\n"
                         "  [--search annealing|cmaes] (the search after the design, as fit cloth --search)\n"
                         "  [--fit-to tracks|scan|footage] (scan: the footage's stripe scan, footage: its angle maps and\n"
                         "   silhouettes, instead of the tracks; the predictions are scored against truth the same way)\n");
@@ -711,11 +763,10 @@ int main(int argc, char** argv) {
                 if (has_static2) std::printf(", %s (held out) %.1f mm", static2.c_str(), predict(copies[static2], m, o.threads).frame1);
                 std::printf("\n");
                 if (o.chaos_members > 0) {
-                    Windows low = held_out, high = held_out;
-                    auto widen = [](double& lo, double& hi, double v) {
-                        lo = std::min(lo, v);
-                        hi = std::max(hi, v);
-                    };
+                    // The member runs, the unchanged one first: each window's range and mean over them.
+                    // The training objective too: how finely the fit can tell two presets apart.
+                    std::vector<Windows> members{held_out};
+                    double objective_low = e.total, objective_high = e.total, objective_sum = e.total;
                     for (int k = 1; k <= o.chaos_members; ++k)
                         for (const double sign : {1.0, -1.0}) {
                             fc::ClothMaterial changed = m;
@@ -723,17 +774,16 @@ int main(int argc, char** argv) {
                             changed.bend_N_m *= factor;
                             changed.drag_normal_kg_per_m3 *= factor;
                             changed.drag_linear_normal_kg_per_m2_s *= factor;
-                            const Windows w = predict(copies[waving2], changed, o.threads);
-                            widen(low.frame1, high.frame1, w.frame1);
-                            widen(low.f1_10, high.f1_10, w.f1_10);
-                            widen(low.f11_25, high.f11_25, w.f11_25);
-                            widen(low.f26_end, high.f26_end, w.f26_end);
-                            widen(low.all, high.all, w.all);
+                            members.push_back(predict(copies[waving2], changed, o.threads));
+                            const double objective = problem.evaluate(changed, o.threads).total;
+                            objective_low = std::min(objective_low, objective);
+                            objective_high = std::max(objective_high, objective);
+                            objective_sum += objective;
                         }
-                    std::printf("  the same changed by up to %d parts in a million (%d runs): %.1f-%.1f / %.1f-%.1f / "
-                                "%.1f-%.1f / %.1f-%.1f / %.1f-%.1f mm\n",
-                                o.chaos_members, 2 * o.chaos_members + 1, low.frame1, high.frame1, low.f1_10, high.f1_10,
-                                low.f11_25, high.f11_25, low.f26_end, high.f26_end, low.all, high.all);
+                    std::printf("  the same changed by up to %d parts in a million (%zu runs), low-high (mean): %s mm; "
+                                "training objective %.1f-%.1f (%.1f)\n",
+                                o.chaos_members, members.size(), ensemble_summary(members).c_str(), objective_low, objective_high,
+                                objective_sum / static_cast<double>(members.size()));
                 }
                 std::fflush(stdout);
             }
@@ -963,6 +1013,7 @@ int main(int argc, char** argv) {
                 const Windows w = windows_of(rms);
                 print_row("Blender " + fabric + " preset, " + std::to_string(grid) + "x" + std::to_string(grid) + " mesh", w);
                 record[fabric]["blender"][std::to_string(grid)] = windows_json(w);
+                blender_ensemble(o, waving2, waving2, grid, w, scratch, record[fabric]["blender_chaos"][std::to_string(grid)]);
                 const std::string drape = has_static2 ? static2 : static1;
                 const std::vector<double> drape_rms = blender_rms(o, drape, drape, grid, scratch);
                 if (!drape_rms.empty()) {
@@ -991,6 +1042,7 @@ int main(int argc, char** argv) {
                 const Windows w = windows_of(wrong);
                 print_row("Blender " + other + " preset (wrong fabric), 24x24", w);
                 record[fabric]["blender_wrong_fabric"] = windows_json(w);
+                blender_ensemble(o, waving2, wrong_preset, 24, w, scratch, record[fabric]["blender_wrong_fabric_chaos"]);
             }
         }
     }

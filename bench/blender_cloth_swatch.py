@@ -48,6 +48,9 @@ def parse_args():
     p.add_argument("--mass-of-grid", type=int, default=0,
                    help="scale the preset's per-vertex mass so that the swatch weighs what it does on an N x N grid "
                         "(e.g. 24: the captures' total mass on any mesh); 0: the preset's mass per vertex")
+    p.add_argument("--change-ppm", type=float, default=0.0,
+                   help="change the preset's bending stiffness and air damping by this many parts in a million "
+                        "(a member of a chaos ensemble: how far a change far below any measurement moves the run)")
     p.add_argument("--positions-out", default="", help="optional: write the baked vertex positions (raw float64)")
     return p.parse_args(argv)
 
@@ -155,6 +158,10 @@ def main():
     s.compression_damping = preset.get("compression_damping", 5.0)
     s.shear_damping = preset.get("shear_damping", 5.0)
     s.air_damping = preset.get("air_damping", 1.0)
+    if args.change_ppm:
+        factor = 1.0 + 1e-6 * args.change_ppm
+        s.bending_stiffness *= factor
+        s.air_damping *= factor
     s.time_scale = math.sqrt(1000.0) / fps  # gravity 9.81 m/s^2 at this fps, as the captures
     s.vertex_group_mass = "pin"
     if start:
