@@ -63,11 +63,13 @@ cloth::ClothMaterial perturbed(const cloth::ClothMaterial& material, const Floor
     cloth::ClothMaterial m = material;
     std::map<std::pair<double, double>, double> tied_draws;  // (value, sigma) -> its normal draw
     for (const formats::FabricParameterInfo& info : formats::fabric_parameter_table()) {
-        // The cell share says how the model reads shear, not what the fabric
-        // is: no measurement spreads it, and moved past 1 it is refused.
-        if (info.member == &formats::FabricParameters::shear_cell_fraction) continue;
         const double value = material_parameter(material, info.key);
-        double moved = value * (1.0 + floor.relative_perturbation * random.symmetric());
+        const double jiggle = random.symmetric();
+        // The cell share says how the model reads shear, not what the fabric
+        // is: no measurement spreads it, and moved past 1 it is refused. Its
+        // draw is still taken, so that every other member stays as it was.
+        if (info.member == &formats::FabricParameters::shear_cell_fraction) continue;
+        double moved = value * (1.0 + floor.relative_perturbation * jiggle);
         const auto sigma = floor.parameter_sigma.find(info.key);
         if (sigma != floor.parameter_sigma.end() && sigma->second > 0.0 && value > 0.0) {
             const auto [draw, fresh] = tied_draws.try_emplace({value, sigma->second}, 0.0);
